@@ -1,0 +1,266 @@
+"""State estimation (estimation task group): a velocity-aided complementary filter (INS/AHRS).
+
+What the controllers use is this estimate, not the truth (a switch, ``use_truth``, passes the truth
+through for debugging). Structure, as in small autopilots' INS/AHRS pair (seed 002 Fig. 2):
+
+* Prediction at the main-loop rate: the attitude integrates the gyro minus its estimated bias; the
+  position and velocity integrate the accelerometer rotated to NED plus gravity, minus an estimated
+  world-frame acceleration bias.
+* Position correction (GPS or motion capture, at their rate, delayed by their latency): the innovation
+  against the *delayed* estimate drives a third-order observer (position, velocity, acceleration bias;
+  triple pole at ``pos_bw`` rad/s). GPS velocity, when given, corrects the velocity.
+* Tilt correction from the same innovation (velocity-aided AHRS): a tilt error delta makes the predicted
+  horizontal acceleration wrong by g*delta, so the velocity correction dv tells the tilt error; the
+  attitude is rotated by k_tilt * (dv x z) and the gyro bias integrates it.
+* Heading correction from the compass (or the motion-capture yaw); gravity alignment from the
+  accelerometer only while resting on the ground (where it is exact).
+* Altitude from the barometer is blended when the position source is GPS.
+
+The 500 Hz prediction is a numba kernel; the corrections run at the sensors' (lower) rates.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+
+import numpy as np
+from numba import njit
+
+from autopilot_model.modules.sensors import Barometer, Compass, Imu, PositionSensor
+from autopilot_model.physics.quadrotor import Quadrotor
+
+GRAVITY = 9.80665
+
+
+@njit(cache=True, fastmath=True)
+def ins_predict(est, gyro, accel, gbias, abias, dt, acc_w):  # pragma: no cover - numba
+    """est = [p(3), v(3), q(4), w(3)]; integrates one IMU sample; writes NED acceleration to acc_w."""
+    wx = gyro[0] - gbias[0]
+    wy = gyro[1] - gbias[1]
+    wz = gyro[2] - gbias[2]
+    qw = est[6]
+    qx = est[7]
+    qy = est[8]
+    qz = est[9]
+    hdt = 0.5 * dt
+    nqw = qw + hdt * (-qx * wx - qy * wy - qz * wz)
+    nqx = qx + hdt * (qw * wx + qy * wz - qz * wy)
+    nqy = qy + hdt * (qw * wy - qx * wz + qz * wx)
+    nqz = qz + hdt * (qw * wz + qx * wy - qy * wx)
+    n = 1.0 / math.sqrt(nqw * nqw + nqx * nqx + nqy * nqy + nqz * nqz)
+    qw = nqw * n
+    qx = nqx * n
+    qy = nqy * n
+    qz = nqz * n
+    est[6] = qw
+    est[7] = qx
+    est[8] = qy
+    est[9] = qz
+    est[10] = wx
+    est[11] = wy
+    est[12] = wz
+    fx = accel[0]
+    fy = accel[1]
+    fz = accel[2]
+    ax = (1.0 - 2.0 * (qy * qy + qz * qz)) * fx + 2.0 * (qx * qy - qw * qz) * fy + 2.0 * (qx * qz + qw * qy) * fz
+    ay = 2.0 * (qx * qy + qw * qz) * fx + (1.0 - 2.0 * (qx * qx + qz * qz)) * fy + 2.0 * (qy * qz - qw * qx) * fz
+    az = 2.0 * (qx * qz - qw * qy) * fx + 2.0 * (qy * qz + qw * qx) * fy + (1.0 - 2.0 * (qx * qx + qy * qy)) * fz
+    ax -= abias[0]
+    ay -= abias[1]
+    az += 9.80665 - abias[2]
+    acc_w[0] = ax
+    acc_w[1] = ay
+    acc_w[2] = az
+    est[3] += ax * dt
+    est[4] += ay * dt
+    est[5] += az * dt
+    est[0] += est[3] * dt
+    est[1] += est[4] * dt
+    est[2] += est[5] * dt
+
+
+def _rotate_world(est: np.ndarray, cx: float, cy: float, cz: float) -> None:
+    """Rotate the attitude estimate by the small world-frame rotation vector c: q <- dq(c) (x) q."""
+    qw, qx, qy, qz = est[6], est[7], est[8], est[9]
+    hx, hy, hz = 0.5 * cx, 0.5 * cy, 0.5 * cz
+    nw = qw - hx * qx - hy * qy - hz * qz
+    nx = qx + hx * qw + hy * qz - hz * qy
+    ny = qy - hx * qz + hy * qw + hz * qx
+    nz = qz + hx * qy - hy * qx + hz * qw
+    n = 1.0 / math.sqrt(nw * nw + nx * nx + ny * ny + nz * nz)
+    est[6], est[7], est[8], est[9] = nw * n, nx * n, ny * n, nz * n
+
+
+def _world_to_body(est: np.ndarray, v: tuple[float, float, float]) -> tuple[float, float, float]:
+    qw, qx, qy, qz = est[6], est[7], est[8], est[9]
+    x, y, z = v
+    return (
+        (1 - 2 * (qy * qy + qz * qz)) * x + 2 * (qx * qy + qw * qz) * y + 2 * (qx * qz - qw * qy) * z,
+        2 * (qx * qy - qw * qz) * x + (1 - 2 * (qx * qx + qz * qz)) * y + 2 * (qy * qz + qw * qx) * z,
+        2 * (qx * qz + qw * qy) * x + 2 * (qy * qz - qw * qx) * y + (1 - 2 * (qx * qx + qy * qy)) * z,
+    )
+
+
+def _yaw_of(est: np.ndarray) -> float:
+    qw, qx, qy, qz = est[6], est[7], est[8], est[9]
+    return math.atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
+
+
+class Estimator:
+    """INS/AHRS producing ``est`` = [p(3), v(3), q(4), body rates(3)] and ``acc`` (NED acceleration)."""
+
+    def __init__(self, imu: Imu, pos: PositionSensor, baro: Barometer, compass: Compass, dt: float,
+                 world: Quadrotor | None = None, use_truth: bool = False) -> None:
+        self.imu = imu
+        self.pos = pos
+        self.baro = baro
+        self.compass = compass
+        self.dt = dt
+        self.world = world
+        self.use_truth = use_truth
+        self.est = np.zeros(13)
+        self.est[6] = 1.0
+        self.acc = np.zeros(3)
+        self.gbias = np.zeros(3)
+        self.abias = np.zeros(3)
+        self.on_ground = True
+        mocap = pos.noise.pos_source == "mocap"
+        self.pos_bw = 6.0 if mocap else 1.2     # rad/s, position observer poles
+        self.k_tilt = 0.25 if mocap else 0.08   # rad per (m/s) of velocity correction
+        self.k_gbias = 0.05
+        self.k_yaw = 1.5                        # 1/s
+        self.k_grav = 2.0                       # 1/s, only on the ground
+        self.baro_weight = 0.0 if mocap else 0.3
+        self._hist: deque[tuple[float, float, float, float, float, float, float]] = deque(maxlen=512)
+        self.initialised = False
+        self.time_s = 0.0
+        self.healthy = False
+
+    # -- estimation periodic (main-loop rate)
+    def periodic(self, now_s: float) -> None:
+        self.time_s = now_s
+        if self.use_truth and self.world is not None:
+            x = self.world.x
+            self.est[:] = x
+            self.acc[:] = self.world.out[4:7]
+            self.healthy = self.pos.sample is not None
+            self.initialised = True
+            return
+        if not self.initialised:
+            self._initialise()
+            if not self.initialised:
+                return
+        ins_predict(self.est, self.imu.gyro, self.imu.accel, self.gbias, self.abias, self.dt, self.acc)
+        e = self.est
+        self._hist.append((now_s, e[0], e[1], e[2], e[3], e[4], e[5]))
+        if self.pos.fresh:
+            self.pos.fresh = False
+            self._correct_position()
+        if self.compass.fresh:
+            self.compass.fresh = False
+            self._correct_heading()
+        if self.baro.fresh:
+            self.baro.fresh = False
+            self._correct_baro()
+        if self.on_ground:
+            self._align_gravity()
+
+    def _initialise(self) -> None:
+        """Start from the first position fix, level, on the compass heading."""
+        if self.pos.sample is None or not self.compass.fresh:
+            return
+        s = self.pos.sample
+        self.est[:] = 0.0
+        self.est[0], self.est[1], self.est[2] = s[0], s[1], s[2]
+        yaw = self.compass.heading
+        self.est[6] = math.cos(0.5 * yaw)
+        self.est[9] = math.sin(0.5 * yaw)
+        self.pos.fresh = False
+        self.initialised = True
+        self.healthy = True
+
+    def _delayed(self, t: float) -> tuple[float, ...]:
+        hist = self._hist
+        for item in reversed(hist):
+            if item[0] <= t + 1e-9:
+                return item
+        return hist[0]
+
+    def _correct_position(self) -> None:
+        s = self.pos.sample
+        if s is None:
+            return
+        then = self._delayed(self.pos.sample_time)
+        T = 1.0 / self.pos.noise.pos_rate_hz
+        w = self.pos_bw
+        k1 = min(3.0 * w * T, 0.9)
+        k2 = 3.0 * w * w * T
+        k3 = w * w * w * T
+        e = self.est
+        dv = [0.0, 0.0, 0.0]
+        for k in range(3):
+            innov = s[k] - then[1 + k]
+            if k == 2 and self.baro_weight > 0:
+                innov *= 1.0 - self.baro_weight
+            e[k] += k1 * innov
+            e[3 + k] += k2 * innov
+            dv[k] = k2 * innov
+            self.abias[k] -= k3 * innov
+        if self.pos.is_gps and self.pos.noise.vel > 0:
+            kv = min(2.0 * w * T, 0.8)
+            for k in range(3):
+                innov_v = s[3 + k] - then[4 + k]
+                e[3 + k] += kv * innov_v
+                dv[k] += kv * innov_v
+        for k in range(3):
+            lim = 2.0
+            self.abias[k] = min(max(self.abias[k], -lim), lim)
+        if not self.on_ground:
+            # velocity-aided tilt: c = k (dv x z)
+            kt = self.k_tilt
+            cx = kt * dv[1]
+            cy = -kt * dv[0]
+            _rotate_world(e, cx, cy, 0.0)
+            cb = _world_to_body(e, (cx, cy, 0.0))
+            for k in range(3):
+                self.gbias[k] -= self.k_gbias * cb[k]
+
+    def _correct_heading(self) -> None:
+        err = self.compass.heading - _yaw_of(self.est)
+        err = (err + math.pi) % (2.0 * math.pi) - math.pi
+        rate = 1.0 / self.compass.noise.heading_rate_hz
+        cz = self.k_yaw * err * rate
+        _rotate_world(self.est, 0.0, 0.0, cz)
+        cb = _world_to_body(self.est, (0.0, 0.0, cz))
+        for k in range(3):
+            self.gbias[k] -= self.k_gbias * cb[k] * 0.2
+
+    def _correct_baro(self) -> None:
+        if self.baro_weight <= 0:
+            return
+        innov = -self.baro.alt - self.est[2]
+        T = 1.0 / self.baro.noise.baro_rate_hz
+        self.est[2] += min(2.0 * T, 0.5) * self.baro_weight * innov
+        self.est[5] += 1.0 * T * self.baro_weight * innov
+
+    def _align_gravity(self) -> None:
+        """On the ground the accelerometer measures gravity alone: pull roll and pitch to it."""
+        f = self.imu.accel
+        n = math.sqrt(f[0] * f[0] + f[1] * f[1] + f[2] * f[2])
+        if n < 1e-3:
+            return
+        fx, fy, fz = f[0] / n, f[1] / n, f[2] / n
+        vx, vy, vz = _world_to_body(self.est, (0.0, 0.0, -1.0))
+        # e = f x v (body frame), rotate the estimate so that v aligns with f
+        ex = fy * vz - fz * vy
+        ey = fz * vx - fx * vz
+        k = self.k_grav * self.dt
+        qw, qx, qy, qz = self.est[6], self.est[7], self.est[8], self.est[9]
+        hx, hy = 0.5 * k * ex, 0.5 * k * ey
+        nw = qw - qx * hx - qy * hy
+        nx = qx + qw * hx - qz * hy
+        ny = qy + qw * hy + qz * hx
+        nz = qz + qx * hy - qy * hx
+        m = 1.0 / math.sqrt(nw * nw + nx * nx + ny * ny + nz * nz)
+        self.est[6], self.est[7], self.est[8], self.est[9] = nw * m, nx * m, ny * m, nz * m

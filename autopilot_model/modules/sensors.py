@@ -1,0 +1,196 @@
+"""Simulated sensors (sensors task group, seed 002 Sec. 2): IMU, GPS, barometer, compass, and an indoor
+motion-capture position source.
+
+Each sensor samples the true state of the world (:class:`~autopilot_model.physics.quadrotor.Quadrotor`)
+and adds configurable noise, bias and latency; the estimator only ever sees these samples. Gaussian
+noise is drawn in blocks with numpy so each sample costs an index, not a random-number call.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+
+from autopilot_model.physics.quadrotor import PX, PY, PZ, QW, QX, QY, QZ, VX, VY, VZ, WX, WY, WZ, Quadrotor
+
+
+class NoiseSource:
+    """Blocks of standard normal samples from a seeded generator."""
+
+    BLOCK = 8192
+
+    def __init__(self, seed: int | None, width: int) -> None:
+        self.rng = np.random.default_rng(seed)
+        self.width = width
+        self._buf = self.rng.standard_normal((self.BLOCK, width))
+        self._i = 0
+
+    def next(self) -> np.ndarray:
+        if self._i >= self.BLOCK:
+            self._buf = self.rng.standard_normal((self.BLOCK, self.width))
+            self._i = 0
+        row = self._buf[self._i]
+        self._i += 1
+        return row
+
+
+@dataclass
+class SensorNoise:
+    """Noise figures of one sensor profile (1-sigma)."""
+
+    gyro: float = 0.003          # rad/s
+    gyro_bias: float = 0.002     # rad/s, constant per run
+    accel: float = 0.05          # m/s^2
+    accel_bias: float = 0.02     # m/s^2
+    pos_source: str = "gps"      # "gps" or "mocap"
+    pos_rate_hz: float = 10.0
+    pos_latency_s: float = 0.1
+    pos_h: float = 0.3           # m, white
+    pos_v: float = 0.5           # m
+    pos_walk: float = 0.0        # m, correlated (Gauss-Markov, 30 s) part of the position error
+    vel: float = 0.1             # m/s (GPS velocity; mocap gives none)
+    baro_rate_hz: float = 50.0
+    baro: float = 0.1            # m
+    heading_rate_hz: float = 50.0
+    heading: float = 0.01        # rad
+
+
+class Imu:
+    """Gyroscope and accelerometer: truth + constant bias + white noise, at the main-loop rate."""
+
+    def __init__(self, world: Quadrotor, noise: SensorNoise, seed: int | None) -> None:
+        self.world = world
+        self.noise = noise
+        self.src = NoiseSource(seed, 6)
+        b = np.random.default_rng(None if seed is None else seed + 100).standard_normal(6)
+        self.gyro_bias = b[:3] * noise.gyro_bias
+        self.accel_bias = b[3:] * noise.accel_bias
+        self.gyro = np.zeros(3)
+        self.accel = np.array([0.0, 0.0, -9.80665])
+
+    def periodic(self) -> None:
+        n = self.src.next()
+        x = self.world.x
+        f = self.world.out
+        ng = self.noise.gyro
+        na = self.noise.accel
+        gb = self.gyro_bias
+        ab = self.accel_bias
+        g = self.gyro
+        a = self.accel
+        g[0] = x[WX] + gb[0] + ng * n[0]
+        g[1] = x[WY] + gb[1] + ng * n[1]
+        g[2] = x[WZ] + gb[2] + ng * n[2]
+        a[0] = f[0] + ab[0] + na * n[3]
+        a[1] = f[1] + ab[1] + na * n[4]
+        a[2] = f[2] + ab[2] + na * n[5]
+
+
+class PositionSensor:
+    """GPS (or motion capture) position and velocity with white and correlated noise and a latency.
+
+    ``sample`` is the newest measurement delivered to the estimator (valid ``latency`` after it was
+    taken); ``fresh`` is set when a new one arrives and cleared by the consumer. GPS health
+    (fix type, satellites, eph/epv) is reported for telemetry and pre-arm checks.
+    """
+
+    def __init__(self, world: Quadrotor, noise: SensorNoise, main_hz: float, seed: int | None) -> None:
+        self.world = world
+        self.noise = noise
+        self.src = NoiseSource(seed, 8)
+        self.walk = [0.0, 0.0, 0.0]
+        self._pending: deque[tuple[float, tuple[float, ...]]] = deque()
+        self.sample: tuple[float, ...] | None = None  # (n, e, d, vn, ve, vd)
+        self.sample_time = 0.0  # when the sample was taken (sim s)
+        self.fresh = False
+        self.fix_type = 0
+        self.satellites = 0
+        self.enabled = True
+        self.is_gps = noise.pos_source == "gps"
+        self.eph_m = noise.pos_h * 2.0
+        self.epv_m = noise.pos_v * 2.0
+        self.time_s = 0.0
+        self.dt = 1.0 / noise.pos_rate_hz
+
+    def periodic(self, now_s: float) -> None:
+        """Take a sample (called at the sensor's own rate) and deliver those whose latency elapsed."""
+        self.time_s = now_s
+        if not self.enabled:
+            self.fix_type = 0
+            self.satellites = 0
+            return
+        nz = self.noise
+        n = self.src.next()
+        x = self.world.x
+        if nz.pos_walk > 0:
+            a = self.dt / 30.0
+            s = nz.pos_walk * math.sqrt(2 * a)
+            for k in range(3):
+                self.walk[k] += -self.walk[k] * a + s * n[5 + k] * (1.0 if k < 2 else 1.5)
+        meas = (
+            x[PX] + nz.pos_h * n[0] + self.walk[0],
+            x[PY] + nz.pos_h * n[1] + self.walk[1],
+            x[PZ] + nz.pos_v * n[2] + self.walk[2],
+            x[VX] + nz.vel * n[3],
+            x[VY] + nz.vel * n[4],
+            x[VZ] + nz.vel * n[3] * 0.5 + nz.vel * n[4] * 0.5,
+        )
+        self._pending.append((now_s, meas))
+        while self._pending and now_s - self._pending[0][0] >= nz.pos_latency_s - 1e-9:
+            self.sample_time, self.sample = self._pending.popleft()
+            self.fresh = True
+        self.fix_type = 3 if self.sample is not None else 0
+        self.satellites = 14 if self.sample is not None else 0
+
+
+class Barometer:
+    """Altitude (m up from home) with white noise and a slow drift."""
+
+    def __init__(self, world: Quadrotor, noise: SensorNoise, seed: int | None) -> None:
+        self.world = world
+        self.noise = noise
+        self.src = NoiseSource(seed, 2)
+        self.drift = 0.0
+        self.alt = 0.0
+        self.fresh = False
+
+    def periodic(self) -> None:
+        n = self.src.next()
+        self.drift += 0.002 * n[1]
+        self.alt = -self.world.x[PZ] + self.noise.baro * n[0] + self.drift
+        self.fresh = True
+
+
+class Compass:
+    """Heading (rad, from north) with white noise: a magnetometer after calibration, or mocap yaw."""
+
+    def __init__(self, world: Quadrotor, noise: SensorNoise, seed: int | None) -> None:
+        self.world = world
+        self.noise = noise
+        self.src = NoiseSource(seed, 1)
+        self.heading = 0.0
+        self.fresh = False
+
+    def periodic(self) -> None:
+        x = self.world.x
+        qw, qx, qy, qz = x[QW], x[QX], x[QY], x[QZ]
+        yaw = math.atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
+        self.heading = yaw + self.noise.heading * self.src.next()[0]
+        self.fresh = True
+
+
+PROFILES: dict[str, SensorNoise] = {
+    # seed 000's indoor flight: position from motion capture (about 1 cm), no GPS velocity
+    "indoor": SensorNoise(pos_source="mocap", pos_rate_hz=100.0, pos_latency_s=0.01, pos_h=0.01, pos_v=0.01,
+                          pos_walk=0.0, vel=0.0, baro=0.05, heading=0.005),
+    # outdoor GPS-grade: 10 Hz, 0.1 s latency, metre-level correlated error
+    "outdoor": SensorNoise(pos_source="gps", pos_rate_hz=10.0, pos_latency_s=0.1, pos_h=0.15, pos_v=0.25,
+                           pos_walk=0.5, vel=0.08, baro=0.1, heading=0.01),
+    # no noise at all (for debugging and exact tests)
+    "perfect": SensorNoise(gyro=0.0, gyro_bias=0.0, accel=0.0, accel_bias=0.0, pos_source="gps",
+                           pos_rate_hz=50.0, pos_latency_s=0.0, pos_h=0.0, pos_v=0.0, vel=0.0, baro=0.0,
+                           heading=0.0),
+}

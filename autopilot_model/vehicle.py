@@ -1,0 +1,266 @@
+"""One simulated vehicle: the autopilot model and the world it flies in (seed 002 Fig. 2 and 4).
+
+Assembly: airframe YAML -> parameters, physics (world), sensors, estimator, state interface, setpoint
+generator (guidance), cascaded PID (control), mixer (actuators), navigator, battery monitor; the module
+library YAML -> a static schedule (two-pass topological sort, task groups, prescalers and offsets) run by
+the main loop at 500 Hz on one :class:`~taskflight.clock.SimClock`. The world steps once per iteration
+after the autopilot's functions, so the autopilot sees the world one period late, as a real one does.
+
+This class is also the small Python API that tests use to command the model (issue 2); the MAVLink
+endpoint (issue 3) registers its own module functions with :meth:`Vehicle.register`.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+from autopilot_model.airframe import CONFIG_DIR, Airframe, load_airframe
+from autopilot_model.modules.actuators import Mixer
+from autopilot_model.modules.control import CascadedController
+from autopilot_model.modules.estimation import Estimator
+from autopilot_model.modules.guidance import Envelope, SetpointGenerator
+from autopilot_model.modules.navigation import Navigator
+from autopilot_model.modules.sensors import PROFILES, Barometer, Compass, Imu, PositionSensor
+from autopilot_model.params import ParamStore
+from autopilot_model.physics.battery import Battery
+from autopilot_model.physics.quadrotor import Quadrotor
+from autopilot_model.physics.wind import Wind
+from autopilot_model.scheduler.mainloop import MainLoop
+from autopilot_model.scheduler.schedule import build_schedule
+from autopilot_model.scheduler.spec import load_modules
+from autopilot_model.state import StateInterface
+from taskflight.clock import SimClock
+
+log = logging.getLogger(__name__)
+
+DEFAULT_MODULES = CONFIG_DIR / "modules.yaml"
+# ArduPilot SITL's default home (CMAC, Canberra): lat, lon, alt AMSL, heading
+DEFAULT_HOME = (-35.363261, 149.165230, 584.0, 353.0)
+
+
+class Vehicle:
+    """An autopilot model instance with its world; see the module docstring."""
+
+    def __init__(self, airframe: Airframe, modules_file: str | Path = DEFAULT_MODULES,
+                 home: Sequence[float] = DEFAULT_HOME, speedup: float = 0.0, instance: int = 0,
+                 sensors: str | None = None, use_truth: bool = False, seed: int | None = 0,
+                 offset_heuristic: str = "optimised", extra_select: Sequence[str] = ()) -> None:
+        self.airframe = airframe
+        self.instance = instance
+        self.home = (float(home[0]), float(home[1]), float(home[2]))
+        self.home_heading_deg = float(home[3]) if len(home) > 3 else 0.0
+        self.clock = SimClock(speedup)
+        self.params = ParamStore()
+        self._functions: dict[str, Callable[[], object]] = {}
+        self._extra_select = list(extra_select)
+        self._modules_file = Path(modules_file)
+        self._heuristic = offset_heuristic
+        af = airframe
+
+        # --- world
+        self.world = Quadrotor(af.mass, af.inertia, af.arm_length, af.k_t, af.k_q, af.motor_tau,
+                               af.max_speed, af.drag_linear, af.drag_quadratic, af.drag_rotational)
+        self.world.place(yaw=math.radians(self.home_heading_deg))
+        self.wind = Wind(af.wind_mean, af.gust_sigma, af.gust_max, af.gust_tau, seed=seed)
+        self.battery = Battery(af.battery_cells, af.battery_capacity_mah, af.battery_r)
+        self.main_hz = 500.0
+        self.dt = 1.0 / self.main_hz
+        self._battery_acc = 0.0
+        self.battery_voltage = 0.0
+
+        # --- sensors and estimation
+        profile = sensors or af.sensors
+        if profile not in PROFILES:
+            raise ValueError(f"unknown sensor profile '{profile}' (one of {', '.join(PROFILES)})")
+        self.sensor_profile = profile
+        noise = PROFILES[profile]
+        s = None if seed is None else seed * 7919 + 11
+        self.imu = Imu(self.world, noise, s)
+        self.gps = PositionSensor(self.world, noise, self.main_hz, None if s is None else s + 1)
+        self.baro = Barometer(self.world, noise, None if s is None else s + 2)
+        self.compass = Compass(self.world, noise, None if s is None else s + 3)
+        self.estimator = Estimator(self.imu, self.gps, self.baro, self.compass, self.dt, self.world, use_truth)
+        self.state = StateInterface(origin=self.home)
+
+        # --- guidance, control, actuators
+        env = af.envelope
+        self.envelope = Envelope(
+            box=env.get("box"), polygon=env.get("polygon"),
+            alt_floor=env["alt_floor"], alt_ceiling=env["alt_ceiling"],
+            max_speed_h=env["max_speed_h"], max_speed_up=env["max_speed_up"],
+            max_speed_down=env["max_speed_down"], max_accel_h=env["max_accel_h"],
+            max_accel_v=env["max_accel_v"], max_yaw_rate=math.radians(env["max_yaw_rate"]))
+        self.guidance = SetpointGenerator(self.envelope, self.dt)
+        self.guidance.reset((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), math.radians(self.home_heading_deg))
+        self.control = CascadedController(self.params, af.mass, af.inertia, 4 * af.thrust_max, self.dt)
+        for name, value in af.gains.items():
+            if name not in self.params:
+                raise ValueError(f"{af.source}: gains.{name}: unknown control parameter")
+            self.params.set(name, value)
+        self.mixer = Mixer(self.world.mx, self.world.my, self.world.spin, af.torque_ratio, af.thrust_max,
+                           af.spin_armed)
+        self.nav = Navigator(self)
+
+        # --- module functions (the registry the schedule binds to)
+        self.register("imu.periodic", self.imu.periodic)
+        self.register("gps.periodic", self._gps_periodic)
+        self.register("baro.periodic", self.baro.periodic)
+        self.register("compass.periodic", self.compass.periodic)
+        self.register("ins.periodic", self._ins_periodic)
+        self.register("guidance.periodic", self.guidance.update)
+        self.register("nav.periodic", self._nav_periodic)
+        self.register("control.periodic", self._control_periodic)
+        self.register("mixer.periodic", self._mixer_periodic)
+        self.register("battery.periodic", self._battery_periodic)
+        self.loop: MainLoop | None = None
+        self._gps_next = 0.0
+
+    # --- construction helpers ----------------------------------------------------------------------
+    @classmethod
+    def from_files(cls, airframe: str | Path | None = None, modules: str | Path | None = None,
+                   **kwargs: object) -> Vehicle:
+        """Build from an airframe YAML (default: the bundled Quad X) and a module library YAML."""
+        af = load_airframe(airframe)
+        return cls(af, modules or DEFAULT_MODULES, **kwargs)  # type: ignore[arg-type]
+
+    def register(self, name: str, fn: Callable[[], object]) -> None:
+        """Make a module function available to the schedule (before :meth:`start`)."""
+        if self.loop is not None:
+            raise RuntimeError(f"cannot register {name}: the main loop is already built")
+        self._functions[name] = fn
+
+    def select(self, *modules: str) -> None:
+        """Add modules to the airframe's selection (the MAVLink endpoint adds its own)."""
+        if self.loop is not None:
+            raise RuntimeError("cannot select modules: the main loop is already built")
+        self._extra_select.extend(modules)
+
+    def selection(self, config_select: Sequence[str]) -> list[str]:
+        sel = list(config_select)
+        if self.gps.noise.pos_source == "mocap":
+            sel = ["mocap" if m == "gps" else m for m in sel]
+        for m in self._extra_select:
+            if m not in sel:
+                sel.append(m)
+        return sel
+
+    def start(self) -> MainLoop:
+        """Resolve the modules, build the static schedule and run the init functions."""
+        if self.loop is None:
+            config = load_modules(self._modules_file)
+            self.main_hz = config.main_loop_hz
+            schedule = build_schedule(config, self._functions, select=self.selection(config.select),
+                                      heuristic=self._heuristic)
+            self.loop = MainLoop(schedule, self.clock, self._world_step)
+            self.loop.run_init()
+        return self.loop
+
+    # --- module functions ---------------------------------------------------------------------------
+    def _gps_periodic(self) -> None:
+        now = self.clock.now()
+        if now + 1e-9 >= self._gps_next:
+            self._gps_next = now + self.gps.dt
+            self.gps.periodic(now)
+
+    def _ins_periodic(self) -> None:
+        est = self.estimator
+        est.on_ground = self.nav.landed_state == 1 and not self.nav.spooled
+        est.periodic(self.clock.now())
+        e = est.est
+        st = self.state
+        st.set_position_ned((e[0], e[1], e[2]))
+        st.set_velocity_ned((e[3], e[4], e[5]))
+        st.set_quat((e[6], e[7], e[8], e[9]))
+        st.set_body_rates((e[10], e[11], e[12]))
+        st.set_acceleration_ned((est.acc[0], est.acc[1], est.acc[2]))
+        st.time_us = self.clock.now_us
+
+    def _nav_periodic(self) -> None:
+        self.nav.periodic(0.02)
+
+    def _control_periodic(self) -> None:
+        if not (self.nav.armed and self.nav.spooled):
+            self.control.reset()
+            return
+        g = self.guidance
+        self.control.step(self.estimator.est, g.p, g.v, g.a, g.yaw, g.yaw_rate)
+
+    def _mixer_periodic(self) -> None:
+        self.mixer.step(self.control.out, self.nav.armed, self.nav.spooled, self.world.cmd)
+
+    def _battery_periodic(self) -> None:
+        """Battery monitor (core group, 10 Hz): filtered voltage as a flight controller measures it."""
+        b = self.battery
+        self.battery_voltage = b.voltage if self.battery_voltage <= 0 else (
+            0.8 * self.battery_voltage + 0.2 * b.voltage)
+
+    def _world_step(self) -> None:
+        self.wind.step(self.dt, self.world.wind)
+        self.world.step(self.dt)
+        self._battery_acc += self.dt
+        if self._battery_acc >= 0.1:
+            self.battery.step(self._battery_acc, self.world.electrical_power())
+            self._battery_acc = 0.0
+
+    # --- helpers used by the navigator -------------------------------------------------------------
+    def guidance_reset_here(self) -> None:
+        """Re-initialise P_d at the estimated state (on arming, take-off and after landing)."""
+        e = self.estimator.est
+        yaw = math.atan2(2.0 * (e[6] * e[9] + e[7] * e[8]), 1.0 - 2.0 * (e[8] ** 2 + e[9] ** 2))
+        on_ground = self.nav.landed_state == 1 if hasattr(self, "nav") else True
+        vel = (0.0, 0.0, 0.0) if on_ground else (float(e[3]), float(e[4]), float(e[5]))
+        self.guidance.reset((float(e[0]), float(e[1]), min(float(e[2]), 0.0) if on_ground else float(e[2])),
+                            vel, yaw)
+
+    def world_on_ground_estimate(self) -> bool:
+        return self.estimator.est[2] > -0.3 and abs(self.estimator.est[5]) < 0.3
+
+    def state_alt_estimate(self) -> float:
+        """Estimated down position (m, NED)."""
+        return float(self.estimator.est[2])
+
+    # --- running ---------------------------------------------------------------------------------------
+    def step(self, n: int = 1) -> None:
+        loop = self.start()
+        for _ in range(n):
+            loop.step()
+
+    def run_for(self, seconds: float) -> None:
+        """Run the main loop for ``seconds`` of simulated time."""
+        self.step(max(1, round(seconds * self.main_hz)))
+
+    def run_until(self, predicate: Callable[[], bool], timeout_s: float, check_every_s: float = 0.02) -> bool:
+        """Run until ``predicate()`` is true (checked every ``check_every_s`` simulated seconds) or the
+        simulated timeout elapses; returns whether the predicate became true."""
+        loop = self.start()
+        n_check = max(1, round(check_every_s * self.main_hz))
+        end = self.clock.now() + timeout_s
+        while self.clock.now() < end:
+            for _ in range(n_check):
+                loop.step()
+            if predicate():
+                return True
+        return bool(predicate())
+
+    def run_realtime(self, duration_s: float | None = None, stop: object = None) -> None:
+        loop = self.start()
+        loop.run(duration_s, stop)  # type: ignore[arg-type]
+
+    # --- truth read-outs (tests and the bench) --------------------------------------------------------
+    @property
+    def truth(self) -> Quadrotor:
+        return self.world
+
+    def wait_estimator(self, timeout_s: float = 5.0) -> bool:
+        return self.run_until(lambda: self.estimator.healthy, timeout_s)
+
+
+def wall_speed(vehicle: Vehicle, sim_seconds: float) -> float:
+    """Simulated seconds per wall second over ``sim_seconds`` of lockstep running."""
+    t0 = time.perf_counter()
+    vehicle.run_for(sim_seconds)
+    return sim_seconds / (time.perf_counter() - t0)

@@ -1,0 +1,77 @@
+"""The ``taskflight`` command line: one entry point, one sub-command per job.
+
+Each sub-command imports its layer only when used, so ``taskflight --help`` is instant.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+from collections.abc import Callable, Sequence
+
+
+def _cmd_autopilot(args: argparse.Namespace) -> int:
+    from autopilot_model.sitl import run_autopilot
+
+    return run_autopilot(args)
+
+
+def _cmd_demo(args: argparse.Namespace) -> int:
+    from autopilot_model.demo import run_demo
+
+    return run_demo(args)
+
+
+def _cmd_companion(args: argparse.Namespace) -> int:
+    from companion.main import run_companion
+
+    return run_companion(args)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="taskflight", description=__doc__.splitlines()[0])
+    parser.add_argument("-v", "--verbose", action="count", default=0, help="more log output (-vv: debug)")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    handlers: dict[str, Callable[[argparse.Namespace], int]] = {}
+
+    ap = sub.add_parser("autopilot", help="run one simulated vehicle (the bundled autopilot model)")
+    try:
+        from autopilot_model.sitl import add_autopilot_arguments
+    except ImportError:  # the MAVLink side is optional at import time
+        from autopilot_model.demo import add_model_arguments as add_autopilot_arguments
+    add_autopilot_arguments(ap)
+    handlers["autopilot"] = _cmd_autopilot
+
+    dp = sub.add_parser("demo", help="fly a demonstration flight on embedded defaults and print a report")
+    from autopilot_model.demo import add_demo_arguments
+
+    add_demo_arguments(dp)
+    handlers["demo"] = _cmd_demo
+
+    try:
+        from companion.main import add_companion_arguments
+    except ImportError:
+        add_companion_arguments = None
+    if add_companion_arguments is not None:
+        cp = sub.add_parser("companion", help="run the companion for one vehicle")
+        add_companion_arguments(cp)
+        handlers["companion"] = _cmd_companion
+
+    parser.set_defaults(_handlers=handlers)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    level = logging.WARNING - 10 * min(args.verbose, 2) if args.verbose else logging.INFO
+    logging.basicConfig(level=level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+    try:
+        return args._handlers[args.command](args)
+    except KeyboardInterrupt:
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

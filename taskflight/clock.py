@@ -1,0 +1,95 @@
+"""One clock object per process: every loop takes its time from here, never from ``time.time()``.
+
+:class:`SimClock` is owned by the autopilot model. Simulated time is an integer count of
+microseconds advanced by the main loop (so 500 Hz steps never drift). It is paced against the wall:
+
+* ``speedup=1``: real time (the default; what a real autopilot does),
+* ``speedup=K``: K simulated seconds per wall second,
+* ``speedup=0`` (lockstep, as fast as possible): never waits.
+
+Other layers (the companion) follow the autopilot's reported time instead; against a real autopilot
+both are the wall clock (:class:`WallClock`).
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Protocol
+
+
+class Clock(Protocol):
+    """What every loop needs of a clock."""
+
+    def now(self) -> float:
+        """Seconds since the clock's epoch (boot)."""
+        ...
+
+
+class WallClock:
+    """Monotonic wall time since construction."""
+
+    def __init__(self) -> None:
+        self._t0 = time.monotonic()
+
+    def now(self) -> float:
+        return time.monotonic() - self._t0
+
+
+class SimClock:
+    """Simulated time in microseconds, advanced by the owner of the main loop and paced on the wall."""
+
+    def __init__(self, speedup: float = 1.0) -> None:
+        if speedup < 0:
+            raise ValueError(f"speedup must be >= 0 (0 = as fast as possible), got {speedup}")
+        self.speedup = float(speedup)
+        self.now_us = 0
+        self._wall0 = time.perf_counter()
+        self._sim0_us = 0
+
+    # --- reading -------------------------------------------------------------------------------
+    def now(self) -> float:
+        return self.now_us * 1e-6
+
+    @property
+    def time_boot_ms(self) -> int:
+        return self.now_us // 1000
+
+    @property
+    def time_usec(self) -> int:
+        return self.now_us
+
+    # --- writing (only the main loop owner calls these) -----------------------------------------
+    def advance(self, dt_us: int) -> None:
+        self.now_us += dt_us
+
+    def set_speedup(self, speedup: float) -> None:
+        if speedup < 0:
+            raise ValueError(f"speedup must be >= 0, got {speedup}")
+        self.speedup = float(speedup)
+        self._wall0 = time.perf_counter()
+        self._sim0_us = self.now_us
+
+    def wall_lag(self) -> float:
+        """Seconds of wall time by which the simulation is behind its pacing (<= 0 when ahead)."""
+        if self.speedup <= 0:
+            return 0.0
+        target_wall = (self.now_us - self._sim0_us) * 1e-6 / self.speedup
+        return (time.perf_counter() - self._wall0) - target_wall
+
+    def pace(self) -> float:
+        """Wait until the wall has caught up with simulated time; returns the seconds slept.
+
+        Sleeps in one call when ahead by more than a millisecond and spins for the remainder, which
+        keeps a 500 Hz real-time loop within tens of microseconds of its period.
+        """
+        if self.speedup <= 0:
+            return 0.0
+        target_wall = self._wall0 + (self.now_us - self._sim0_us) * 1e-6 / self.speedup
+        slept = 0.0
+        while True:
+            remaining = target_wall - time.perf_counter()
+            if remaining <= 0:
+                return slept
+            if remaining > 0.0015:
+                time.sleep(remaining - 0.001)
+            slept += max(0.0, remaining - max(0.0, target_wall - time.perf_counter()))
