@@ -117,7 +117,7 @@ def matrix_to_quat(m: Mat3) -> Quat:
 
 
 def euler_to_matrix(e: Vec3) -> Mat3:
-    """Euler (roll, pitch, yaw), ZYX, radians -> rotation matrix body -> NED, R = Rz(yaw) Ry(pitch) Rx(roll)."""
+    """Euler (roll, pitch, yaw), ZYX, radians -> rotation matrix body -> NED: Rz(yaw) Ry(pitch) Rx(roll)."""
     cr, sr = math.cos(e[0]), math.sin(e[0])
     cp, sp = math.cos(e[1]), math.sin(e[1])
     cy, sy = math.cos(e[2]), math.sin(e[2])
@@ -164,8 +164,8 @@ class StateInterface:
     __slots__ = (
         "_acc",
         "_eul",
-        "_gs",
         "_geo_src",
+        "_gs",
         "_lla",
         "_ned",
         "_quat",
@@ -301,6 +301,27 @@ class StateInterface:
     def set_acceleration_ned(self, a: Sequence[float]) -> None:
         """Write the NED acceleration (m/s^2)."""
         self._acc = _vec3(a, "acceleration_ned")
+
+    def publish_estimate(self, time_us: int, p: Vec3, v: Vec3, q: Quat, w: Vec3, a: Vec3) -> None:
+        """The estimator's single write per main-loop iteration (seed 002 Sec. 3.1: INS -> state).
+
+        NED position, NED velocity, unit quaternion, body rates and NED acceleration as float tuples.
+        This is the trusted fast path of the one writer of the estimate: the estimator guarantees the
+        values are finite and the quaternion normalised (it checks its own output and never publishes a
+        diverged state), so no per-field validation runs here; derived formats are invalidated exactly as
+        by the ``set_*`` methods.
+        """
+        self._ned = p
+        self._lla = None
+        self._geo_src = False
+        self._vel = v
+        self._gs = None
+        self._quat = q
+        self._eul = None
+        self._rmat = None
+        self._rates = w
+        self._acc = a
+        self.time_us = time_us
 
     def set_body_rates(self, w: Sequence[float]) -> None:
         """Write the body angular rates (p, q, r) in rad/s."""

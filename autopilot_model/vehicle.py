@@ -56,6 +56,7 @@ class Vehicle:
         self.clock = SimClock(speedup)
         self.params = ParamStore()
         self._functions: dict[str, Callable[[], object]] = {}
+        self.loop: MainLoop | None = None
         self._extra_select = list(extra_select)
         self._modules_file = Path(modules_file)
         self._heuristic = offset_heuristic
@@ -116,7 +117,6 @@ class Vehicle:
         self.register("control.periodic", self._control_periodic)
         self.register("mixer.periodic", self._mixer_periodic)
         self.register("battery.periodic", self._battery_periodic)
-        self.loop: MainLoop | None = None
         self._gps_next = 0.0
 
     # --- construction helpers ----------------------------------------------------------------------
@@ -170,14 +170,11 @@ class Vehicle:
         est = self.estimator
         est.on_ground = self.nav.landed_state == 1 and not self.nav.spooled
         est.periodic(self.clock.now())
-        e = est.est
-        st = self.state
-        st.set_position_ned((e[0], e[1], e[2]))
-        st.set_velocity_ned((e[3], e[4], e[5]))
-        st.set_quat((e[6], e[7], e[8], e[9]))
-        st.set_body_rates((e[10], e[11], e[12]))
-        st.set_acceleration_ned((est.acc[0], est.acc[1], est.acc[2]))
-        st.time_us = self.clock.now_us
+        if est.initialised:
+            e = est.est.tolist()
+            a = est.acc.tolist()
+            self.state.publish_estimate(self.clock.now_us, (e[0], e[1], e[2]), (e[3], e[4], e[5]),
+                                        (e[6], e[7], e[8], e[9]), (e[10], e[11], e[12]), (a[0], a[1], a[2]))
 
     def _nav_periodic(self) -> None:
         self.nav.periodic(0.02)

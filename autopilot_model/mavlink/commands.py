@@ -11,7 +11,8 @@ MAVSDK and QGC with ``confirmation`` incremented, pymavlink scripts often identi
 the same sender (link, system, component) with the same id and parameters as the previous one is a
 retransmission if its ``confirmation`` is greater than zero (within :attr:`CommandDispatcher.retry_window_s`)
 or if it arrives within :attr:`CommandDispatcher.dup_window_s`: it is answered with the stored result
-and not executed again. The windows are wall time on purpose: retransmission is a property of the
+and not executed again. Only an *accepted* command is remembered this way: a refused one changed
+nothing, so sending it again (e.g. arming after the reason for the refusal went away) re-evaluates it. The windows are wall time on purpose: retransmission is a property of the
 link and the client's timers, which run on the wall clock, not of simulated time. Commands that are
 harmless to repeat (requests for messages, intervals) are never deduplicated.
 """
@@ -152,7 +153,7 @@ class CommandDispatcher:
         now = self.wall()
         if cmd.command not in self.no_dedup:
             prev = self._recent.get(sender)
-            if prev is not None and prev.key == cmd.key():
+            if prev is not None and prev.result == ACCEPTED and prev.key == cmd.key():
                 age = now - prev.wall
                 if (cmd.confirmation > 0 and age < self.retry_window_s) or age < self.dup_window_s:
                     ep.stats["commands_duplicate"] += 1

@@ -83,16 +83,19 @@ class MavlinkEndpoint:
         self.last_gcs_heartbeat_s: float | None = None
         self._statustext_id = 0
         self.poller = Poller()
+        self._epoll = self.poller.epoll_poll
         self.transports: list[Transport] = []
         for url in urls:
             self.transports.append(open_transport(url, self.stats, self.poller))
         # protocol pieces (imported here to keep the module graph one-way)
         from .commands import CommandDispatcher
         from .params_protocol import ParamsProtocol
+        from .stream_requests import StreamRequests
         from .streams import StreamScheduler
         self.streams = StreamScheduler(self)
         self.commands = CommandDispatcher(self)
         self.params_protocol = ParamsProtocol(self)
+        self.stream_requests = StreamRequests(self)
         self.add_handler("HEARTBEAT", self._on_heartbeat)
         self.add_handler("TIMESYNC", self._on_timesync)
         if register and hasattr(vehicle, "register"):
@@ -161,8 +164,10 @@ class MavlinkEndpoint:
 
     # --- receiving -----------------------------------------------------------------------------
     def poll(self) -> None:
-        """Event function: read and handle whatever arrived. Cheap when nothing did."""
-        self.poller.poll(self._on_data, POLL_BUDGET_S)
+        """Event function: read and handle whatever arrived. One ``epoll`` call when nothing did."""
+        events = self._epoll(0)
+        if events:
+            self.poller.dispatch(events, self._on_data, POLL_BUDGET_S)
 
     def _on_data(self, peer: Peer, data: bytes) -> None:
         parser = peer.parser

@@ -13,7 +13,8 @@ owns its timeouts), so the vehicle side keeps no state for it. As in ArduPilot, 
 plan is reported as the current home position.
 
 Also: MISSION_CLEAR_ALL, MISSION_SET_CURRENT (answered with MISSION_CURRENT), MISSION_CURRENT sent
-on every change and streamed by the endpoint's telemetry (its builder is registered here). Mission types MISSION, FENCE and RALLY are kept separately.
+on every change and streamed by the endpoint's telemetry (its builder is registered here). Mission
+types MISSION, FENCE and RALLY are kept separately.
 
 Timeouts concern a peer that lives on the wall clock while the model may run faster (lockstep,
 ``--speedup``): a timeout fires only once its duration has passed both in simulated time and on the
@@ -372,3 +373,34 @@ def _vehicle_home(vehicle: Any) -> tuple[float, float, float] | None:
     except (TypeError, IndexError, ValueError):
         return None
     return (lat, lon, alt) if all(map(math.isfinite, (lat, lon, alt))) else None
+
+
+def add_mission_commands(endpoint: Any, protocol: MissionProtocol, modes: Any, runner: Any) -> None:
+    """Register MAV_CMD_MISSION_START and MAV_CMD_DO_SET_MISSION_CURRENT with the endpoint's commands.
+
+    MISSION_START, as ArduCopter: switch to AUTO (which may be refused, e.g. "Missing Takeoff Cmd")
+    and start the plan at param1 (0 = the current item); a disarmed vehicle starts once armed.
+    """
+    commands = endpoint.commands
+
+    def mission_start(cmd: Any, link: Any) -> tuple[int, str | None]:
+        first = cmd.p(1)
+        first_seq = int(first) if math.isfinite(first) and first >= 0 else 0
+        ok, why = modes.set_mode(3, "MISSION_START")
+        if not ok:
+            return mavlink.MAV_RESULT_FAILED, why
+        ok, why = runner.mission_start(first_seq)
+        if not ok:
+            return mavlink.MAV_RESULT_FAILED, why
+        return mavlink.MAV_RESULT_ACCEPTED, None
+
+    def set_current(cmd: Any, link: Any) -> tuple[int, str | None]:
+        seq = cmd.p(1)
+        if not math.isfinite(seq) or seq < 0 or seq != int(seq):
+            return mavlink.MAV_RESULT_DENIED, "Mission: invalid item"
+        if not protocol.set_current(int(seq)):
+            return mavlink.MAV_RESULT_DENIED, None  # set_current has said why
+        return mavlink.MAV_RESULT_ACCEPTED, None
+
+    commands.add(mavlink.MAV_CMD_MISSION_START, mission_start)
+    commands.add(mavlink.MAV_CMD_DO_SET_MISSION_CURRENT, set_current)

@@ -359,6 +359,14 @@ class Poller:
         events = self._ep.poll(0)
         if not events:
             return 0
+        return self.dispatch(events, on_data, budget_s)
+
+    @property
+    def epoll_poll(self) -> Callable[[float], list[tuple[int, int]]]:
+        """The bare ``epoll.poll`` (callers on the hot path test for an empty result themselves)."""
+        return self._ep.poll
+
+    def dispatch(self, events: list[tuple[int, int]], on_data: OnData, budget_s: float) -> int:
         end = time.perf_counter() + budget_s
         for fd, _ev in events:
             owner = self._owners.get(fd)

@@ -34,17 +34,17 @@ GAIN_SIZE = 28
 
 # (parameter name, gain index, default, min, max, scale from parameter to SI, doc)
 GAIN_PARAMS: tuple[tuple[str, int, float, float, float, float, str], ...] = (
-    ("PSC_POSXY_P", G_POS_XY_P, 1.5, 0.0, 10.0, 1.0, "horizontal position P (1/s)"),
+    ("PSC_POSXY_P", G_POS_XY_P, 3.0, 0.0, 10.0, 1.0, "horizontal position P (1/s)"),
     ("PSC_POSZ_P", G_POS_Z_P, 2.0, 0.0, 10.0, 1.0, "vertical position P (1/s)"),
-    ("PSC_VELXY_P", G_VEL_XY_P, 3.5, 0.0, 20.0, 1.0, "horizontal velocity P (1/s)"),
-    ("PSC_VELXY_I", G_VEL_XY_I, 1.5, 0.0, 20.0, 1.0, "horizontal velocity I (1/s^2)"),
+    ("PSC_VELXY_P", G_VEL_XY_P, 6.0, 0.0, 20.0, 1.0, "horizontal velocity P (1/s)"),
+    ("PSC_VELXY_I", G_VEL_XY_I, 4.0, 0.0, 20.0, 1.0, "horizontal velocity I (1/s^2)"),
     ("PSC_VELXY_D", G_VEL_XY_D, 0.0, 0.0, 5.0, 1.0, "horizontal velocity D (-)"),
     ("PSC_VELZ_P", G_VEL_Z_P, 5.0, 0.0, 20.0, 1.0, "vertical velocity P (1/s)"),
     ("PSC_VELZ_I", G_VEL_Z_I, 3.0, 0.0, 20.0, 1.0, "vertical velocity I (1/s^2)"),
     ("PSC_VELZ_D", G_VEL_Z_D, 0.0, 0.0, 5.0, 1.0, "vertical velocity D (-)"),
-    ("ATC_ANG_RLL_P", G_ANG_RP_P, 9.0, 0.0, 30.0, 1.0, "roll/pitch angle P (1/s)"),
+    ("ATC_ANG_RLL_P", G_ANG_RP_P, 12.0, 0.0, 30.0, 1.0, "roll/pitch angle P (1/s)"),
     ("ATC_ANG_YAW_P", G_ANG_Y_P, 4.0, 0.0, 30.0, 1.0, "yaw angle P (1/s)"),
-    ("ATC_RAT_RLL_P", G_RAT_RP_P, 28.0, 0.0, 200.0, 1.0, "roll/pitch rate P (1/s)"),
+    ("ATC_RAT_RLL_P", G_RAT_RP_P, 35.0, 0.0, 200.0, 1.0, "roll/pitch rate P (1/s)"),
     ("ATC_RAT_RLL_I", G_RAT_RP_I, 20.0, 0.0, 500.0, 1.0, "roll/pitch rate I (1/s^2)"),
     ("ATC_RAT_RLL_D", G_RAT_RP_D, 0.4, 0.0, 5.0, 1.0, "roll/pitch rate D (-)"),
     ("ATC_RAT_YAW_P", G_RAT_Y_P, 12.0, 0.0, 200.0, 1.0, "yaw rate P (1/s)"),

@@ -22,7 +22,7 @@ The 500 Hz prediction is a numba kernel; the corrections run at the sensors' (lo
 from __future__ import annotations
 
 import math
-from collections import deque
+import logging
 
 import numpy as np
 from numba import njit
@@ -31,11 +31,16 @@ from autopilot_model.modules.sensors import Barometer, Compass, Imu, PositionSen
 from autopilot_model.physics.quadrotor import Quadrotor
 
 GRAVITY = 9.80665
+log = logging.getLogger(__name__)
+
+
+HIST = 256  # samples of estimate history kept for latency compensation (0.5 s at 500 Hz)
 
 
 @njit(cache=True, fastmath=True)
-def ins_predict(est, gyro, accel, gbias, abias, dt, acc_w):  # pragma: no cover - numba
-    """est = [p(3), v(3), q(4), w(3)]; integrates one IMU sample; writes NED acceleration to acc_w."""
+def ins_predict(est, gyro, accel, gbias, abias, dt, acc_w, hist, hidx, now):  # pragma: no cover - numba
+    """est = [p(3), v(3), q(4), w(3)]; integrates one IMU sample; writes NED acceleration to acc_w and
+    appends (now, p, v) to the ring ``hist`` at ``hidx[0]``. Returns False if the state is not finite."""
     wx = gyro[0] - gbias[0]
     wy = gyro[1] - gbias[1]
     wz = gyro[2] - gbias[2]
@@ -78,6 +83,84 @@ def ins_predict(est, gyro, accel, gbias, abias, dt, acc_w):  # pragma: no cover 
     est[0] += est[3] * dt
     est[1] += est[4] * dt
     est[2] += est[5] * dt
+    i = hidx[0]
+    hist[i, 0] = now
+    for k in range(6):
+        hist[i, 1 + k] = est[k]
+    hidx[0] = (i + 1) % hist.shape[0]
+    s = 0.0
+    for k in range(13):
+        s += est[k]
+    return math.isfinite(s)
+
+
+@njit(cache=True, fastmath=True)
+def ins_correct_position(est, abias, gbias, hist, hidx, sample, sample_time, gains, dv):  # pragma: no cover
+    """Third-order observer update from a delayed position (and velocity) sample; see the module doc.
+
+    ``gains`` = [k1, k2, k3, kv (0 = no velocity), baro_weight, k_tilt, k_gbias, airborne].
+    The innovation is taken against the estimate at ``sample_time`` (from the history ring) and the
+    correction applied to the current estimate. ``dv`` receives the velocity correction."""
+    n = hist.shape[0]
+    j = (hidx[0] - 1) % n
+    best = j
+    for _ in range(n):
+        if hist[j, 0] <= sample_time + 1e-9:
+            best = j
+            break
+        best = j
+        j = (j - 1) % n
+    k1 = gains[0]
+    k2 = gains[1]
+    k3 = gains[2]
+    kv = gains[3]
+    bw = gains[4]
+    for k in range(3):
+        innov = sample[k] - hist[best, 1 + k]
+        if k == 2 and bw > 0.0:
+            innov *= 1.0 - bw
+        est[k] += k1 * innov
+        est[3 + k] += k2 * innov
+        dv[k] = k2 * innov
+        abias[k] -= k3 * innov
+        if kv > 0.0:
+            iv = sample[3 + k] - hist[best, 4 + k]
+            est[3 + k] += kv * iv
+            dv[k] += kv * iv
+        if abias[k] > 2.0:
+            abias[k] = 2.0
+        elif abias[k] < -2.0:
+            abias[k] = -2.0
+    if gains[7] > 0.0:
+        # velocity-aided tilt: rotate by c = k_tilt (dv x z) in the world frame, gyro bias integrates it
+        cx = gains[5] * dv[1]
+        cy = -gains[5] * dv[0]
+        qw = est[6]
+        qx = est[7]
+        qy = est[8]
+        qz = est[9]
+        hx = 0.5 * cx
+        hy = 0.5 * cy
+        nw = qw - hx * qx - hy * qy
+        nx = qx + hx * qw + hy * qz
+        ny = qy - hx * qz + hy * qw
+        nz = qz + hx * qy - hy * qx
+        m = 1.0 / math.sqrt(nw * nw + nx * nx + ny * ny + nz * nz)
+        qw = nw * m
+        qx = nx * m
+        qy = ny * m
+        qz = nz * m
+        est[6] = qw
+        est[7] = qx
+        est[8] = qy
+        est[9] = qz
+        # world -> body of (cx, cy, 0)
+        bx = (1 - 2 * (qy * qy + qz * qz)) * cx + 2 * (qx * qy + qw * qz) * cy
+        by = 2 * (qx * qy - qw * qz) * cx + (1 - 2 * (qx * qx + qz * qz)) * cy
+        bz = 2 * (qx * qz + qw * qy) * cx + 2 * (qy * qz - qw * qx) * cy
+        gbias[0] -= gains[6] * bx
+        gbias[1] -= gains[6] * by
+        gbias[2] -= gains[6] * bz
 
 
 def _rotate_world(est: np.ndarray, cx: float, cy: float, cz: float) -> None:
@@ -132,7 +215,12 @@ class Estimator:
         self.k_yaw = 1.5                        # 1/s
         self.k_grav = 2.0                       # 1/s, only on the ground
         self.baro_weight = 0.0 if mocap else 0.3
-        self._hist: deque[tuple[float, float, float, float, float, float, float]] = deque(maxlen=512)
+        self.hist = np.zeros((HIST, 7))
+        self.hidx = np.zeros(1, dtype=np.int64)
+        self._sample = np.zeros(6)
+        self._dv = np.zeros(3)
+        self._gains = np.zeros(8)
+        self.diverged = 0
         self.initialised = False
         self.time_s = 0.0
         self.healthy = False
@@ -151,9 +239,10 @@ class Estimator:
             self._initialise()
             if not self.initialised:
                 return
-        ins_predict(self.est, self.imu.gyro, self.imu.accel, self.gbias, self.abias, self.dt, self.acc)
-        e = self.est
-        self._hist.append((now_s, e[0], e[1], e[2], e[3], e[4], e[5]))
+        if not ins_predict(self.est, self.imu.gyro, self.imu.accel, self.gbias, self.abias, self.dt, self.acc,
+                           self.hist, self.hidx, now_s):
+            self._diverged()
+            return
         if self.pos.fresh:
             self.pos.fresh = False
             self._correct_position()
@@ -177,54 +266,40 @@ class Estimator:
         self.est[6] = math.cos(0.5 * yaw)
         self.est[9] = math.sin(0.5 * yaw)
         self.pos.fresh = False
+        self.hist[:, 0] = self.time_s
+        self.hist[:, 1:7] = self.est[0:6]
         self.initialised = True
         self.healthy = True
 
-    def _delayed(self, t: float) -> tuple[float, ...]:
-        hist = self._hist
-        for item in reversed(hist):
-            if item[0] <= t + 1e-9:
-                return item
-        return hist[0]
+    def _diverged(self) -> None:
+        """A non-finite estimate is never published: restart from the next position fix."""
+        self.diverged += 1
+        log.error("estimator diverged (%d); re-initialising", self.diverged)
+        self.initialised = False
+        self.healthy = False
+        self.gbias[:] = 0.0
+        self.abias[:] = 0.0
+        self.est[:] = 0.0
+        self.est[6] = 1.0
 
     def _correct_position(self) -> None:
         s = self.pos.sample
         if s is None:
             return
-        then = self._delayed(self.pos.sample_time)
         T = 1.0 / self.pos.noise.pos_rate_hz
         w = self.pos_bw
-        k1 = min(3.0 * w * T, 0.9)
-        k2 = 3.0 * w * w * T
-        k3 = w * w * w * T
-        e = self.est
-        dv = [0.0, 0.0, 0.0]
-        for k in range(3):
-            innov = s[k] - then[1 + k]
-            if k == 2 and self.baro_weight > 0:
-                innov *= 1.0 - self.baro_weight
-            e[k] += k1 * innov
-            e[3 + k] += k2 * innov
-            dv[k] = k2 * innov
-            self.abias[k] -= k3 * innov
-        if self.pos.is_gps and self.pos.noise.vel > 0:
-            kv = min(2.0 * w * T, 0.8)
-            for k in range(3):
-                innov_v = s[3 + k] - then[4 + k]
-                e[3 + k] += kv * innov_v
-                dv[k] += kv * innov_v
-        for k in range(3):
-            lim = 2.0
-            self.abias[k] = min(max(self.abias[k], -lim), lim)
-        if not self.on_ground:
-            # velocity-aided tilt: c = k (dv x z)
-            kt = self.k_tilt
-            cx = kt * dv[1]
-            cy = -kt * dv[0]
-            _rotate_world(e, cx, cy, 0.0)
-            cb = _world_to_body(e, (cx, cy, 0.0))
-            for k in range(3):
-                self.gbias[k] -= self.k_gbias * cb[k]
+        g = self._gains
+        g[0] = min(3.0 * w * T, 0.9)
+        g[1] = 3.0 * w * w * T
+        g[2] = w * w * w * T
+        g[3] = min(2.0 * w * T, 0.8) if (self.pos.is_gps and self.pos.noise.vel > 0) else 0.0
+        g[4] = self.baro_weight
+        g[5] = self.k_tilt
+        g[6] = self.k_gbias
+        g[7] = 0.0 if self.on_ground else 1.0
+        self._sample[:] = s
+        ins_correct_position(self.est, self.abias, self.gbias, self.hist, self.hidx, self._sample,
+                             self.pos.sample_time, g, self._dv)
 
     def _correct_heading(self) -> None:
         err = self.compass.heading - _yaw_of(self.est)

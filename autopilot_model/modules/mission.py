@@ -314,3 +314,372 @@ def item_to_ned(item: MissionItem, origin: tuple[float, float, float], home_alt:
 
 def _finite(value: float, default: float = 0.0) -> float:
     return value if math.isfinite(value) else default
+
+
+# --- execution --------------------------------------------------------------------------------------
+IDLE = "idle"
+"""Not in AUTO."""
+WAITING = "waiting"
+"""In AUTO on the ground: waiting for MAV_CMD_MISSION_START (and arming), as ArduCopter does."""
+RUNNING = "running"
+COMPLETE = "complete"
+"""Past the last item: holding position in the air, or landed."""
+
+# MISSION_STATE / MISSION_CURRENT.mission_mode values
+_STATE_NO_MISSION, _STATE_NOT_STARTED, _STATE_ACTIVE, _STATE_PAUSED, _STATE_COMPLETE = 1, 2, 3, 4, 5
+_LANDED_ON_GROUND = 1
+_SETTLE_S = 2.0
+"""A target the generator has reached counts as reached after this long even if the vehicle sits
+just outside a (very small) acceptance radius."""
+
+
+def define_mission_params(params: Any) -> None:
+    """ArduCopter parameters the mission runner reads (units as ArduCopter: cm, cm/s)."""
+    params.define("WPNAV_RADIUS", 200.0, 5.0, 1000.0, doc="waypoint acceptance radius (cm) when an item's "
+                  "param2 is 0")
+    params.define("RTL_ALT", 1500.0, 30.0, 300000.0, doc="return altitude above home (cm), 0 = current")
+
+
+class MissionRunner:
+    """Flies the stored flight plan in AUTO, item by item, through the navigator (goto, takeoff, land,
+    hold), so the envelope and the continuity of the setpoints hold as in every other mode.
+
+    Lifecycle, as ArduCopter: :meth:`start` on entering AUTO (in the air it resumes the current item at
+    once; on the ground it waits), :meth:`mission_start` for MAV_CMD_MISSION_START (takes off once
+    armed), :meth:`update` every navigation step while in AUTO, :meth:`stop` on leaving AUTO. At the end
+    of the plan the vehicle holds position in AUTO, or stays landed if the plan ended with a landing.
+
+    Supported: NAV_TAKEOFF, NAV_WAYPOINT (param1 hold time s; param2 acceptance radius m, 0 =
+    WPNAV_RADIUS), NAV_LOITER_TIME (param1 s), NAV_LAND (at lat/lon if given), NAV_RETURN_TO_LAUNCH
+    (climb to RTL_ALT, return, land) and DO_CHANGE_SPEED (param2 m/s; -2 back to WPNAV_SPEED).
+    """
+
+    def __init__(self, vehicle: Any, store: MissionStore, endpoint: Any = None,
+                 modes: Any = None) -> None:
+        self.vehicle = vehicle
+        self.store = store
+        self.endpoint = endpoint
+        self.params = vehicle.params
+        define_mission_params(self.params)
+        self.state = IDLE
+        self.finished = False
+        """True once the last item has completed (reset by the next start)."""
+        self.start_requested = False
+        self.speed: float | None = None
+        """Horizontal speed set by DO_CHANGE_SPEED (m/s); None = WPNAV_SPEED."""
+        self._item: MissionItem | None = None
+        self._phase = ""
+        self._target: tuple[float, float, float] = (0.0, 0.0, 0.0)
+        self._radius = 0.0
+        self._t_phase = 0.0
+        self._t_settled: float | None = None
+        self._hold_s = 0.0
+        self._jumping = False
+        self._modes: Any = None
+        self.reached: list[int] = []
+        """Sequence numbers reached so far (also sent as MISSION_ITEM_REACHED)."""
+        store.on_current(self._on_current)
+        store.on_change(self._on_change)
+        if modes is not None and hasattr(modes, "on_mode_change"):
+            self.attach_modes(modes)
+
+    # --- MissionStatus (for MISSION_CURRENT) ------------------------------------------------------
+    @property
+    def mission_state(self) -> int:
+        if self.store.count(MISSION) <= 1:
+            return _STATE_NO_MISSION
+        return {IDLE: _STATE_PAUSED if self._item is not None else _STATE_NOT_STARTED,
+                WAITING: _STATE_NOT_STARTED, RUNNING: _STATE_ACTIVE,
+                COMPLETE: _STATE_COMPLETE}[self.state]
+
+    @property
+    def mission_mode(self) -> int:
+        return 1 if self.state != IDLE else 2
+
+    # --- lifecycle ----------------------------------------------------------------------------------
+    def attach_modes(self, modes: Any, auto_mode: int = 3) -> None:
+        """Follow a FlightModes object: :meth:`stop` whenever the mode leaves AUTO; honour its
+        DO_CHANGE_SPEED override (a MAV_CMD_DO_CHANGE_SPEED command while in AUTO)."""
+        self._modes = modes
+        def on_change(*args: Any) -> None:
+            mode = getattr(modes, "mode", None)
+            if mode != auto_mode:
+                self.stop()
+        modes.on_mode_change(on_change)
+
+    def start(self) -> tuple[bool, str]:
+        """Entering AUTO. In the air: fly the current item now. On the ground: wait for MISSION_START
+        (an armed copter on the ground needs a take-off as its first navigation item)."""
+        nav = self.vehicle.nav
+        if nav.armed and nav.landed_state == _LANDED_ON_GROUND and not self._starts_with_takeoff():
+            return False, "Auto: Missing Takeoff Cmd"
+        self.finished = False
+        if self._on_ground():
+            self.state = WAITING
+            self.start_requested = False
+            return True, ""
+        self._run_from(self.store.current)
+        return True, ""
+
+    def mission_start(self, first: int = 0) -> tuple[bool, str]:
+        """MAV_CMD_MISSION_START (in AUTO): start at ``first`` (0 = the current item, or item 1)."""
+        if self.store.count(MISSION) <= 1:
+            return False, "Mission: no items"
+        if first > 0 and not self.store.set_current(first):
+            return False, f"Mission: invalid item {first}"
+        if self.state == RUNNING:
+            return True, ""
+        self.finished = False
+        if self.vehicle.nav.armed:
+            if self._on_ground() and not self._starts_with_takeoff():
+                return False, "Auto: Missing Takeoff Cmd"
+            first_seq = self.store.current if self.store.current > 0 else 1
+            if self.state == COMPLETE:
+                first_seq = 1
+            if first_seq == 1:
+                self.speed = None  # a fresh start flies at WPNAV_SPEED
+            self._run_from(first_seq)
+        else:
+            self.state = WAITING
+            self.start_requested = True  # take off as soon as the vehicle is armed
+        return True, ""
+
+    def resume(self) -> None:
+        """MAV_CMD_DO_PAUSE_CONTINUE(continue): fly the current item again from where the vehicle is."""
+        if self.state == RUNNING and self._item is not None:
+            self._run_from(self._item.seq)
+
+    def stop(self) -> None:
+        """Leaving AUTO: stop commanding; the current item stays current (resumed by the next start)."""
+        if self.state != IDLE:
+            log.debug("mission runner stopped at item %d", self.store.current)
+        self.state = IDLE
+        self.store.running = False
+        self.start_requested = False
+
+    # --- periodic (navigation group, called by the AUTO flight mode) -------------------------------
+    def update(self) -> None:
+        nav = self.vehicle.nav
+        if self.state == WAITING:
+            if self.start_requested and nav.armed:
+                self.start_requested = False
+                self.mission_start()
+            return
+        if self.state != RUNNING or self._item is None:
+            return
+        if not nav.armed and self._phase not in ("landing",):
+            self.state = WAITING  # disarmed under us: wait for a new start
+            self.store.running = False
+            return
+        if self._check_done():
+            self._complete_item()
+
+    # --- internals ----------------------------------------------------------------------------------
+    def _on_ground(self) -> bool:
+        nav = self.vehicle.nav
+        return not nav.armed or nav.landed_state == _LANDED_ON_GROUND
+
+    def _starts_with_takeoff(self) -> bool:
+        items = self.store.items
+        first = next((it for it in items[1:] if it.command in NAV_COMMANDS), None)
+        return first is not None and first.command == NAV_TAKEOFF
+
+    def _run_from(self, seq: int) -> None:
+        n = self.store.count(MISSION)
+        seq = max(1, seq)
+        if seq >= n:
+            self._finish()
+            return
+        self.state = RUNNING
+        self.store.running = True
+        self._set_current(seq)
+        self._begin(self.store.item(seq))
+
+    def _set_current(self, seq: int) -> None:
+        self._jumping = True
+        try:
+            self.store.set_current(seq)
+        finally:
+            self._jumping = False
+
+    def _on_current(self, seq: int) -> None:
+        if self._jumping or self.state != RUNNING:
+            return
+        self._run_from(seq)  # MISSION_SET_CURRENT while flying the plan: go there now
+
+    def _on_change(self, mission_type: int) -> None:
+        if mission_type != MISSION or self.state != RUNNING:
+            return
+        if self.store.current >= 1 and self.store.current < self.store.count(MISSION):
+            self._run_from(self.store.current)  # plan replaced in flight: restart the current item
+        else:
+            self._finish()
+
+    def _pos(self) -> tuple[float, float, float]:
+        p = self.vehicle.state.position_ned
+        return (float(p[0]), float(p[1]), float(p[2]))
+
+    def _now(self) -> float:
+        return float(self.vehicle.clock.now())
+
+    def _geo(self) -> tuple[tuple[float, float, float], float, tuple[float, float, float]]:
+        """(origin, home altitude AMSL, home NED)."""
+        return vehicle_frames(self.vehicle)
+
+    def _goto(self, target: tuple[float, float, float]) -> None:
+        self._target = target
+        self._t_settled = None
+        speed = self.speed
+        override = getattr(self._modes, "speed_override_h", None)
+        if override is not None:
+            speed = override
+        self.vehicle.nav.goto(target, speed=speed)
+
+    def _phase_to(self, phase: str) -> None:
+        self._phase = phase
+        self._t_phase = self._now()
+        self._t_settled = None
+
+    def _begin(self, item: MissionItem) -> None:
+        self._item = item
+        nav = self.vehicle.nav
+        origin, home_alt, home_ned = self._geo()
+        pos = self._pos()
+        c = item.command
+        log.info("mission: item %d, command %d", item.seq, c)
+        if c == DO_CHANGE_SPEED:
+            self._change_speed(item)
+            self._phase_to("done")
+        elif c == NAV_TAKEOFF:
+            alt_home = item.z if item.frame in RELATIVE_FRAMES else item.z - home_alt
+            target_d = -(alt_home + home_alt - origin[2])
+            self._target = (pos[0], pos[1], target_d)
+            self._phase_to("takeoff")
+            if pos[2] <= target_d + 0.1:
+                self._phase_to("done")  # already at or above the take-off altitude
+            elif nav.landed_state == _LANDED_ON_GROUND:
+                nav.takeoff(-target_d)
+            else:
+                self._goto(self._target)
+        elif c in (NAV_WAYPOINT, NAV_LOITER_TIME):
+            self._phase_to("goto")
+            self._goto(item_to_ned(item, origin, home_alt, pos))
+            r = _finite(item.param2) if c == NAV_WAYPOINT else 0.0
+            self._radius = r if r > 0 else self.params.get("WPNAV_RADIUS") / 100.0
+            self._hold_s = max(0.0, _finite(item.param1))
+        elif c == NAV_LAND:
+            if item.x == 0 and item.y == 0:
+                self._phase_to("landing")
+                nav.land()
+            else:
+                n, e, _ = item_to_ned(item, origin, home_alt, pos)
+                self._phase_to("approach")
+                self._radius = self.params.get("WPNAV_RADIUS") / 100.0
+                self._goto((n, e, pos[2]))
+        elif c == NAV_RETURN_TO_LAUNCH:
+            rtl_alt = self.params.get("RTL_ALT") / 100.0
+            d = min(pos[2], -(rtl_alt + home_alt - origin[2])) if rtl_alt > 0 else pos[2]
+            self._radius = self.params.get("WPNAV_RADIUS") / 100.0
+            if pos[2] - d > 0.5:
+                self._phase_to("climb")
+                self._goto((pos[0], pos[1], d))
+            else:
+                self._phase_to("return")
+                self._goto((home_ned[0], home_ned[1], d))
+        else:  # validated at upload: cannot happen
+            log.warning("mission: item %d: command %d not flown", item.seq, c)
+            self._phase_to("done")
+
+    def _change_speed(self, item: MissionItem) -> None:
+        speed = _finite(item.param2, -1.0)
+        if item.param1 in (2, 3):  # climb / descent speed: the navigator's own limits apply
+            return
+        if speed > 0:
+            self.speed = speed
+        elif speed == -2:
+            self.speed = None
+
+    def _arrived(self) -> bool:
+        pos = self._pos()
+        dist = math.dist(pos, self._target)
+        if dist <= self._radius:
+            return True
+        # the generator has arrived and the vehicle has settled near the target (tiny radius)
+        if self.vehicle.guidance.at_target and dist <= max(1.0, self._radius):
+            if self._t_settled is None:
+                self._t_settled = self._now()
+            return self._now() - self._t_settled >= _SETTLE_S
+        self._t_settled = None
+        return False
+
+    def _check_done(self) -> bool:
+        nav = self.vehicle.nav
+        phase = self._phase
+        if phase == "done":
+            return True
+        if phase == "takeoff":
+            err = abs(self._pos()[2] - self._target[2])
+            return err <= 0.3 or (err <= 1.0 and self.vehicle.guidance.at_target
+                                  and nav.landed_state != 3)
+        if phase == "goto":
+            if self._arrived():
+                self._phase_to("hold")
+            return False
+        if phase == "hold":
+            return self._now() - self._t_phase >= self._hold_s
+        if phase == "approach" and self._arrived():
+            self._phase_to("landing")
+            nav.land()
+            return False
+        if phase == "climb" and self._arrived():
+            _, _, home_ned = self._geo()
+            self._phase_to("return")
+            self._goto((home_ned[0], home_ned[1], self._target[2]))
+            return False
+        if phase == "return" and self._arrived():
+            self._phase_to("landing")
+            nav.land()
+            return False
+        if phase == "landing":
+            return nav.landed_state == _LANDED_ON_GROUND or not nav.armed
+        return False
+
+    def _complete_item(self) -> None:
+        item = self._item
+        assert item is not None
+        if item.command in NAV_COMMANDS:
+            self.reached.append(item.seq)
+            if self.endpoint is not None:
+                self.endpoint.send(self.endpoint.mav.mission_item_reached_encode(item.seq))
+                if item.command == NAV_WAYPOINT:
+                    self.endpoint.statustext(mavlink.MAV_SEVERITY_INFO, f"Reached command #{item.seq}")
+        nxt = item.seq + 1
+        if nxt >= self.store.count(MISSION):
+            self._finish()
+            return
+        self._set_current(nxt)
+        self._begin(self.store.item(nxt))
+
+    def _finish(self) -> None:
+        """End of the plan: hold in the air (ArduCopter loiters in AUTO), or stay landed."""
+        self.state = COMPLETE
+        self.finished = True
+        self.store.running = False
+        nav = self.vehicle.nav
+        if nav.armed and nav.landed_state != _LANDED_ON_GROUND:
+            nav.hold()
+        if self.endpoint is not None:
+            self.endpoint.statustext(mavlink.MAV_SEVERITY_INFO, "Mission complete")
+
+
+def vehicle_frames(vehicle: Any) -> tuple[tuple[float, float, float], float, tuple[float, float, float]]:
+    """(origin (lat, lon, alt AMSL) of the local frame, home altitude AMSL, home position NED)."""
+    origin = tuple(float(v) for v in vehicle.state.origin)
+    home = getattr(vehicle, "home", None)
+    if callable(home):
+        home = home()
+    if home is None:
+        return origin, origin[2], (0.0, 0.0, 0.0)  # type: ignore[return-value]
+    lat, lon, alt = float(home[0]), float(home[1]), float(home[2])
+    n, e, d = pymap3d.geodetic2ned(lat, lon, alt, *origin)
+    return origin, alt, (float(n), float(e), float(d))  # type: ignore[return-value]

@@ -196,11 +196,12 @@ class Navigator:
         elif self.action == LANDING:
             alt = -v.state_alt_estimate()
             g.set_velocity_target((0.0, 0.0, self._land_speed(alt)))
-            # land detector: descending is commanded, but the vehicle does not descend and the
-            # thrust has dropped well below hover (ArduCopter: motors at lower limit for 1 s)
+            # land detector (ArduCopter's): descent is commanded, yet the thrust has fallen far below
+            # hover and the estimated descent rate is under 1 m/s, for 1 s. The altitude estimate is
+            # not used: outdoors it can be off by a metre or more.
             vz = v.estimator.est[5]
             thrust_frac = v.control.out[0] / (v.airframe.mass * 9.80665)
-            if abs(vz) < 0.15 and thrust_frac < 0.8 and alt < 1.0:
+            if abs(vz) < 1.0 and thrust_frac < 0.6:
                 self._land_timer += dt
             else:
                 self._land_timer = 0.0

@@ -13,8 +13,9 @@ from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
-from autopilot_model.physics.quadrotor import PX, PY, PZ, QW, QX, QY, QZ, VX, VY, VZ, WX, WY, WZ, Quadrotor
+from autopilot_model.physics.quadrotor import PX, PY, PZ, QW, QX, QY, QZ, VX, VY, VZ, Quadrotor
 
 
 class NoiseSource:
@@ -58,6 +59,14 @@ class SensorNoise:
     heading: float = 0.01        # rad
 
 
+@njit(cache=True, fastmath=True)
+def imu_sample(x, f, n, gb, ab, ng, na, gyro, accel):  # pragma: no cover - numba
+    """gyro = true rates + bias + noise; accel = true specific force + bias + noise."""
+    for k in range(3):
+        gyro[k] = x[10 + k] + gb[k] + ng * n[k]
+        accel[k] = f[k] + ab[k] + na * n[3 + k]
+
+
 class Imu:
     """Gyroscope and accelerometer: truth + constant bias + white noise, at the main-loop rate."""
 
@@ -71,22 +80,12 @@ class Imu:
         self.gyro = np.zeros(3)
         self.accel = np.array([0.0, 0.0, -9.80665])
 
+        self._ng = float(noise.gyro)
+        self._na = float(noise.accel)
+
     def periodic(self) -> None:
-        n = self.src.next()
-        x = self.world.x
-        f = self.world.out
-        ng = self.noise.gyro
-        na = self.noise.accel
-        gb = self.gyro_bias
-        ab = self.accel_bias
-        g = self.gyro
-        a = self.accel
-        g[0] = x[WX] + gb[0] + ng * n[0]
-        g[1] = x[WY] + gb[1] + ng * n[1]
-        g[2] = x[WZ] + gb[2] + ng * n[2]
-        a[0] = f[0] + ab[0] + na * n[3]
-        a[1] = f[1] + ab[1] + na * n[4]
-        a[2] = f[2] + ab[2] + na * n[5]
+        imu_sample(self.world.x, self.world.out, self.src.next(), self.gyro_bias, self.accel_bias, self._ng,
+                   self._na, self.gyro, self.accel)
 
 
 class PositionSensor:

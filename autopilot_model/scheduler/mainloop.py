@@ -11,8 +11,10 @@ One iteration (:meth:`MainLoop.step`):
 
 For speed the call lists of every phase of the hyperperiod are precomputed (identical phases share one
 tuple), so ``step`` does no lookup and no allocation beyond the timing stamps: each group that has
-calls is timed with ``perf_counter_ns`` before and after, stamps appended to the group's statistics
-buffer (:mod:`.stats`).
+calls is timed with ``perf_counter_ns`` before and after (consecutive groups share the stamp between
+them, so a group's duty includes ~50 ns of the previous group's bookkeeping), stamps appended to the
+group's statistics buffer (:mod:`.stats`). Measured overhead on the development VM (where one
+``perf_counter_ns`` costs ~100 ns): 2.5-3.5 us per iteration with events, seven groups and the world.
 """
 
 from __future__ import annotations
@@ -154,11 +156,11 @@ class MainLoop:
             clock = self.clock
             clock.advance(self.period_us)
             n = self._n = self._n + 1
-            if clock.speedup > 0:
-                clock.pace()
-            if n >= self._next_flush:
+            if n >= self._next_flush:          # before pacing: the sleep absorbs it in real time
                 self._next_flush = n + _FLUSH_EVERY
                 st.flush()
+            if clock.speedup > 0:
+                clock.pace()
         except BaseException as exc:
             exc.add_note(f"in main loop iteration {self._n} (t={self.clock.now_us / 1e6:.6f} s)")
             raise

@@ -101,8 +101,11 @@ def naive_offsets(tasks: Sequence[OffsetTask]) -> list[int]:
     return out
 
 
-def optimised_offsets(tasks: Sequence[OffsetTask]) -> list[int]:
-    """Heuristic "optimised": greedy + local search minimising the max per-iteration load."""
+def optimised_offsets(tasks: Sequence[OffsetTask], *, guard: bool = True) -> list[int]:
+    """Heuristic "optimised": greedy + local search minimising the max per-iteration load.
+
+    With ``guard`` (default) the naive assignment is returned instead when it is better.
+    """
     _check(tasks)
     h = hyperperiod([t.prescaler for t in tasks])
     load = np.zeros(h)
@@ -138,6 +141,8 @@ def optimised_offsets(tasks: Sequence[OffsetTask]) -> list[int]:
             break
 
     result = [o if o is not None else 0 for o in offsets]
+    if not guard:
+        return result
     naive = naive_offsets(tasks)
     if _better(_objective(load_profile(tasks, naive)), _objective(load)):
         log.info("optimised offsets: the naive assignment is better for this task set, using it")

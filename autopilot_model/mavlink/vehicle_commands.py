@@ -1,0 +1,210 @@
+"""The vehicle commands of the ArduCopter dialect, on the Navigator and the flight modes.
+
+Each handler returns ``(MAV_RESULT, reason)``; a refusal carries the reason, which the dispatcher
+sends as STATUSTEXT before the DENIED ACK (as ArduPilot's "PreArm: ..." messages). Commands:
+
+COMPONENT_ARM_DISARM (param1 1/0; param2 21196 forces: skips pre-arm checks / disarms in flight),
+NAV_TAKEOFF (param7 altitude above home; GUIDED or LOITER, armed, on the ground), NAV_LAND,
+NAV_RETURN_TO_LAUNCH, DO_SET_MODE (and the SET_MODE message, acknowledged with command id 11 as
+ArduPilot does), DO_REPOSITION (GUIDED; param2 bit 0 lets it switch to GUIDED), DO_CHANGE_SPEED,
+MISSION_START (armed; AUTO), DO_PAUSE_CONTINUE, GET_HOME_POSITION, DO_SET_HOME.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from typing import TYPE_CHECKING, Any
+
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
+
+from autopilot_model.modules import flight_modes as fm
+from autopilot_model.modules.navigation import LANDED_ON_GROUND
+
+from .commands import ACCEPTED, DENIED, Command, CommandResult
+
+if TYPE_CHECKING:
+    from .endpoint import MavlinkEndpoint
+    from .transport import Peer
+
+log = logging.getLogger(__name__)
+
+FORCE_MAGIC = 21196
+M = mavlink2
+
+
+def _result(ok_why: tuple[bool, str]) -> CommandResult:
+    ok, why = ok_why
+    return (ACCEPTED, None) if ok else (DENIED, why)
+
+
+class VehicleCommands:
+    """Registers the vehicle's MAV_CMD handlers (and SET_MODE) on an endpoint."""
+
+    def __init__(self, endpoint: MavlinkEndpoint, modes: fm.FlightModes) -> None:
+        self.ep = endpoint
+        self.modes = modes
+        self.v = modes.v
+        add = endpoint.commands.add
+        add(M.MAV_CMD_COMPONENT_ARM_DISARM, self.arm_disarm)
+        add(M.MAV_CMD_NAV_TAKEOFF, self.takeoff)
+        add(M.MAV_CMD_NAV_LAND, lambda c, p: self._mode(fm.LAND, "GCS land"))
+        add(M.MAV_CMD_NAV_RETURN_TO_LAUNCH, lambda c, p: self._mode(fm.RTL, "GCS RTL"))
+        add(M.MAV_CMD_DO_SET_MODE, self.do_set_mode)
+        add(M.MAV_CMD_DO_REPOSITION, self.reposition)
+        add(M.MAV_CMD_DO_CHANGE_SPEED, self.change_speed)
+        add(M.MAV_CMD_MISSION_START, self.mission_start)
+        add(M.MAV_CMD_DO_PAUSE_CONTINUE, self.pause_continue)
+        add(M.MAV_CMD_GET_HOME_POSITION, self.get_home, dedup=False)
+        add(M.MAV_CMD_DO_SET_HOME, self.set_home)
+        endpoint.add_handler("SET_MODE", self._on_set_mode)
+
+    # --- arming --------------------------------------------------------------------------------
+    def arm_disarm(self, cmd: Command, peer: Peer) -> CommandResult:
+        p1 = cmd.finite(1, "arm/disarm flag")
+        force = cmd.p(2) == FORCE_MAGIC
+        nav = self.v.nav
+        if p1 == 1:
+            if nav.armed:
+                return ACCEPTED, None
+            if not force and not self.modes.allows_arming():
+                return DENIED, f"Arm: Mode {self.modes.name} not armable"
+            return _result(nav.arm(force=force))
+        if p1 == 0:
+            return _result(nav.disarm(force=force))
+        return DENIED, f"Arm: bad param1 {p1:g}"
+
+    # --- take-off ------------------------------------------------------------------------------
+    def takeoff(self, cmd: Command, peer: Peer) -> CommandResult:
+        alt = cmd.finite(7, "takeoff altitude")
+        nav = self.v.nav
+        if self.modes.mode not in fm.TAKEOFF_MODES:
+            return DENIED, f"Takeoff: not supported in {self.modes.name}"
+        if not nav.armed:
+            return DENIED, "Takeoff: not armed"
+        if nav.landed_state != LANDED_ON_GROUND:
+            return DENIED, "Takeoff: already flying"
+        return _result(nav.takeoff(alt))
+
+    # --- modes ---------------------------------------------------------------------------------
+    def _mode(self, mode: int, reason: str) -> CommandResult:
+        return _result(self.modes.set_mode(mode, reason))
+
+    def do_set_mode(self, cmd: Command, peer: Peer) -> CommandResult:
+        base = cmd.finite(1, "base mode")
+        custom = cmd.finite(2, "custom mode")
+        if not int(base) & M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED:
+            return DENIED, "Mode: only custom modes are supported"
+        if custom != int(custom) or custom not in fm.MODE_NAMES:
+            return DENIED, f"Mode change denied: unknown mode {custom:g}"
+        return self._mode(int(custom), "GCS command")
+
+    def _on_set_mode(self, msg: Any, peer: Peer) -> None:
+        if msg.target_system != self.ep.sysid:
+            self.ep.stats["wrong_target"] += 1
+            return
+        if not msg.base_mode & M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED:
+            result, reason = DENIED, "Mode: only custom modes are supported"
+        elif msg.custom_mode not in fm.MODE_NAMES:
+            result, reason = DENIED, f"Mode change denied: unknown mode {msg.custom_mode}"
+        else:
+            result, reason = self._mode(msg.custom_mode, "GCS set_mode")
+        if reason and result != ACCEPTED:
+            self.ep.statustext(M.MAV_SEVERITY_WARNING, reason)
+        self.ep.send(self.ep.mav.command_ack_encode(M.MAVLINK_MSG_ID_SET_MODE, result, 0, 0,
+                                                    msg.get_srcSystem(), msg.get_srcComponent()), peer)
+
+    # --- guided navigation ---------------------------------------------------------------------
+    def reposition(self, cmd: Command, peer: Peer) -> CommandResult:
+        speed = cmd.p(1)
+        flags = cmd.p(2)
+        lat, lon, alt = cmd.p(5), cmd.p(6), cmd.p(7)
+        if self.modes.mode != fm.GUIDED:
+            if not (math.isfinite(flags) and int(flags) & M.MAV_DO_REPOSITION_FLAGS_CHANGE_MODE):
+                return DENIED, "Reposition: not in GUIDED"
+        if not self.modes.in_air():
+            return DENIED, "Reposition: not flying"
+        cur = self.v.state.position_geodetic
+        if not math.isfinite(lat) or not math.isfinite(lon) or (cmd.is_int and cmd.x_int == 0 and cmd.y_int == 0):
+            lat, lon = cur[0], cur[1]
+        if not (-90 <= lat <= 90 and -180 <= lon <= 180):
+            return DENIED, "Reposition: bad latitude/longitude"
+        frame = cmd.frame if cmd.frame is not None else M.MAV_FRAME_GLOBAL
+        if not math.isfinite(alt):
+            alt_amsl = cur[2]
+        elif frame in (M.MAV_FRAME_GLOBAL, M.MAV_FRAME_GLOBAL_INT):
+            alt_amsl = alt
+        elif frame in (M.MAV_FRAME_GLOBAL_RELATIVE_ALT, M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
+                       M.MAV_FRAME_GLOBAL_TERRAIN_ALT, M.MAV_FRAME_GLOBAL_TERRAIN_ALT_INT):
+            alt_amsl = alt + self.v.home[2]
+        else:
+            return DENIED, f"Reposition: unsupported frame {frame}"
+        if self.modes.mode != fm.GUIDED:
+            ok, why = self.modes.set_mode(fm.GUIDED, "reposition")
+            if not ok:
+                return DENIED, why
+        if math.isfinite(speed) and speed > 0:
+            self.modes.speed_override_h = min(speed, 50.0)
+        target = fm.GuidedTarget(pos=fm.geodetic_to_ned(lat, lon, alt_amsl, self.v.state.origin))
+        yaw = cmd.p(4)
+        if math.isfinite(yaw):
+            target.yaw = math.radians(yaw)
+        return _result(self.modes.guided.set(target))
+
+    def change_speed(self, cmd: Command, peer: Peer) -> CommandResult:
+        kind = cmd.finite(1, "speed type")
+        speed = cmd.finite(2, "speed")
+        if speed == -1 or speed == -2:
+            return ACCEPTED, None  # "no change" / "default" per the MAVLink spec
+        if not (0 < speed <= 50):
+            return DENIED, f"Change speed: {speed:g} m/s out of range"
+        if int(kind) in (0, 1):
+            self.modes.speed_override_h = speed
+            if self.modes.mode == fm.GUIDED and self.modes.guided.target.pos is not None:
+                self.modes.guided.set(self.modes.guided.target)
+            return ACCEPTED, None
+        return DENIED, "Change speed: only ground/air speed is supported"
+
+    # --- missions ------------------------------------------------------------------------------
+    def mission_start(self, cmd: Command, peer: Peer) -> CommandResult:
+        if not self.v.nav.armed:
+            return DENIED, "Mission start: not armed"
+        result = self._mode(fm.AUTO, "mission start")
+        runner = self.modes.mission_runner
+        if result[0] == ACCEPTED and runner is not None and hasattr(runner, "mission_start"):
+            started = runner.mission_start()
+            if isinstance(started, tuple) and not started[0]:
+                return DENIED, started[1]
+        return result
+
+    def pause_continue(self, cmd: Command, peer: Peer) -> CommandResult:
+        p1 = cmd.finite(1, "pause/continue flag")
+        if p1 == 0:
+            return _result(self.modes.pause())
+        if p1 == 1:
+            return _result(self.modes.resume())
+        return DENIED, f"Pause/continue: bad param1 {p1:g}"
+
+    # --- home ----------------------------------------------------------------------------------
+    def get_home(self, cmd: Command, peer: Peer) -> CommandResult:
+        self.ep.commands.after_ack(lambda: self.ep.streams.send_now("HOME_POSITION", peer))
+        return ACCEPTED, None
+
+    def set_home(self, cmd: Command, peer: Peer) -> CommandResult:
+        if cmd.p(1) == 1:
+            lat, lon, alt = self.v.state.position_geodetic
+        else:
+            lat, lon, alt = cmd.finite(5, "latitude"), cmd.finite(6, "longitude"), cmd.finite(7, "altitude")
+            if cmd.frame in (M.MAV_FRAME_GLOBAL_RELATIVE_ALT, M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT):
+                alt += self.v.home[2]
+            if not (-90 <= lat <= 90 and -180 <= lon <= 180):
+                return DENIED, "Set home: bad latitude/longitude"
+            if (lat, lon) == (0.0, 0.0):
+                return DENIED, "Set home: zero location"
+            n, e, _ = fm.geodetic_to_ned(lat, lon, alt, self.v.state.origin)
+            if math.hypot(n, e) > 50_000:
+                return DENIED, "Set home: more than 50 km from origin"
+        self.v.home = (float(lat), float(lon), float(alt))
+        self.ep.statustext(M.MAV_SEVERITY_INFO, "Home position set")
+        self.ep.commands.after_ack(lambda: self.ep.streams.send_now("HOME_POSITION", None))
+        return ACCEPTED, None

@@ -1,0 +1,363 @@
+"""ArduCopter flight modes on top of the Navigator (navigation task group).
+
+Modes are ArduCopter's ``custom_mode`` numbers. There is no RC link in the model, so the pilot-driven
+modes hold still instead of following sticks:
+
+==========  ===  ===========================================================================
+STABILIZE    0   level, zero velocity demand (no position hold: it drifts with estimator error)
+ALT_HOLD     2   as STABILIZE (the altitude is held by the velocity demand)
+AUTO         3   delegates to the mission runner (``modes.mission_runner``: ``start()``, ``update()``)
+GUIDED       4   targets from the ground station / companion (:class:`GuidedTargets`); GUID_TIMEOUT
+LOITER       5   hold position
+RTL          6   climb to RTL_ALT if lower, fly home, descend and land (RTL_ALT_FINAL = 0)
+LAND         9   land where it is; stays in LAND after touchdown and disarm, as ArduCopter does
+BRAKE       17   stop as fast as the envelope allows and hold
+==========  ===  ===========================================================================
+
+Every change of mode goes through :meth:`FlightModes.set_mode`, which may refuse with a reason;
+listeners registered with :meth:`FlightModes.on_mode_change` are told of each change (the MAVLink
+endpoint announces it by STATUSTEXT, the failsafes use ``set_mode`` with a reason).
+
+GUIDED semantics follow ArduCopter's ``ModeGuided``: a position target is flown to and held; a
+velocity or acceleration target (alone or as feed-forward of a position target) must be refreshed
+within ``GUID_TIMEOUT`` seconds, otherwise the vehicle stops (velocity and acceleration demand set
+to zero) and holds; entering GUIDED in the air holds the current position.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import pymap3d
+
+from autopilot_model.modules import navigation as navmod
+
+if TYPE_CHECKING:
+    from autopilot_model.vehicle import Vehicle
+
+log = logging.getLogger(__name__)
+
+STABILIZE = 0
+ALT_HOLD = 2
+AUTO = 3
+GUIDED = 4
+LOITER = 5
+RTL = 6
+LAND = 9
+BRAKE = 17
+
+MODE_NAMES: dict[int, str] = {STABILIZE: "STABILIZE", ALT_HOLD: "ALT_HOLD", AUTO: "AUTO", GUIDED: "GUIDED",
+                              LOITER: "LOITER", RTL: "RTL", LAND: "LAND", BRAKE: "BRAKE"}
+MODE_NUMBERS: dict[str, int] = {v: k for k, v in MODE_NAMES.items()}
+#: Modes ArduCopter lets a ground station arm in (AUTO, RTL, LAND, BRAKE refuse arming).
+ARMABLE = frozenset({STABILIZE, ALT_HOLD, GUIDED, LOITER})
+#: Modes in which a take-off command is accepted (ArduCopter: modes with a navigating user take-off).
+TAKEOFF_MODES = frozenset({GUIDED, LOITER})
+#: Modes in which MAV_CMD_DO_PAUSE_CONTINUE applies.
+PAUSABLE = frozenset({AUTO, GUIDED, RTL})
+
+ModeListener = Callable[[int, int, str], None]
+Vec3 = tuple[float, float, float]
+
+# GUIDED sub-modes (what the last target asked for)
+G_NONE = "none"
+G_POS = "pos"
+G_VEL = "vel"
+G_ACCEL = "accel"
+G_POSVEL = "posvel"
+
+# RTL stages
+RTL_CLIMB = "climb"
+RTL_RETURN = "return"
+RTL_LAND = "land"
+
+
+def geodetic_to_ned(lat: float, lon: float, alt: float, origin: tuple[float, float, float]) -> Vec3:
+    """Local NED (m) of a geodetic point relative to ``origin`` (lat, lon, alt AMSL)."""
+    n, e, d = pymap3d.geodetic2ned(lat, lon, alt, origin[0], origin[1], origin[2])
+    return float(n), float(e), float(d)
+
+
+def ned_to_geodetic(p: Vec3, origin: tuple[float, float, float]) -> tuple[float, float, float]:
+    lat, lon, alt = pymap3d.ned2geodetic(p[0], p[1], p[2], origin[0], origin[1], origin[2])
+    return float(lat), float(lon), float(alt)
+
+
+_home_cache: dict[int, tuple[Any, Vec3]] = {}
+
+
+def home_ned(vehicle: Any) -> Vec3:
+    """Home (``vehicle.home``: lat, lon, alt AMSL) in the local NED frame of the state's origin."""
+    key = (tuple(vehicle.home[:3]), tuple(vehicle.state.origin))
+    cached = _home_cache.get(id(vehicle))
+    if cached is None or cached[0] != key:
+        cached = (key, geodetic_to_ned(vehicle.home[0], vehicle.home[1], vehicle.home[2], vehicle.state.origin))
+        _home_cache[id(vehicle)] = cached
+    return cached[1]
+
+
+def mode_name(mode: int) -> str:
+    return MODE_NAMES.get(mode, f"MODE{mode}")
+
+
+def define_mode_params(params: Any) -> None:
+    params.define("GUID_TIMEOUT", 3.0, 0.1, 5.0,
+                  doc="GUIDED: stop if no new velocity/acceleration target for this long (s)")
+    params.define("RTL_ALT", 1500.0, 200.0, 300000.0, "int", "RTL: minimum return altitude above home (cm)")
+    params.define("RTL_SPEED", 0.0, 0.0, 2000.0, doc="RTL: horizontal speed, 0 = WPNAV_SPEED (cm/s)")
+
+
+@dataclass
+class GuidedTarget:
+    """One GUIDED target in the local NED frame of the vehicle (origin = EKF origin)."""
+
+    pos: Vec3 | None = None
+    vel: Vec3 | None = None
+    acc: Vec3 | None = None
+    yaw: float | None = None
+    yaw_rate: float | None = None
+
+
+class GuidedTargets:
+    """ArduCopter's ``ModeGuided`` target handling: the sub-mode, refresh time and timeout."""
+
+    def __init__(self, modes: FlightModes) -> None:
+        self.modes = modes
+        self.v = modes.v
+        self.kind = G_NONE
+        self.last_update_s = 0.0
+        self.target: GuidedTarget = GuidedTarget()
+        self.timed_out = False
+
+    def reset(self) -> None:
+        self.kind = G_NONE
+        self.target = GuidedTarget()
+        self.timed_out = False
+
+    def set(self, t: GuidedTarget) -> tuple[bool, str]:
+        """Apply a target (already converted to local NED). Position with velocity: posvel; etc."""
+        nav = self.v.nav
+        speed = self.modes.speed_h()
+        if t.pos is not None and t.vel is None:
+            ok, why = nav.goto(t.pos, speed)
+            kind = G_POS
+        elif t.pos is not None and t.vel is not None:
+            ff = math.sqrt(t.vel[0] ** 2 + t.vel[1] ** 2 + t.vel[2] ** 2)
+            ok, why = nav.goto(t.pos, max(speed, ff))
+            if ok:
+                self.v.guidance.set_position_target(tuple(t.pos), speed=max(speed, ff), end_speed=ff)
+            kind = G_POSVEL
+        elif t.vel is not None:
+            ok, why = nav.velocity(t.vel)
+            kind = G_VEL
+        elif t.acc is not None:
+            ok, why = nav.acceleration(t.acc)
+            kind = G_ACCEL
+        else:
+            return False, "no target"
+        if not ok:
+            return ok, why
+        if t.yaw is not None:
+            nav.yaw(t.yaw, None)
+        elif t.yaw_rate is not None:
+            nav.yaw_rate(t.yaw_rate)
+        self.kind = kind
+        self.target = t
+        self.timed_out = False
+        self.last_update_s = self.v.clock.now()
+        return True, ""
+
+    def stop(self) -> None:
+        """ArduCopter's ``mode_guided.init(true)`` for invalid input: stop and hold here."""
+        if self.v.nav.armed and self.v.nav.landed_state != navmod.LANDED_ON_GROUND:
+            self.v.nav.hold()
+        self.reset()
+
+    def update(self) -> None:
+        if self.kind in (G_VEL, G_ACCEL, G_POSVEL) and not self.timed_out:
+            if self.v.clock.now() - self.last_update_s > self.v.params.get("GUID_TIMEOUT"):
+                self.timed_out = True
+                if self.kind == G_POSVEL and self.target.pos is not None:
+                    # keep the position target, drop the feed-forward
+                    self.v.guidance.set_position_target(tuple(self.target.pos), speed=self.modes.speed_h(),
+                                                        end_speed=0.0)
+                else:
+                    self.v.nav.hold()
+                if self.target.yaw_rate is not None:
+                    self.v.nav.yaw_rate(0.0)
+                log.info("GUIDED: target timed out, stopping")
+
+
+class FlightModes:
+    """The ArduCopter mode machine of one vehicle; the only writer of ``mode``."""
+
+    def __init__(self, vehicle: Vehicle) -> None:
+        self.v = vehicle
+        define_mode_params(vehicle.params)
+        self.mode = STABILIZE
+        self.mission_runner: Any = None  # set by the Sitl wiring (issue 3, missions)
+        self.guided = GuidedTargets(self)
+        self.paused = False
+        self.speed_override_h: float | None = None  # DO_CHANGE_SPEED (m/s), until the next mode change
+        self._rtl_stage = RTL_CLIMB
+        self._listeners: list[ModeListener] = []
+
+    # --- listeners -----------------------------------------------------------------------------
+    def on_mode_change(self, callback: ModeListener) -> None:
+        """``callback(old_mode, new_mode, reason)`` after every accepted change."""
+        self._listeners.append(callback)
+
+    @property
+    def name(self) -> str:
+        return mode_name(self.mode)
+
+    def in_air(self) -> bool:
+        nav = self.v.nav
+        return nav.armed and nav.landed_state != navmod.LANDED_ON_GROUND
+
+    def speed_h(self) -> float:
+        """Horizontal speed of position targets: DO_CHANGE_SPEED if given, else WPNAV_SPEED (m/s)."""
+        if self.speed_override_h is not None:
+            return self.speed_override_h
+        return self.v.params.get("WPNAV_SPEED") / 100.0
+
+    def allows_arming(self) -> bool:
+        return self.mode in ARMABLE
+
+    # --- changing mode -------------------------------------------------------------------------
+    def set_mode(self, mode: int, reason: str = "") -> tuple[bool, str]:
+        """Enter ``mode`` (ArduCopter number); returns ``(ok, why_not)``. Re-entering a mode is a no-op."""
+        if mode not in MODE_NAMES:
+            return False, f"Mode change denied: unknown mode {mode}"
+        if mode == self.mode:
+            return True, ""
+        enter = getattr(self, f"_enter_{MODE_NAMES[mode].lower()}")
+        ok, why = enter()
+        if not ok:
+            log.info("mode %s refused: %s", mode_name(mode), why)
+            return False, why
+        old = self.mode
+        self.mode = mode
+        self.paused = False
+        self.speed_override_h = None
+        if mode != GUIDED:
+            self.guided.reset()
+        log.info("mode %s -> %s %s", mode_name(old), mode_name(mode), reason)
+        for cb in list(self._listeners):
+            cb(old, mode, reason)
+        return True, ""
+
+    def _enter_stabilize(self) -> tuple[bool, str]:
+        if self.in_air():
+            self.v.nav.velocity((0.0, 0.0, 0.0))
+        return True, ""
+
+    _enter_alt_hold = _enter_stabilize
+
+    def _enter_guided(self) -> tuple[bool, str]:
+        self.guided.reset()
+        if self.in_air() and self.v.nav.action != navmod.TAKEOFF:
+            self.v.nav.hold()
+        return True, ""
+
+    def _enter_loiter(self) -> tuple[bool, str]:
+        if self.in_air():
+            self.v.nav.hold()
+        return True, ""
+
+    _enter_brake = _enter_loiter
+
+    def _enter_land(self) -> tuple[bool, str]:
+        if self.in_air():
+            self.v.nav.land()
+        return True, ""
+
+    def _enter_rtl(self) -> tuple[bool, str]:
+        if self.in_air():
+            self._rtl_stage = RTL_CLIMB
+            self._rtl_start()
+        return True, ""
+
+    def _enter_auto(self) -> tuple[bool, str]:
+        runner = self.mission_runner
+        if runner is None:
+            return False, "Auto: no mission runner"
+        result = runner.start()
+        if isinstance(result, tuple):
+            ok, why = result
+            if not ok:
+                return False, why
+        elif result is False:
+            return False, "Auto: mission cannot start"
+        return True, ""
+
+    # --- pause / continue (MAV_CMD_DO_PAUSE_CONTINUE) -----------------------------------------
+    def pause(self) -> tuple[bool, str]:
+        if self.mode not in PAUSABLE or not self.in_air():
+            return False, f"Pause denied in {self.name}"
+        self.paused = True
+        self.v.nav.hold()
+        return True, ""
+
+    def resume(self) -> tuple[bool, str]:
+        if not self.paused:
+            return True, ""
+        self.paused = False
+        if self.mode == RTL:
+            self._rtl_start()
+        elif self.mode == AUTO and self.mission_runner is not None and hasattr(self.mission_runner, "resume"):
+            self.mission_runner.resume()
+        elif self.mode == GUIDED and self.guided.target.pos is not None:
+            self.guided.set(self.guided.target)
+        return True, ""
+
+    # --- RTL -----------------------------------------------------------------------------------
+    def _rtl_alt(self) -> float:
+        return self.v.params.get("RTL_ALT") / 100.0
+
+    def _rtl_speed(self) -> float:
+        s = self.v.params.get("RTL_SPEED") / 100.0
+        return s if s > 0 else self.speed_h()
+
+    def _home_ned(self) -> Vec3:
+        return home_ned(self.v)
+
+    def _rtl_start(self) -> None:
+        nav = self.v.nav
+        n, e, d = self.v.state.position_ned
+        hn, he, hd = self._home_ned()
+        alt_above_home = hd - d
+        target_alt = max(self._rtl_alt(), alt_above_home)
+        if self._rtl_stage == RTL_CLIMB and alt_above_home < self._rtl_alt() - 0.5:
+            nav.goto((n, e, hd - target_alt), self._rtl_speed())
+        else:
+            self._rtl_stage = RTL_RETURN
+            nav.goto((hn, he, hd - target_alt), self._rtl_speed())
+
+    def _rtl_update(self) -> None:
+        nav = self.v.nav
+        if not self.in_air() or self.paused:
+            return
+        g = self.v.guidance
+        if self._rtl_stage == RTL_CLIMB and g.at_target:
+            self._rtl_stage = RTL_RETURN
+            self._rtl_start()
+        elif self._rtl_stage == RTL_RETURN and g.at_target:
+            self._rtl_stage = RTL_LAND
+            nav.land()
+
+    # --- periodic (navigation group) -----------------------------------------------------------
+    def update(self) -> None:
+        mode = self.mode
+        if mode == GUIDED:
+            if not self.paused:
+                self.guided.update()
+        elif mode == RTL:
+            self._rtl_update()
+        elif mode == AUTO:
+            if not self.paused and self.mission_runner is not None:
+                self.mission_runner.update()

@@ -1,0 +1,335 @@
+"""Failsafes of the autopilot model (core task group, 10 Hz), as ArduCopter has them.
+
+* Ground-station heartbeat loss (FS_GCS_ENABLE, FS_GCS_TIMEOUT): only once a GCS heartbeat has been
+  seen and only while armed; cleared when heartbeats return.
+* Battery (BATT_LOW_VOLT / BATT_CRT_VOLT held for BATT_LOW_TIMER, or BATT_LOW_MAH / BATT_CRT_MAH
+  remaining of BATT_CAPACITY; actions BATT_FS_LOW_ACT / BATT_FS_CRT_ACT). The levels latch: low acts
+  once, critical once more, until the battery is replaced (a restart).
+* Geofence (FENCE_ENABLE, FENCE_TYPE bits 1 max altitude, 2 circle, 4 polygon; FENCE_ALT_MAX,
+  FENCE_RADIUS around home, inclusion/exclusion polygons and circles from the FENCE mission type;
+  FENCE_ACTION). A breach acts once; if the vehicle keeps going a further FENCE_BACKUP_M outside, it
+  acts again (ArduCopter's backup fence); the breach clears once back inside.
+
+Every action is announced by STATUSTEXT and carried out by ``modes.set_mode``, so it shows in the
+mode. As in ArduCopter, a failsafe does not switch a vehicle that is already landing to RTL, and an
+armed vehicle still on the ground is disarmed instead. SmartRTL and DO_LAND_START options, which the
+model lacks, fall back to RTL; "terminate" falls back to LAND.
+
+Deviation from ArduCopter's defaults: BATT_FS_LOW_ACT defaults to RTL and BATT_FS_CRT_ACT to LAND (the
+model's battery failsafe is on out of the box), and the voltage thresholds default to 3.5 V and 3.4 V
+per cell of the airframe's pack. SIM_BATT_CAP_AH (ArduPilot SITL's name) sets the simulated pack's
+capacity, which makes battery tests fast.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from typing import Any
+
+import pymap3d
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
+from shapely.geometry import Point, Polygon
+
+from autopilot_model.modules.mission import (
+    FENCE,
+    FENCE_CIRCLE_EXCLUSION,
+    FENCE_CIRCLE_INCLUSION,
+    FENCE_POLYGON_EXCLUSION,
+    FENCE_POLYGON_INCLUSION,
+    MissionItem,
+    MissionStore,
+    vehicle_frames,
+)
+
+log = logging.getLogger(__name__)
+
+# ArduCopter custom modes used here
+AUTO = 3
+RTL = 6
+LAND = 9
+BRAKE = 17
+MODE_NAMES = {RTL: "RTL", LAND: "LAND", BRAKE: "BRAKE"}
+
+_LANDED_ON_GROUND = 1
+_LANDING_MODES = (LAND,)
+FENCE_BACKUP_M = 20.0
+"""A breach acts again when the vehicle is this much further outside (ArduCopter's backup fence)."""
+
+# FENCE_TYPE bits
+FENCE_ALT_MAX_BIT = 1
+FENCE_CIRCLE_BIT = 2
+FENCE_POLYGON_BIT = 4
+
+
+def define_safety_params(params: Any, cells: int, capacity_mah: float) -> None:
+    """The failsafe parameters (ArduCopter names and units)."""
+    params.define("FS_GCS_ENABLE", 0, 0, 7, "int",
+                  "GCS failsafe: 0 off, 1 RTL, 2 continue AUTO else RTL, 3 SmartRTL/RTL, 4 SmartRTL/LAND, "
+                  "5 LAND, 6 DO_LAND_START/RTL, 7 BRAKE/LAND")
+    params.define("FS_GCS_TIMEOUT", 5.0, 2.0, 120.0, doc="GCS heartbeat loss timeout (s)")
+    params.define("BATT_LOW_VOLT", round(3.5 * cells, 2), 0.0, 100.0, doc="low battery voltage (V), 0 off")
+    params.define("BATT_CRT_VOLT", round(3.4 * cells, 2), 0.0, 100.0,
+                  doc="critical battery voltage (V), 0 off")
+    params.define("BATT_LOW_TIMER", 10, 0, 120, "int", doc="voltage below a threshold this long (s)")
+    params.define("BATT_LOW_MAH", 0, 0, 500000, "int", doc="low battery remaining capacity (mAh), 0 off")
+    params.define("BATT_CRT_MAH", 0, 0, 500000, "int", doc="critical remaining capacity (mAh), 0 off")
+    params.define("BATT_CAPACITY", round(capacity_mah), 0, 500000, "int", doc="battery capacity (mAh)")
+    params.define("BATT_FS_LOW_ACT", 2, 0, 7, "int",
+                  "low battery action: 0 none, 1 LAND, 2 RTL, 3 SmartRTL/RTL, 4 SmartRTL/LAND, "
+                  "5 terminate, 6 DO_LAND_START/RTL, 7 BRAKE/LAND")
+    params.define("BATT_FS_CRT_ACT", 1, 0, 7, "int", "critical battery action (as BATT_FS_LOW_ACT)")
+    params.define("SIM_BATT_CAP_AH", round(capacity_mah / 1000.0, 3), 0.001, 1000.0,
+                  doc="capacity of the simulated battery (Ah)")
+    params.define("FENCE_ENABLE", 0, 0, 1, "int", "geofence on")
+    params.define("FENCE_TYPE", 7, 0, 15, "int", "fence bits: 1 max altitude, 2 circle, 4 polygon")
+    params.define("FENCE_ACTION", 1, 0, 5, "int",
+                  "fence breach: 0 report, 1 RTL or LAND, 2 LAND, 3 SmartRTL/RTL, 4 BRAKE or LAND, "
+                  "5 SmartRTL/LAND")
+    params.define("FENCE_ALT_MAX", 100.0, 10.0, 1000.0, doc="maximum altitude above home (m)")
+    params.define("FENCE_RADIUS", 300.0, 30.0, 10000.0, doc="circular fence radius around home (m)")
+    params.define("FENCE_MARGIN", 2.0, 1.0, 10.0, doc="distance kept from the fence (m)")
+
+
+# failsafe action codes -> (mode, fallback)
+_FS_ACTIONS: dict[int, tuple[int, int] | None] = {
+    0: None, 1: (LAND, LAND), 2: (RTL, LAND), 3: (RTL, LAND), 4: (LAND, LAND), 5: (LAND, LAND),
+    6: (RTL, LAND), 7: (BRAKE, LAND),
+}
+_GCS_ACTIONS: dict[int, tuple[int, int] | None] = {
+    0: None, 1: (RTL, LAND), 2: (RTL, LAND), 3: (RTL, LAND), 4: (LAND, LAND), 5: (LAND, LAND),
+    6: (RTL, LAND), 7: (BRAKE, LAND),
+}
+_FENCE_ACTIONS: dict[int, tuple[int, int] | None] = {
+    0: None, 1: (RTL, LAND), 2: (LAND, LAND), 3: (RTL, LAND), 4: (BRAKE, LAND), 5: (LAND, LAND),
+}
+
+
+class FenceShapes:
+    """Inclusion/exclusion polygons and circles of the FENCE plan, in local NED (north, east)."""
+
+    def __init__(self) -> None:
+        self.inclusion: list[Polygon] = []
+        self.exclusion: list[Polygon] = []
+        self.inclusion_circles: list[tuple[float, float, float]] = []
+        self.exclusion_circles: list[tuple[float, float, float]] = []
+
+    @classmethod
+    def from_items(cls, items: list[MissionItem], origin: tuple[float, float, float]) -> FenceShapes:
+        shapes = cls()
+
+        def ne(it: MissionItem) -> tuple[float, float]:
+            n, e, _ = pymap3d.geodetic2ned(it.lat, it.lon, origin[2], *origin)
+            return float(n), float(e)
+
+        i = 0
+        while i < len(items):
+            it = items[i]
+            if it.command in (FENCE_POLYGON_INCLUSION, FENCE_POLYGON_EXCLUSION):
+                n = int(it.param1)
+                poly = Polygon([ne(v) for v in items[i:i + n]])
+                (shapes.inclusion if it.command == FENCE_POLYGON_INCLUSION else shapes.exclusion).append(poly)
+                i += n
+                continue
+            if it.command in (FENCE_CIRCLE_INCLUSION, FENCE_CIRCLE_EXCLUSION):
+                circle = (*ne(it), float(it.param1))
+                if it.command == FENCE_CIRCLE_INCLUSION:
+                    shapes.inclusion_circles.append(circle)
+                else:
+                    shapes.exclusion_circles.append(circle)
+            i += 1
+        return shapes
+
+    @property
+    def empty(self) -> bool:
+        return not (self.inclusion or self.exclusion or self.inclusion_circles or self.exclusion_circles)
+
+    def outside_by(self, n: float, e: float) -> float:
+        """How far (m) the point is on the wrong side of the nearest violated shape; <= 0: inside."""
+        p = Point(n, e)
+        worst = -math.inf
+        for poly in self.inclusion:
+            d = poly.exterior.distance(p)
+            worst = max(worst, -d if poly.contains(p) else d)
+        for poly in self.exclusion:
+            d = poly.exterior.distance(p)
+            worst = max(worst, d if poly.contains(p) else -d)
+        for cn, ce, r in self.inclusion_circles:
+            worst = max(worst, math.hypot(n - cn, e - ce) - r)
+        for cn, ce, r in self.exclusion_circles:
+            worst = max(worst, r - math.hypot(n - cn, e - ce))
+        return worst
+
+
+class Safety:
+    """GCS-loss, battery and geofence failsafes of one vehicle; :meth:`periodic` at 10 Hz (core).
+
+    ``modes`` is the FlightModes object (``mode``, ``set_mode(mode, reason)``); ``store`` (optional) is
+    the :class:`MissionStore` whose FENCE plan gives the polygon fence.
+    """
+
+    def __init__(self, vehicle: Any, endpoint: Any, modes: Any, store: MissionStore | None = None) -> None:
+        self.vehicle = vehicle
+        self.endpoint = endpoint
+        self.modes = modes
+        self.store = store
+        self.params = vehicle.params
+        battery = vehicle.battery
+        define_safety_params(self.params, battery.cells, battery.capacity_mah)
+        battery.set_capacity(self.params.get("SIM_BATT_CAP_AH") * 1000.0)
+        self.params.subscribe("SIM_BATT_CAP_AH", lambda _n, v: battery.set_capacity(v * 1000.0))
+        self.gcs_failsafe = False
+        self.battery_level = 0
+        """0 ok, 1 low, 2 critical (latched)."""
+        self.fence_breached = 0
+        """FENCE_TYPE bits currently breached."""
+        self.events: list[str] = []
+        """Every failsafe text announced, in order (tests and logs)."""
+        self._low_since: float | None = None
+        self._crit_since: float | None = None
+        self._fence_trigger_excess = 0.0
+        self._shapes = FenceShapes()
+        if store is not None:
+            store.on_change(self._on_plan_change)
+            self._on_plan_change(FENCE)
+
+    # --- periodic ---------------------------------------------------------------------------------
+    def periodic(self) -> None:
+        """Check every failsafe once (10 Hz, core group)."""
+        now = float(self.vehicle.clock.now())
+        self._check_gcs(now)
+        self._check_battery(now)
+        self._check_fence()
+
+    # --- GCS heartbeat ----------------------------------------------------------------------------
+    def _check_gcs(self, now: float) -> None:
+        last = getattr(self.endpoint, "last_gcs_heartbeat_s", None)
+        enable = int(self.params.get("FS_GCS_ENABLE"))
+        if last is None:
+            return
+        lost = now - last > self.params.get("FS_GCS_TIMEOUT")
+        if not lost:
+            if self.gcs_failsafe:
+                self.gcs_failsafe = False
+                self._announce(mavlink.MAV_SEVERITY_INFO, "GCS Failsafe Cleared")
+            return
+        if self.gcs_failsafe or enable == 0 or not self.vehicle.nav.armed:
+            return
+        self.gcs_failsafe = True
+        if enable == 2 and self.modes.mode == AUTO:  # "continue with the mission in AUTO"
+            self._announce(mavlink.MAV_SEVERITY_CRITICAL, "GCS Failsafe: continuing mission")
+            return
+        self._act(_GCS_ACTIONS.get(enable), "GCS Failsafe")
+
+    # --- battery ----------------------------------------------------------------------------------
+    def _check_battery(self, now: float) -> None:
+        p = self.params
+        voltage = float(getattr(self.vehicle, "battery_voltage", 0.0) or self.vehicle.battery.voltage)
+        consumed = float(self.vehicle.battery.consumed_mah)
+        remaining = p.get("BATT_CAPACITY") - consumed
+        timer = p.get("BATT_LOW_TIMER")
+
+        def below(volt_param: str, since: float | None) -> tuple[bool, float | None]:
+            thr = p.get(volt_param)
+            if thr <= 0 or voltage <= 0 or voltage >= thr:
+                return False, None
+            since = now if since is None else since
+            return now - since >= timer, since
+
+        crit_v, self._crit_since = below("BATT_CRT_VOLT", self._crit_since)
+        low_v, self._low_since = below("BATT_LOW_VOLT", self._low_since)
+        crit_mah = p.get("BATT_CRT_MAH") > 0 and remaining < p.get("BATT_CRT_MAH")
+        low_mah = p.get("BATT_LOW_MAH") > 0 and remaining < p.get("BATT_LOW_MAH")
+        level = 2 if (crit_v or crit_mah) else 1 if (low_v or low_mah) else 0
+        if level <= self.battery_level:
+            return
+        self.battery_level = level
+        name = "critical" if level == 2 else "low"
+        text = f"Battery 1 is {name} {voltage:.2f}V used {consumed:.0f} mAh"
+        if not self.vehicle.nav.armed:
+            self._announce(mavlink.MAV_SEVERITY_CRITICAL, text)
+            return
+        act = int(p.get("BATT_FS_CRT_ACT" if level == 2 else "BATT_FS_LOW_ACT"))
+        self._act(_FS_ACTIONS.get(act), text)
+
+    # --- geofence ---------------------------------------------------------------------------------
+    def _on_plan_change(self, mission_type: int) -> None:
+        if mission_type != FENCE or self.store is None:
+            return
+        origin, _, _ = vehicle_frames(self.vehicle)
+        self._shapes = FenceShapes.from_items(self.store.get(FENCE), origin)
+
+    def fence_excess(self) -> tuple[int, float]:
+        """(breached FENCE_TYPE bits, metres beyond the furthest breached fence) at the present position."""
+        p = self.params
+        kinds = int(p.get("FENCE_TYPE"))
+        _, _, home = vehicle_frames(self.vehicle)
+        n, e, d = self.vehicle.state.position_ned
+        bits, excess = 0, 0.0
+        if kinds & FENCE_ALT_MAX_BIT:
+            over = -(d - home[2]) - p.get("FENCE_ALT_MAX")
+            if over > 0:
+                bits, excess = bits | FENCE_ALT_MAX_BIT, max(excess, over)
+        if kinds & FENCE_CIRCLE_BIT:
+            over = math.hypot(n - home[0], e - home[1]) - p.get("FENCE_RADIUS")
+            if over > 0:
+                bits, excess = bits | FENCE_CIRCLE_BIT, max(excess, over)
+        if kinds & FENCE_POLYGON_BIT and not self._shapes.empty:
+            over = self._shapes.outside_by(n, e)
+            if over > 0:
+                bits, excess = bits | FENCE_POLYGON_BIT, max(excess, over)
+        return bits, excess
+
+    def _check_fence(self) -> None:
+        nav = self.vehicle.nav
+        if self.params.get("FENCE_ENABLE") < 1 or not nav.armed or nav.landed_state == _LANDED_ON_GROUND:
+            if self.fence_breached:
+                self.fence_breached = 0
+            return
+        bits, excess = self.fence_excess()
+        if not bits:
+            if self.fence_breached:
+                self.fence_breached = 0
+                self._announce(mavlink.MAV_SEVERITY_INFO, "Fence breach cleared")
+            return
+        new = bits & ~self.fence_breached
+        again = excess >= self._fence_trigger_excess + FENCE_BACKUP_M
+        self.fence_breached = bits
+        if not new and not again:
+            return
+        self._fence_trigger_excess = excess
+        what = ", ".join(n for b, n in ((FENCE_ALT_MAX_BIT, "max alt"), (FENCE_CIRCLE_BIT, "radius"),
+                                        (FENCE_POLYGON_BIT, "polygon")) if bits & b)
+        self._act(_FENCE_ACTIONS.get(int(self.params.get("FENCE_ACTION"))), f"Fence Breach: {what}")
+
+    # --- actions ----------------------------------------------------------------------------------
+    def _announce(self, severity: int, text: str) -> None:
+        self.events.append(text)
+        log.warning(text)
+        self.endpoint.statustext(severity, text)
+
+    def _act(self, action: tuple[int, int] | None, why: str) -> None:
+        """Carry out a failsafe action (mode, fallback), announcing it."""
+        nav = self.vehicle.nav
+        if action is None:
+            self._announce(mavlink.MAV_SEVERITY_CRITICAL, why)
+            return
+        if nav.landed_state == _LANDED_ON_GROUND:
+            nav.disarm()
+            self._announce(mavlink.MAV_SEVERITY_CRITICAL, f"{why}: on the ground, disarming")
+            return
+        mode, fallback = action
+        current = self.modes.mode
+        if current in _LANDING_MODES or (current == mode and mode != BRAKE):
+            name = MODE_NAMES.get(current, str(current))
+            self._announce(mavlink.MAV_SEVERITY_CRITICAL, f"{why}: continuing {name}")
+            return
+        ok, reason = self.modes.set_mode(mode, why)
+        if not ok and fallback != mode:
+            log.warning("%s: %s denied (%s), trying %s", why, MODE_NAMES[mode], reason, MODE_NAMES[fallback])
+            mode = fallback
+            ok, reason = self.modes.set_mode(mode, why)
+        if ok:
+            self._announce(mavlink.MAV_SEVERITY_CRITICAL, f"{why}: {MODE_NAMES[mode]}")
+        else:
+            self._announce(mavlink.MAV_SEVERITY_CRITICAL, f"{why}: no action possible ({reason})")

@@ -1,0 +1,233 @@
+"""Software-in-the-loop wiring: one vehicle + MAVLink endpoint + flight modes + missions + failsafes.
+
+:class:`Sitl` is what ``taskflight autopilot`` runs, and what the integration tests start (in a
+subprocess, through ``python -m autopilot_model.sitl``). It assembles:
+
+* the :class:`~autopilot_model.vehicle.Vehicle` (issue 2),
+* :class:`~autopilot_model.modules.flight_modes.FlightModes` (``flight_modes.update``, navigation group),
+* the :class:`~autopilot_model.mavlink.endpoint.MavlinkEndpoint` (``mavlink.poll`` as an event function,
+  ``mavlink.telemetry`` in the telemetry group, seed 002) with the telemetry builders, the vehicle
+  commands and the GUIDED target handlers,
+* missions (store, protocol, runner) and failsafes (safety), from the missions-and-failsafes work,
+* parameters persisted per instance (``<state-dir>/instance<N>/params.json``), attached after every
+  piece has declared its parameters.
+
+Defaults for instance N follow ArduPilot SITL: ``tcpin:0.0.0.0:5760+10N``, plus one UDP endpoint
+``udpin:0.0.0.0:14550+10N`` -- the port ground stations and companions conventionally use, in the
+*listening* role so that any number of clients can connect by sending first (pymavlink
+``udpout:HOST:14550``, MAVSDK ``udpout://HOST:14550``, MAVProxy ``--master=udpout:HOST:14550``); pass
+``--mavlink udpout:HOST:PORT`` to push to a ground station that listens instead. The system id is
+N+1 (parameter MAV_SYSID) so several vehicles run side by side.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import os
+import signal
+import sys
+import threading
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+log = logging.getLogger(__name__)
+
+#: Module library entries the MAVLink side needs, merged in when the library file lacks them.
+EXTRA_MODULES: list[dict[str, Any]] = [
+    {"name": "flight_modes", "task_group": "navigation", "depends": "navigator",
+     "periodic": [{"function": "flight_modes.update", "freq": 50}]},
+    {"name": "mission", "task_group": "navigation", "depends": "flight_modes",
+     "periodic": [{"function": "mission.periodic", "freq": 10}]},
+    {"name": "safety", "task_group": "core", "depends": "flight_modes",
+     "periodic": [{"function": "safety.periodic", "freq": 10}]},
+    {"name": "mavlink", "task_group": "telemetry", "event": ["mavlink.poll"],
+     "periodic": [{"function": "mavlink.telemetry", "freq": 50}]},
+]
+
+
+def default_urls(instance: int) -> list[str]:
+    return [f"tcpin:0.0.0.0:{5760 + 10 * instance}", f"udpin:0.0.0.0:{14550 + 10 * instance}"]
+
+
+def default_state_dir() -> Path:
+    return Path(os.environ.get("TASKFLIGHT_STATE", Path.home() / ".taskflight"))
+
+
+def modules_with_mavlink(modules_file: Path, out_dir: Path) -> Path:
+    """The module library, with :data:`EXTRA_MODULES` appended where it lacks them."""
+    data = yaml.safe_load(modules_file.read_text(encoding="utf-8"))
+    names = {m.get("name") for m in data.get("modules", [])}
+    missing = [m for m in EXTRA_MODULES if m["name"] not in names]
+    if not missing:
+        return modules_file
+    data["modules"] = list(data["modules"]) + missing
+    out_dir.mkdir(parents=True, exist_ok=True)
+    out = out_dir / "modules.generated.yaml"
+    out.write_text("# generated from %s plus the MAVLink modules\n%s" % (
+        modules_file, yaml.safe_dump(data, sort_keys=False)), encoding="utf-8")
+    return out
+
+
+class Sitl:
+    """One simulated ArduCopter-like vehicle reachable over MAVLink."""
+
+    def __init__(self, instance: int = 0, urls: Sequence[str] | None = None, speedup: float = 0.0,
+                 home: Sequence[float] | None = None, airframe: str | Path | None = None,
+                 modules: str | Path | None = None, state_dir: str | Path | None = None,
+                 signing_key: bytes | None = None, sensors: str | None = None, use_truth: bool = False,
+                 seed: int | None = 0, persist: bool = True) -> None:
+        from autopilot_model.mavlink.endpoint import MavlinkEndpoint
+        from autopilot_model.mavlink.guided import GuidedTargetsProtocol
+        from autopilot_model.mavlink.telemetry import VehicleTelemetry
+        from autopilot_model.mavlink.vehicle_commands import VehicleCommands
+        from autopilot_model.modules.flight_modes import FlightModes
+        from autopilot_model.vehicle import DEFAULT_HOME, DEFAULT_MODULES, Vehicle
+
+        self.instance = instance
+        base = Path(state_dir) if state_dir is not None else default_state_dir()
+        self.state_dir = base / f"instance{instance}"
+        self.state_dir.mkdir(parents=True, exist_ok=True)
+        mod_file = modules_with_mavlink(Path(modules) if modules else DEFAULT_MODULES, self.state_dir)
+        kwargs: dict[str, Any] = {"home": tuple(home) if home else DEFAULT_HOME, "speedup": speedup,
+                                  "instance": instance, "use_truth": use_truth, "seed": seed}
+        if sensors:
+            kwargs["sensors"] = sensors
+        self.vehicle = v = Vehicle.from_files(airframe, mod_file, **kwargs)
+        self.modes = FlightModes(v)
+        v.register("flight_modes.update", self.modes.update)
+        self.endpoint = MavlinkEndpoint(v, list(urls) if urls else default_urls(instance),
+                                        signing_key=signing_key)
+        self.telemetry = VehicleTelemetry(self.endpoint, self.modes)
+        self.commands = VehicleCommands(self.endpoint, self.modes)
+        self.guided = GuidedTargetsProtocol(self.endpoint, self.modes)
+        selected = ["flight_modes", "mavlink"]
+        selected += self._wire_missions_and_safety()
+        if persist:
+            v.params.attach_file(self.state_dir / "params.json")
+        v.select(*selected)
+        v.start()
+
+    def _wire_missions_and_safety(self) -> list[str]:
+        """Missions and failsafes (their own modules); returns the scheduler modules they need."""
+        from pymavlink.dialects.v20 import ardupilotmega as m
+
+        from autopilot_model.mavlink.mission_protocol import MissionProtocol
+        from autopilot_model.modules.mission import MissionRunner, MissionStore
+        from autopilot_model.modules.safety import Safety
+
+        v = self.vehicle
+        self.missions = MissionStore(self.state_dir / "missions.json")
+        self.mission_protocol = MissionProtocol(self.endpoint, self.missions)
+        self.mission_runner = MissionRunner(v, self.missions, self.endpoint, self.modes)
+        self.modes.mission_runner = self.mission_runner
+        if hasattr(self.mission_protocol, "status"):
+            self.mission_protocol.status = self.mission_runner
+        self.safety = Safety(v, self.endpoint, self.modes, self.missions)
+        v.register("mission.periodic", self.mission_protocol.periodic)
+        v.register("safety.periodic", self.safety.periodic)
+        self.telemetry.capabilities |= (m.MAV_PROTOCOL_CAPABILITY_MISSION_INT
+                                        | m.MAV_PROTOCOL_CAPABILITY_MISSION_FENCE
+                                        | m.MAV_PROTOCOL_CAPABILITY_MISSION_RALLY)
+        self.telemetry.critical = lambda: bool(
+            self.safety.gcs_failsafe or self.safety.battery_level or self.safety.fence_breached)
+        return ["mission", "safety"]
+
+    # --- running -------------------------------------------------------------------------------
+    def run(self, duration_s: float | None = None, stop: threading.Event | None = None) -> None:
+        """Run the main loop (paced by the clock's speedup; 0 = as fast as possible)."""
+        self.vehicle.run_realtime(duration_s, stop)
+
+    def close(self) -> None:
+        self.endpoint.close()
+
+
+# --- command line ------------------------------------------------------------------------------------
+def _home(text: str) -> tuple[float, ...]:
+    parts = [float(x) for x in text.split(",")]
+    if len(parts) not in (3, 4):
+        raise argparse.ArgumentTypeError("--home wants LAT,LON,ALT[,HEADING]")
+    return tuple(parts)
+
+
+def add_autopilot_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of ``taskflight autopilot`` (the vehicle's and the MAVLink side's)."""
+    from autopilot_model.demo import add_model_arguments
+
+    add_model_arguments(parser)
+    parser.add_argument("--instance", "-I", type=int, default=0,
+                        help="instance N: system id N+1, default ports 5760+10N (TCP) and 14550+10N (UDP)")
+    parser.add_argument("--home", type=_home, default=None, help="LAT,LON,ALT[,HEADING] (default: CMAC)")
+    parser.add_argument("--mavlink", action="append", default=None, metavar="URL",
+                        help="udpin:HOST:PORT, udpout:HOST:PORT or tcpin:HOST:PORT (repeatable; "
+                             "default tcpin:0.0.0.0:5760+10N and udpin:0.0.0.0:14550+10N)")
+    parser.add_argument("--state-dir", default=None,
+                        help="where parameters and missions persist (default $TASKFLIGHT_STATE or ~/.taskflight)")
+    parser.add_argument("--signing-key", default=None, metavar="KEY",
+                        help="MAVLink 2 signing: 64 hex digits, or a passphrase (sha256, as MAVProxy)")
+    parser.add_argument("--no-persist", action="store_true", help="do not load or save parameters")
+    parser.add_argument("--duration", type=float, default=None, help="stop after this many simulated seconds")
+    parser.add_argument("--stats", action="store_true", help="print scheduler and MAVLink statistics at exit")
+
+
+def run_autopilot(args: argparse.Namespace) -> int:
+    """Run one vehicle until interrupted (or ``--duration``); returns the exit status."""
+    from autopilot_model.mavlink.signing import parse_key
+    from taskflight.yamlio import ConfigError
+
+    key = parse_key(args.signing_key) if getattr(args, "signing_key", None) else None
+    speedup = args.speedup if getattr(args, "speedup", None) is not None else 1.0
+    try:
+        sitl = Sitl(instance=args.instance, urls=args.mavlink, speedup=speedup, home=args.home,
+                    airframe=args.airframe, modules=args.modules, state_dir=args.state_dir,
+                    signing_key=key, sensors=args.sensors, use_truth=args.truth, seed=args.seed,
+                    persist=not args.no_persist)
+    except (ConfigError, ValueError, OSError) as exc:
+        log.error("%s", exc)
+        return 2
+    stop = threading.Event()
+
+    def _stop(*_: Any) -> None:
+        stop.set()
+
+    signal.signal(signal.SIGTERM, _stop)
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, _stop)
+    urls = ", ".join(str(t.url) for t in sitl.endpoint.transports)
+    log.info("autopilot instance %d (sysid %d) on %s, speedup %s", args.instance, sitl.endpoint.sysid,
+             urls, speedup or "max")
+    print(f"READY sysid={sitl.endpoint.sysid} {urls}", flush=True)
+    t0 = time.perf_counter()
+    try:
+        sitl.run(args.duration, stop)
+    finally:
+        sitl.close()
+    if args.stats:
+        wall = time.perf_counter() - t0
+        sim = sitl.vehicle.clock.now()
+        print(f"simulated {sim:.1f} s in {wall:.1f} s wall ({sim / max(wall, 1e-9):.1f}x)")
+        for k, val in sorted(sitl.endpoint.stats.items()):
+            print(f"  {k:28s} {val}")
+        loop = sitl.vehicle.loop
+        if loop is not None and hasattr(loop, "report"):
+            print(loop.report())
+    return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``python -m autopilot_model.sitl`` = ``taskflight autopilot`` (used by the tests)."""
+    parser = argparse.ArgumentParser(prog="autopilot_model.sitl", description=__doc__.splitlines()[0])
+    parser.add_argument("-v", "--verbose", action="count", default=0)
+    add_autopilot_arguments(parser)
+    args = parser.parse_args(argv)
+    level = logging.DEBUG if args.verbose > 1 else logging.INFO if args.verbose else logging.WARNING
+    logging.basicConfig(level=level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+    return run_autopilot(args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

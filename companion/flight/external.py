@@ -1,0 +1,104 @@
+"""External data streams for the External* flight command modes (seed 000 Sec. IV-C).
+
+A stream carries samples of one kind, each with a *validity time*: after ``t_s + validity_s`` with
+no newer sample the stream is stale and the channel using it falls back (Sec. IV-C): a velocity goes
+to zero, a position (or heading, or point) holds where the reference is. The streams:
+
+=============  ======================================  =============================================
+stream         values                                  used by
+=============  ======================================  =============================================
+``ext_pos``    north, east, down (m, local NED)        H_ExtPos, H_KeepDistance, V_ExtPos
+``ext_vel``    v_north, v_east, v_down (m/s),          H_ExtVel, V_ExtVel, Hd_ExtVel (a joystick
+               yaw_rate (deg/s)                        sends all four; each channel takes its part)
+``ext_heading`` heading (deg)                          Hd_ExtPos
+``ext_point``  north, east (m)                         Hd_ExtPoint
+``rc_vel``     as ``ext_vel``                          the RC_VEL modes (see commands.py)
+=============  ======================================  =============================================
+
+A malformed sample (unknown stream, wrong number of values, NaN / infinite values, a validity that
+is not > 0, a time that is not finite) raises :class:`ExternalDataError` and changes nothing. A
+sample older than the stream's newest one is ignored (``push`` returns False): UDP may reorder.
+
+Thread safety: not locked itself; the :class:`~companion.flight.queue.CommandQueue` owns one and
+mutates it only under its own lock (``CommandQueue.push_external``).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+#: Stream name -> number of values.
+STREAMS: dict[str, int] = {"ext_pos": 3, "ext_vel": 4, "ext_heading": 1, "ext_point": 2, "rc_vel": 4}
+
+
+class ExternalDataError(ValueError):
+    """A malformed external-data sample; nothing was changed."""
+
+
+@dataclass(frozen=True)
+class Sample:
+    """One sample: ``values`` stamped at ``t_s`` (the companion's clock), valid for ``validity_s``."""
+
+    values: tuple[float, ...]
+    t_s: float
+    validity_s: float
+
+    def fresh(self, now_s: float) -> bool:
+        return now_s <= self.t_s + self.validity_s
+
+
+class ExternalData:
+    """The newest sample of each stream."""
+
+    def __init__(self) -> None:
+        self._latest: dict[str, Sample] = {}
+
+    @staticmethod
+    def validate(stream: str, values: Sequence[float], validity_s: float, t_s: float) -> Sample:
+        """Check a sample without storing it; raise :class:`ExternalDataError` when malformed."""
+        if not isinstance(stream, str) or stream not in STREAMS:
+            raise ExternalDataError(f"unknown stream {stream!r} (known: {', '.join(sorted(STREAMS))})")
+        n = STREAMS[stream]
+        try:
+            vals = tuple(float(v) for v in values)  # type: ignore[union-attr]
+        except (TypeError, ValueError) as exc:
+            raise ExternalDataError(f"{stream}: expected {n} numbers, got {values!r}") from exc
+        if any(isinstance(v, bool) for v in values):  # type: ignore[union-attr]
+            raise ExternalDataError(f"{stream}: expected {n} numbers, got booleans")
+        if len(vals) != n:
+            raise ExternalDataError(f"{stream}: expected {n} values, got {len(vals)}")
+        if not all(math.isfinite(v) for v in vals):
+            raise ExternalDataError(f"{stream}: values must be finite, got {vals}")
+        if isinstance(validity_s, bool) or not isinstance(validity_s, int | float) or not math.isfinite(validity_s) \
+                or validity_s <= 0:
+            raise ExternalDataError(f"{stream}: validity must be a finite number of seconds > 0, got {validity_s!r}")
+        if isinstance(t_s, bool) or not isinstance(t_s, int | float) or not math.isfinite(t_s):
+            raise ExternalDataError(f"{stream}: sample time must be finite, got {t_s!r}")
+        return Sample(vals, float(t_s), float(validity_s))
+
+    def push(self, stream: str, values: Sequence[float], validity_s: float, t_s: float) -> bool:
+        """Store a sample; False when older than the newest one of that stream (then ignored)."""
+        sample = self.validate(stream, values, validity_s, t_s)
+        old = self._latest.get(stream)
+        if old is not None and sample.t_s < old.t_s:
+            return False
+        self._latest[stream] = sample
+        return True
+
+    def latest(self, stream: str, now_s: float) -> tuple[float, ...] | None:
+        """The newest sample's values if still valid at ``now_s``, else None."""
+        if stream not in STREAMS:
+            raise ExternalDataError(f"unknown stream {stream!r}")
+        sample = self._latest.get(stream)
+        if sample is None or not sample.fresh(now_s):
+            return None
+        return sample.values
+
+    def sample(self, stream: str) -> Sample | None:
+        """The newest sample of ``stream``, fresh or not (for status and tests)."""
+        return self._latest.get(stream)
+
+    def clear(self) -> None:
+        self._latest.clear()

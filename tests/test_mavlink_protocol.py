@@ -1,0 +1,276 @@
+"""Protocol pieces of the MAVLink endpoint over real loopback UDP, with a stand-in vehicle.
+
+The vehicle is not what is under test here: a clock, a parameter store and a function registry are
+all the endpoint needs; a pymavlink connection plays the ground station.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import socket
+import time
+from collections.abc import Callable
+from typing import Any
+
+import pytest
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
+
+from autopilot_model.mavlink.commands import ACCEPTED, DENIED, UNSUPPORTED, Command
+from autopilot_model.mavlink.endpoint import MavlinkEndpoint
+from autopilot_model.mavlink.framing import FrameParser
+from autopilot_model.mavlink.signing import key_from_passphrase
+from autopilot_model.params import ParamStore
+from taskflight.clock import SimClock
+
+
+class StandIn:
+    """Just enough of a vehicle for the endpoint: clock, params, function registry."""
+
+    instance = 0
+
+    def __init__(self) -> None:
+        self.clock = SimClock(0)
+        self.params = ParamStore()
+        self.params.define("WPNAV_SPEED", 500, 20, 2000, doc="cm/s")
+        self.params.define("FS_GCS_ENABLE", 0, 0, 5, "int")
+        self.functions: dict[str, Callable[[], None]] = {}
+
+    def register(self, name: str, fn: Callable[[], None]) -> None:
+        self.functions[name] = fn
+
+    def step(self, n: int = 1) -> None:
+        for i in range(n):
+            self.functions["mavlink.poll"]()
+            if i % 10 == 0:
+                self.functions["mavlink.telemetry"]()
+            self.clock.advance(2000)
+
+
+def free_port() -> int:
+    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    s.bind(("127.0.0.1", 0))
+    port = s.getsockname()[1]
+    s.close()
+    return port
+
+
+class Gcs:
+    """A raw UDP ground station with its own pymavlink encoder/decoder."""
+
+    def __init__(self, port: int, sysid: int = 255, key: bytes | None = None) -> None:
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.sock.setblocking(False)
+        self.addr = ("127.0.0.1", port)
+        self.mav = mavlink2.MAVLink(None, sysid, 190)
+        self.mav.robust_parsing = True
+        if key is not None:
+            self.mav.signing.secret_key = key
+            self.mav.signing.sign_outgoing = True
+            self.mav.signing.timestamp = int((time.time() - 1420070400) * 1e5)
+        self.rx = mavlink2.MAVLink(None, 0, 0)
+        self.rx.robust_parsing = True
+        self.got: list[Any] = []
+
+    def send(self, msg: Any) -> None:
+        self.sock.sendto(msg.pack(self.mav), self.addr)
+        self.mav.seq = (self.mav.seq + 1) % 256
+
+    def raw(self, data: bytes) -> None:
+        self.sock.sendto(data, self.addr)
+
+    def drain(self) -> None:
+        while True:
+            try:
+                data = self.sock.recv(4096)
+            except BlockingIOError:
+                return
+            for m in self.rx.parse_buffer(data) or []:
+                if m.get_type() != "BAD_DATA":
+                    self.got.append(m)
+
+    def wait(self, vehicle: StandIn, pred: Callable[[Any], bool], timeout_s: float = 2.0) -> Any:
+        end = time.monotonic() + timeout_s
+        while time.monotonic() < end:
+            vehicle.step(5)
+            self.drain()
+            for i, m in enumerate(self.got):
+                if pred(m):
+                    del self.got[i]
+                    return m
+        raise AssertionError("timed out waiting for a message")
+
+    def command(self, vehicle: StandIn, cmd: int, *params: float, confirmation: int = 0) -> Any:
+        p = list(params) + [0.0] * (7 - len(params))
+        self.send(self.mav.command_long_encode(1, 1, cmd, confirmation, *p))
+        return self.wait(vehicle, lambda m: m.get_type() == "COMMAND_ACK" and m.command == cmd)
+
+
+@pytest.fixture()
+def setup(tmp_path: Any) -> Any:
+    v = StandIn()
+    port = free_port()
+    ep = MavlinkEndpoint(v, [f"udpin:127.0.0.1:{port}"])
+    ep.streams.add_builder("HEARTBEAT", lambda: ep.mav.heartbeat_encode(
+        mavlink2.MAV_TYPE_QUADROTOR, mavlink2.MAV_AUTOPILOT_ARDUPILOTMEGA, 1, 4, 3))
+    ep.streams.add_builder("SYSTEM_TIME", lambda: ep.mav.system_time_encode(0, v.clock.time_boot_ms))
+    gcs = Gcs(port)
+    yield v, ep, gcs
+    ep.close()
+
+
+def _hello(v: StandIn, gcs: Gcs) -> None:
+    gcs.send(gcs.mav.heartbeat_encode(mavlink2.MAV_TYPE_GCS, mavlink2.MAV_AUTOPILOT_INVALID, 0, 0, 0))
+    gcs.wait(v, lambda m: m.get_type() == "HEARTBEAT")
+
+
+def test_heartbeat_answers_whoever_sends_and_gcs_heartbeat_is_recorded(setup: Any) -> None:
+    v, ep, gcs = setup
+    assert ep.last_gcs_heartbeat_s is None
+    _hello(v, gcs)
+    assert ep.last_gcs_heartbeat_s is not None
+    hb = gcs.wait(v, lambda m: m.get_type() == "HEARTBEAT")
+    assert hb.get_srcSystem() == 1 and hb.autopilot == mavlink2.MAV_AUTOPILOT_ARDUPILOTMEGA
+
+
+def test_unknown_command_unsupported_and_denied_has_statustext(setup: Any) -> None:
+    v, ep, gcs = setup
+    _hello(v, gcs)
+    assert gcs.command(v, 31999).result == UNSUPPORTED
+    ep.commands.add(42424, lambda c, p: (DENIED, "Nope: because"))
+    ack = gcs.command(v, 42424)
+    assert ack.result == DENIED
+    txt = gcs.wait(v, lambda m: m.get_type() == "STATUSTEXT")
+    assert "because" in txt.text
+
+
+def test_retransmission_executed_once_acked_twice(setup: Any) -> None:
+    v, ep, gcs = setup
+    _hello(v, gcs)
+    calls: list[Command] = []
+    ep.commands.add(42425, lambda c, p: (calls.append(c), (ACCEPTED, None))[1])
+    assert gcs.command(v, 42425, 1.0).result == ACCEPTED
+    assert gcs.command(v, 42425, 1.0, confirmation=1).result == ACCEPTED
+    assert gcs.command(v, 42425, 1.0).result == ACCEPTED  # identical, within the window
+    assert len(calls) == 1
+    assert ep.stats["commands_duplicate"] == 2
+    assert gcs.command(v, 42425, 2.0).result == ACCEPTED  # different parameters: a new command
+    assert len(calls) == 2
+
+
+def test_set_message_interval_and_request_message(setup: Any) -> None:
+    v, ep, gcs = setup
+    _hello(v, gcs)
+    ack = gcs.command(v, mavlink2.MAV_CMD_SET_MESSAGE_INTERVAL, mavlink2.MAVLINK_MSG_ID_SYSTEM_TIME, 20000)
+    assert ack.result == ACCEPTED
+    gcs.got.clear()
+    t0 = v.clock.now()
+    v.step(500)  # one simulated second
+    gcs.drain()
+    n = sum(1 for m in gcs.got if m.get_type() == "SYSTEM_TIME")
+    assert 40 <= n <= 55, n
+    assert v.clock.now() - t0 == pytest.approx(1.0)
+    ack = gcs.command(v, mavlink2.MAV_CMD_SET_MESSAGE_INTERVAL, mavlink2.MAVLINK_MSG_ID_SYSTEM_TIME, -1)
+    gcs.got.clear()
+    v.step(500)
+    gcs.drain()
+    assert not any(m.get_type() == "SYSTEM_TIME" for m in gcs.got)
+    ack = gcs.command(v, mavlink2.MAV_CMD_REQUEST_MESSAGE, mavlink2.MAVLINK_MSG_ID_SYSTEM_TIME)
+    assert ack.result == ACCEPTED
+    st = gcs.wait(v, lambda m: m.get_type() == "SYSTEM_TIME")
+    assert st.time_boot_ms == pytest.approx(v.clock.time_boot_ms, abs=100)
+    assert gcs.command(v, mavlink2.MAV_CMD_REQUEST_MESSAGE, 9999999).result == UNSUPPORTED
+
+
+def test_param_protocol_list_read_set_and_rejects(setup: Any, tmp_path: Any) -> None:
+    v, ep, gcs = setup
+    v.params.attach_file(tmp_path / "params.json")
+    _hello(v, gcs)
+    gcs.send(gcs.mav.param_request_list_encode(1, 1))
+    seen: dict[int, Any] = {}
+    end = time.monotonic() + 3
+    while len(seen) < len(v.params) and time.monotonic() < end:
+        v.step(5)
+        gcs.drain()
+        for m in gcs.got:
+            if m.get_type() == "PARAM_VALUE":
+                seen[m.param_index] = m
+        gcs.got.clear()
+    assert len(seen) == len(v.params)
+    gcs.send(gcs.mav.param_request_read_encode(1, 1, b"WPNAV_SPEED", -1))
+    pv = gcs.wait(v, lambda m: m.get_type() == "PARAM_VALUE")
+    assert pv.param_id == "WPNAV_SPEED" and pv.param_value == 500
+    gcs.send(gcs.mav.param_set_encode(1, 1, b"WPNAV_SPEED", 750.0, mavlink2.MAV_PARAM_TYPE_REAL32))
+    pv = gcs.wait(v, lambda m: m.get_type() == "PARAM_VALUE")
+    assert pv.param_value == 750 and v.params.get("WPNAV_SPEED") == 750
+    assert "WPNAV_SPEED" in (tmp_path / "params.json").read_text()
+    gcs.send(gcs.mav.param_set_encode(1, 1, b"WPNAV_SPEED", 99999.0, mavlink2.MAV_PARAM_TYPE_REAL32))
+    txt = gcs.wait(v, lambda m: m.get_type() == "STATUSTEXT")
+    assert "out of range" in txt.text
+    pv = gcs.wait(v, lambda m: m.get_type() == "PARAM_VALUE")
+    assert pv.param_value == 750 and v.params.get("WPNAV_SPEED") == 750
+    gcs.send(gcs.mav.param_set_encode(1, 1, b"FS_GCS_ENABLE", 1.5, mavlink2.MAV_PARAM_TYPE_INT32))
+    gcs.wait(v, lambda m: m.get_type() == "STATUSTEXT" and "integer" in m.text)
+    gcs.send(gcs.mav.param_set_encode(1, 1, b"WPNAV_SPEED", math.nan, mavlink2.MAV_PARAM_TYPE_REAL32))
+    gcs.wait(v, lambda m: m.get_type() == "STATUSTEXT")
+    assert v.params.get("WPNAV_SPEED") == 750 and ep.stats["invalid_field"] == 1
+
+
+def test_robustness_counts_and_never_acts(setup: Any) -> None:
+    v, ep, gcs = setup
+    _hello(v, gcs)
+    calls: list[Command] = []
+    ep.commands.add(42426, lambda c, p: (calls.append(c), (ACCEPTED, None))[1])
+    good = gcs.mav.command_long_encode(1, 1, 42426, 0, 1, 2, 3, 4, 5, 6, 7).pack(gcs.mav)
+    gcs.raw(os.urandom(40).replace(b"\xfd", b"\x00").replace(b"\xfe", b"\x00"))  # garbage
+    gcs.raw(good[:20])  # truncated
+    bad = bytearray(good)
+    bad[-1] ^= 0xFF
+    gcs.raw(bytes(bad))  # bad CRC
+    unknown = bytearray(good)
+    unknown[7:10] = (0xFFFFF0).to_bytes(3, "little")
+    gcs.raw(bytes(unknown))  # unknown message id
+    gcs.send(gcs.mav.command_long_encode(7, 1, 42426, 0, 1, 2, 3, 4, 5, 6, 7))  # another system
+    v.step(50)
+    assert calls == []
+    for k in ("garbage", "truncated", "bad_crc", "unknown", "wrong_target"):
+        assert ep.stats[k] >= 1, k
+    gcs.raw(good)
+    gcs.wait(v, lambda m: m.get_type() == "COMMAND_ACK")
+    assert len(calls) == 1
+
+
+def test_tcp_stream_split_frames() -> None:
+    stats: dict[str, int] = __import__("collections").Counter()
+    p = FrameParser(stats, stream=True)
+    mav = mavlink2.MAVLink(None, 255, 190)
+    data = b"".join(mav.heartbeat_encode(6, 8, 0, 0, 0).pack(mav) for _ in range(5))
+    out = []
+    for i in range(0, len(data), 7):
+        out += p.feed(data[i:i + 7])
+    assert [m.get_type() for m in out] == ["HEARTBEAT"] * 5 and sum(stats.values()) == 0
+
+
+def test_signing_unsigned_refused_signed_accepted() -> None:
+    v = StandIn()
+    port = free_port()
+    key = key_from_passphrase("taskflight")
+    ep = MavlinkEndpoint(v, [f"udpin:127.0.0.1:{port}"], signing_key=key)
+    ep.streams.add_builder("HEARTBEAT", lambda: ep.mav.heartbeat_encode(2, 3, 1, 4, 3))
+    calls: list[Command] = []
+    ep.commands.add(42427, lambda c, p: (calls.append(c), (ACCEPTED, None))[1])
+    try:
+        plain = Gcs(port)
+        plain.send(plain.mav.command_long_encode(1, 1, 42427, 0, 1, 0, 0, 0, 0, 0, 0))
+        v.step(50)
+        assert calls == [] and ep.signing.stats.unsigned_rejected == 1
+        wrong = Gcs(port, key=key_from_passphrase("wrong"))
+        wrong.send(wrong.mav.command_long_encode(1, 1, 42427, 0, 1, 0, 0, 0, 0, 0, 0))
+        v.step(50)
+        assert calls == [] and ep.signing.stats.bad_signature == 1
+        signed = Gcs(port, key=key)
+        signed.rx.signing.secret_key = key
+        ack = signed.command(v, 42427, 1.0)
+        assert ack.result == ACCEPTED and len(calls) == 1 and ack._signed
+    finally:
+        ep.close()

@@ -1,0 +1,263 @@
+"""MissionRunner logic against a kinematic stand-in vehicle (the real vehicle is in the UDP tests)."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import pymap3d
+import pytest
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
+
+from autopilot_model.modules.mission import (
+    COMPLETE,
+    RUNNING,
+    WAITING,
+    MissionItem,
+    MissionRunner,
+    MissionStore,
+    item_to_ned,
+)
+from autopilot_model.params import ParamStore
+from autopilot_model.physics.battery import Battery
+
+HOME = (-35.363261, 149.165230, 584.0)
+ON_GROUND, IN_AIR, TAKEOFF, LANDING = 1, 2, 3, 4
+
+
+class KinematicNav:
+    """Navigator stand-in: moves the position straight to the target at a fixed speed."""
+
+    def __init__(self, v: KinematicVehicle) -> None:
+        self.v = v
+        self.armed = False
+        self.landed_state = ON_GROUND
+        self.target: tuple[float, float, float] | None = None
+        self.speed = 5.0
+        self.landing = False
+        self.speeds: list[float | None] = []
+
+    def arm(self, force: bool = False) -> tuple[bool, str]:
+        self.armed = True
+        return True, ""
+
+    def disarm(self, force: bool = False) -> tuple[bool, str]:
+        self.armed = False
+        return True, ""
+
+    def takeoff(self, alt_m: float) -> tuple[bool, str]:
+        p = self.v.state.position_ned
+        self.target = (p[0], p[1], -alt_m)
+        self.landed_state = TAKEOFF
+        return True, ""
+
+    def goto(self, p: tuple[float, float, float], speed: float | None = None) -> tuple[bool, str]:
+        assert self.landed_state != ON_GROUND
+        self.target = tuple(p)
+        self.speeds.append(speed)
+        return True, ""
+
+    def hold(self) -> tuple[bool, str]:
+        self.target = self.v.state.position_ned
+        return True, ""
+
+    def land(self) -> tuple[bool, str]:
+        p = self.v.state.position_ned
+        self.target = (p[0], p[1], 0.0)
+        self.landing = True
+        self.landed_state = LANDING
+        return True, ""
+
+    def step(self, dt: float) -> None:
+        if self.target is None or not self.armed:
+            return
+        p = self.v.state.position_ned
+        d = math.dist(p, self.target)
+        k = min(1.0, self.speed * dt / d) if d > 0 else 1.0
+        self.v.state.position_ned = tuple(a + k * (b - a) for a, b in zip(p, self.target, strict=True))
+        if self.landed_state == TAKEOFF and k == 1.0:
+            self.landed_state = IN_AIR
+        if self.landing and k == 1.0:
+            self.landing, self.landed_state, self.armed = False, ON_GROUND, False
+
+
+class KinematicVehicle:
+    def __init__(self) -> None:
+        self.params = ParamStore()
+        self.home = HOME
+        self.state = type("S", (), {})()
+        self.state.origin = HOME
+        self.state.position_ned = (0.0, 0.0, 0.0)
+        self.clock = type("C", (), {})()
+        self.t = 0.0
+        self.clock.now = lambda: self.t
+        self.nav = KinematicNav(self)
+        self.battery = Battery()
+        self.battery_voltage = self.battery.voltage
+        self.guidance = type("G", (), {"at_target": False})()
+
+    def run(self, seconds: float, *callbacks: Any, dt: float = 0.02) -> None:
+        for _ in range(round(seconds / dt)):
+            self.t += dt
+            self.nav.step(dt)
+            self.guidance.at_target = self.nav.target is not None and \
+                math.dist(self.state.position_ned, self.nav.target) < 1e-6
+            for cb in callbacks:
+                cb()
+
+
+class Recorder:
+    def __init__(self) -> None:
+        self.mav = mavlink.MAVLink(None, 1, 1)
+        self.sent: list[Any] = []
+        self.texts: list[str] = []
+
+    def send(self, msg: Any, link: Any = None) -> None:
+        self.sent.append(msg)
+
+    def statustext(self, severity: int, text: str) -> None:
+        self.texts.append(text)
+
+
+def geo(n: float, e: float) -> tuple[int, int]:
+    lat, lon, _ = pymap3d.ned2geodetic(n, e, 0, *HOME)
+    return round(lat * 1e7), round(lon * 1e7)
+
+
+def item(seq: int, cmd: int, n: float = 0, e: float = 0, z: float = 0, frame: int = 6, p1: float = 0,
+         p2: float = 0, here: bool = False) -> MissionItem:
+    x, y = (0, 0) if here else geo(n, e)
+    return MissionItem(seq=seq, frame=frame, command=cmd, param1=p1, param2=p2, x=x, y=y, z=z)
+
+
+HOME_ITEM = MissionItem(seq=0, frame=0, command=16, x=round(HOME[0] * 1e7), y=round(HOME[1] * 1e7), z=HOME[2])
+
+
+@pytest.fixture
+def rig():
+    v = KinematicVehicle()
+    store = MissionStore()
+    ep = Recorder()
+    runner = MissionRunner(v, store, ep)
+    return v, store, ep, runner
+
+
+def reached_msgs(ep: Recorder) -> list[int]:
+    return [m.seq for m in ep.sent if m.get_type() == "MISSION_ITEM_REACHED"]
+
+
+def test_flies_plan_and_lands(rig):
+    v, store, ep, runner = rig
+    store.replace(0, [HOME_ITEM, item(1, 22, z=10, here=True), item(2, 16, 30, 0, 10),
+                      item(3, 178, p2=8), item(4, 16, 30, 20, 15, p1=3, p2=0.5), item(5, 21, here=True)])
+    v.nav.arm()
+    assert runner.start() == (True, "")
+    assert runner.state == WAITING
+    v.run(1, runner.update)
+    assert v.nav.target is None  # waits for MISSION_START on the ground
+    assert runner.mission_start() == (True, "")
+    assert runner.state == RUNNING
+    visited = []
+
+    def watch() -> None:
+        runner.update()
+        if store.current not in [c for c, _ in visited]:
+            visited.append((store.current, v.state.position_ned))
+
+    v.run(60, watch)
+    assert runner.finished and runner.state == COMPLETE
+    assert reached_msgs(ep) == [1, 2, 4, 5] == runner.reached
+    assert "Reached command #2" in ep.texts and "Mission complete" in ep.texts
+    assert not v.nav.armed and v.nav.landed_state == ON_GROUND
+    n, e, d = v.state.position_ned
+    assert math.hypot(n - 30, e - 20) < 0.6 and abs(d) < 1e-6
+    # DO_CHANGE_SPEED applied to the following leg
+    assert v.nav.speeds[-1] == 8
+    # the take-off reached 10 m, waypoint 2 was reached within the default 2 m radius
+    cur = dict(visited)
+    assert abs(cur[2][2] + 10) < 0.3
+
+
+def test_hold_time_is_waited(rig):
+    v, store, _, runner = rig
+    store.replace(0, [HOME_ITEM, item(1, 22, z=5, here=True), item(2, 16, 5, 0, 5, p1=4, p2=0.1)])
+    v.nav.arm()
+    runner.start()
+    runner.mission_start()
+    t_reached = None
+    while not runner.finished and v.t < 30:
+        v.run(0.02, runner.update)
+        if t_reached is None and math.dist(v.state.position_ned, (5, 0, -5)) < 0.1:
+            t_reached = v.t
+    assert runner.finished and t_reached is not None
+    assert v.t - t_reached >= 4.0 - 0.05
+    assert v.nav.armed and v.nav.landed_state == IN_AIR  # ends holding in the air
+
+
+def test_missing_takeoff_and_empty_mission(rig):
+    v, store, _, runner = rig
+    store.replace(0, [HOME_ITEM, item(1, 16, 5, 0, 5)])
+    v.nav.arm()
+    ok, why = runner.start()
+    assert not ok and "Takeoff" in why
+    store.clear(0)
+    assert runner.mission_start()[0] is False
+
+
+def test_start_requested_while_disarmed_waits_for_arming(rig):
+    v, store, _, runner = rig
+    store.replace(0, [HOME_ITEM, item(1, 22, z=5, here=True)])
+    runner.start()
+    assert runner.mission_start() == (True, "")
+    v.run(1, runner.update)
+    assert runner.state == WAITING
+    v.nav.arm()
+    v.run(0.1, runner.update)
+    assert runner.state == RUNNING and v.nav.landed_state == TAKEOFF
+
+
+def test_rtl_item_climbs_returns_and_lands(rig):
+    v, store, _, runner = rig
+    v.params.set("RTL_ALT", 2000)
+    store.replace(0, [HOME_ITEM, item(1, 22, z=8, here=True), item(2, 16, 40, -10, 8), item(3, 20)])
+    v.nav.arm()
+    runner.start()
+    runner.mission_start()
+    max_alt = [0.0]
+
+    def watch() -> None:
+        runner.update()
+        if store.current == 3:
+            max_alt[0] = max(max_alt[0], -v.state.position_ned[2])
+
+    v.run(60, watch)
+    assert runner.finished and not v.nav.armed
+    assert math.hypot(*v.state.position_ned[:2]) < 2.1
+    assert abs(max_alt[0] - 20.0) < 0.1
+
+
+def test_set_current_jumps_and_resume_after_leaving_auto(rig):
+    v, store, _, runner = rig
+    store.replace(0, [HOME_ITEM, item(1, 22, z=5, here=True), item(2, 16, 50, 0, 5), item(3, 16, 0, 50, 5)])
+    v.nav.arm()
+    runner.start()
+    runner.mission_start()
+    v.run(3, runner.update)
+    assert store.current == 2
+    assert store.set_current(3)
+    assert v.nav.target == pytest.approx(item_to_ned(store.item(3), HOME, HOME[2], (0, 0, 0)), abs=1e-6)
+    runner.stop()
+    assert runner.state != RUNNING and not store.running
+    assert runner.start() == (True, "")  # in the air: resumes item 3 at once
+    assert runner.state == RUNNING and store.current == 3
+
+
+def test_item_to_ned_frames():
+    lat, lon = geo(100.0, -50.0)
+    rel = MissionItem(seq=1, frame=6, command=16, x=lat, y=lon, z=20.0)
+    n, e, d = item_to_ned(rel, HOME, HOME[2] + 3.0, (0, 0, 0))
+    assert (n, e) == pytest.approx((100.0, -50.0), abs=0.01) and d == pytest.approx(-23.0)
+    absolute = MissionItem(seq=1, frame=0, command=16, x=lat, y=lon, z=HOME[2] + 20.0)
+    assert item_to_ned(absolute, HOME, HOME[2] + 3.0, (0, 0, 0))[2] == pytest.approx(-20.0)
+    here = MissionItem(seq=1, frame=3, command=16, x=0, y=0, z=0.0)
+    assert item_to_ned(here, HOME, HOME[2], (1.0, 2.0, -7.0)) == (1.0, 2.0, -7.0)
