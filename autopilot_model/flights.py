@@ -91,7 +91,7 @@ def fly_square(v: Vehicle, side: float = 50.0, speed: float = 5.0, alt: float = 
     say = progress or log.info
     say(f"take-off to {alt:g} m")
     takeoff(v, alt)
-    _run_until(v, lambda: False, 2.0, "settle") if False else v.run_for(2.0)
+    v.run_for(2.0)  # settle
     rec = TrackingRecord()
     n0, e0, _ = v.guidance.p
     corners = [(n0 + side, e0), (n0 + side, e0 + side), (n0, e0 + side), (n0, e0)]

@@ -84,7 +84,8 @@ class Vehicle:
         self.gps = PositionSensor(self.world, noise, self.main_hz, None if s is None else s + 1)
         self.baro = Barometer(self.world, noise, None if s is None else s + 2)
         self.compass = Compass(self.world, noise, None if s is None else s + 3)
-        self.estimator = Estimator(self.imu, self.gps, self.baro, self.compass, self.dt, self.world, use_truth)
+        self.estimator = Estimator(self.imu, self.gps, self.baro, self.compass, self.dt, self.world,
+                                   use_truth)
         self.state = StateInterface(origin=self.home)
 
         # --- guidance, control, actuators

@@ -90,7 +90,7 @@ def _make_loader(file: str) -> type[yaml.SafeLoader]:
 def load_yaml_text(text: str, file: str = "<input>") -> Any:
     """Parse YAML text; syntax errors become :class:`ConfigError` with the line of the problem."""
     try:
-        return yaml.load(text, Loader=_make_loader(file))  # noqa: S506 - SafeLoader subclass
+        return yaml.load(text, Loader=_make_loader(file))  # a SafeLoader subclass
     except ConfigError:
         raise
     except yaml.MarkedYAMLError as exc:
@@ -134,7 +134,8 @@ class Fields:
         return self._line
 
     def error(self, key: str | None, reason: str) -> ConfigError:
-        return ConfigError(self.file, self.line(key), self.path(key) if key else (self.prefix or None), reason)
+        field = self.path(key) if key else (self.prefix or None)
+        return ConfigError(self.file, self.line(key), field, reason)
 
     def has(self, key: str) -> bool:
         return key in self.data
@@ -146,8 +147,8 @@ class Fields:
             return default
         return self.data[key]
 
-    def number(self, key: str, default: Any = ..., *, lo: float | None = None, hi: float | None = None,
-               positive: bool = False) -> float:
+    def number(self, key: str, default: Any = ..., *, lo: float | None = None,
+               hi: float | None = None, positive: bool = False) -> float:
         value = self.raw(key, default)
         if isinstance(value, bool) or not isinstance(value, int | float):
             raise self.error(key, f"expected a number, got {_kind(value)}")

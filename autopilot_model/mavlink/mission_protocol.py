@@ -133,6 +133,9 @@ class MissionProtocol:
                          ("MISSION_ACK", self._on_ack)):
             endpoint.add_handler(name, fn)
         store.on_current(lambda _seq: self.send_current())
+        commands = getattr(endpoint, "commands", None)
+        if commands is not None:
+            commands.add(mavlink.MAV_CMD_DO_SET_MISSION_CURRENT, self._cmd_set_current)
         streams = getattr(endpoint, "streams", None)
         if streams is not None:  # MISSION_CURRENT at the rates the links ask for (default 1 Hz)
             streams.add_builder("MISSION_CURRENT", self.mission_current_msg)
@@ -300,6 +303,15 @@ class MissionProtocol:
         if not self.set_current(int(msg.seq)):
             self.send_current(link)
 
+    def _cmd_set_current(self, cmd: Any, link: Any) -> tuple[int, str | None]:
+        """MAV_CMD_DO_SET_MISSION_CURRENT (param1: the item)."""
+        seq = cmd.p(1)
+        if not math.isfinite(seq) or seq < 0 or seq != int(seq):
+            return mavlink.MAV_RESULT_DENIED, "Mission: invalid item"
+        if not self.set_current(int(seq)):
+            return mavlink.MAV_RESULT_DENIED, None  # set_current has said why
+        return mavlink.MAV_RESULT_ACCEPTED, None
+
     def set_current(self, seq: int) -> bool:
         """Make ``seq`` the current item (also for MAV_CMD_DO_SET_MISSION_CURRENT); False if invalid.
 
@@ -374,33 +386,3 @@ def _vehicle_home(vehicle: Any) -> tuple[float, float, float] | None:
         return None
     return (lat, lon, alt) if all(map(math.isfinite, (lat, lon, alt))) else None
 
-
-def add_mission_commands(endpoint: Any, protocol: MissionProtocol, modes: Any, runner: Any) -> None:
-    """Register MAV_CMD_MISSION_START and MAV_CMD_DO_SET_MISSION_CURRENT with the endpoint's commands.
-
-    MISSION_START, as ArduCopter: switch to AUTO (which may be refused, e.g. "Missing Takeoff Cmd")
-    and start the plan at param1 (0 = the current item); a disarmed vehicle starts once armed.
-    """
-    commands = endpoint.commands
-
-    def mission_start(cmd: Any, link: Any) -> tuple[int, str | None]:
-        first = cmd.p(1)
-        first_seq = int(first) if math.isfinite(first) and first >= 0 else 0
-        ok, why = modes.set_mode(3, "MISSION_START")
-        if not ok:
-            return mavlink.MAV_RESULT_FAILED, why
-        ok, why = runner.mission_start(first_seq)
-        if not ok:
-            return mavlink.MAV_RESULT_FAILED, why
-        return mavlink.MAV_RESULT_ACCEPTED, None
-
-    def set_current(cmd: Any, link: Any) -> tuple[int, str | None]:
-        seq = cmd.p(1)
-        if not math.isfinite(seq) or seq < 0 or seq != int(seq):
-            return mavlink.MAV_RESULT_DENIED, "Mission: invalid item"
-        if not protocol.set_current(int(seq)):
-            return mavlink.MAV_RESULT_DENIED, None  # set_current has said why
-        return mavlink.MAV_RESULT_ACCEPTED, None
-
-    commands.add(mavlink.MAV_CMD_MISSION_START, mission_start)
-    commands.add(mavlink.MAV_CMD_DO_SET_MISSION_CURRENT, set_current)

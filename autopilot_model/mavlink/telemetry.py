@@ -69,6 +69,8 @@ class VehicleTelemetry:
         self.v = modes.v
         self.capabilities = BASE_CAPABILITIES
         self.critical: Callable[[], bool] = lambda: False  # a failsafe is active (set by Safety wiring)
+        #: (fence enabled, fence breached), set by the Safety wiring
+        self.fence_state: Callable[[], tuple[bool, bool]] = lambda: (False, False)
         self.unix0_us = int(time.time() * 1e6)  # wall time at the simulation's t = 0
         b = endpoint.streams.add_builder
         b("HEARTBEAT", self.heartbeat)
@@ -136,12 +138,18 @@ class VehicleTelemetry:
             health |= S.MAV_SYS_STATUS_SENSOR_BATTERY
         if not v.nav.prearm_failures() and self.modes.allows_arming():
             health |= S.MAV_SYS_STATUS_PREARM_CHECK
-        enabled = SENSORS_PRESENT
+        present = SENSORS_PRESENT
+        fence_on, fence_breached = self.fence_state()
+        if fence_on:
+            present |= S.MAV_SYS_STATUS_GEOFENCE
+        if not fence_breached:  # ArduPilot: healthy unless breached, whether or not enabled
+            health |= S.MAV_SYS_STATUS_GEOFENCE
+        enabled = present
         if not v.nav.armed:
             enabled &= ~S.MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS
         stats = self.ep.stats
         return self.mav.sys_status_encode(
-            SENSORS_PRESENT, enabled, health, 0, _clamp_int(volt * 1000, 0, 65535),
+            present, enabled, health, 0, _clamp_int(volt * 1000, 0, 65535),
             _clamp_int(amps * 100, -1, 32767), _clamp_int(pct, -1, 100), 0,
             min(65535, stats["bad_crc"] + stats["truncated"]), 0, 0, 0, 0)
 

@@ -21,8 +21,8 @@ The 500 Hz prediction is a numba kernel; the corrections run at the sensors' (lo
 
 from __future__ import annotations
 
-import math
 import logging
+import math
 
 import numpy as np
 from numba import njit
@@ -68,9 +68,12 @@ def ins_predict(est, gyro, accel, gbias, abias, dt, acc_w, hist, hidx, now):  # 
     fx = accel[0]
     fy = accel[1]
     fz = accel[2]
-    ax = (1.0 - 2.0 * (qy * qy + qz * qz)) * fx + 2.0 * (qx * qy - qw * qz) * fy + 2.0 * (qx * qz + qw * qy) * fz
-    ay = 2.0 * (qx * qy + qw * qz) * fx + (1.0 - 2.0 * (qx * qx + qz * qz)) * fy + 2.0 * (qy * qz - qw * qx) * fz
-    az = 2.0 * (qx * qz - qw * qy) * fx + 2.0 * (qy * qz + qw * qx) * fy + (1.0 - 2.0 * (qx * qx + qy * qy)) * fz
+    ax = ((1.0 - 2.0 * (qy * qy + qz * qz)) * fx + 2.0 * (qx * qy - qw * qz) * fy
+          + 2.0 * (qx * qz + qw * qy) * fz)
+    ay = (2.0 * (qx * qy + qw * qz) * fx + (1.0 - 2.0 * (qx * qx + qz * qz)) * fy
+          + 2.0 * (qy * qz - qw * qx) * fz)
+    az = (2.0 * (qx * qz - qw * qy) * fx + 2.0 * (qy * qz + qw * qx) * fy
+          + (1.0 - 2.0 * (qx * qx + qy * qy)) * fz)
     ax -= abias[0]
     ay -= abias[1]
     az += 9.80665 - abias[2]

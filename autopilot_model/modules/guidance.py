@@ -228,7 +228,7 @@ class Envelope:
             ec = min(max(e, self.east_min), self.east_max)
             if nc != n or ec != e:
                 n, e, outside = nc, ec, True
-        elif not shapely.contains_xy(self.shape, n, e):
+        elif not shapely.intersects_xy(self.shape, n, e):  # the boundary is inside
             inner = self.shape.buffer(-_TARGET_INSET, join_style="mitre")
             geom = inner if isinstance(inner, Polygon) and not inner.is_empty else self.shape
             q = nearest_points(geom, Point(n, e))[0]
@@ -451,11 +451,12 @@ class SetpointGenerator:
             self._yaw_rate_t = 0.0
 
     def set_yaw_target(self, yaw: float, rate: float | None = None) -> None:
-        """Turn the shortest way to ``yaw`` (rad) at most at ``|rate|`` (default and cap: max_yaw_rate)."""
+        """Turn the shortest way to ``yaw`` (rad) at most at ``|rate|`` rad/s (None or 0: max_yaw_rate, as
+        MAV_CMD_CONDITION_YAW's 0 = default rate; capped at max_yaw_rate)."""
         y = _wrap(_finite(yaw, "yaw"))
-        r = self._yr if rate is None else abs(_finite(rate, "rate"))
-        if r <= 0.0:
-            raise ValueError("rate must be non-zero")
+        r = 0.0 if rate is None else abs(_finite(rate, "rate"))
+        if r == 0.0:
+            r = self._yr
         if self._yaw_mode != _YAW_ANGLE or y != self._yaw_t:
             self.yaw_at_target = False
         self._yaw_t = y

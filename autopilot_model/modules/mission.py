@@ -328,6 +328,7 @@ COMPLETE = "complete"
 # MISSION_STATE / MISSION_CURRENT.mission_mode values
 _STATE_NO_MISSION, _STATE_NOT_STARTED, _STATE_ACTIVE, _STATE_PAUSED, _STATE_COMPLETE = 1, 2, 3, 4, 5
 _LANDED_ON_GROUND = 1
+_LANDED_TAKEOFF = 3
 _SETTLE_S = 2.0
 """A target the generator has reached counts as reached after this long even if the vehicle sits
 just outside a (very small) acceptance radius."""
@@ -554,6 +555,7 @@ class MissionRunner:
             alt_home = item.z if item.frame in RELATIVE_FRAMES else item.z - home_alt
             target_d = -(alt_home + home_alt - origin[2])
             self._target = (pos[0], pos[1], target_d)
+            self._radius = min(1.0, self.params.get("WPNAV_RADIUS") / 100.0)
             self._phase_to("takeoff")
             if pos[2] <= target_d + 0.1:
                 self._phase_to("done")  # already at or above the take-off altitude
@@ -618,9 +620,9 @@ class MissionRunner:
         if phase == "done":
             return True
         if phase == "takeoff":
-            err = abs(self._pos()[2] - self._target[2])
-            return err <= 0.3 or (err <= 1.0 and self.vehicle.guidance.at_target
-                                  and nav.landed_state != 3)
+            if nav.landed_state == _LANDED_TAKEOFF:  # the navigator's take-off: wait for it to finish
+                return False
+            return self._arrived()
         if phase == "goto":
             if self._arrived():
                 self._phase_to("hold")

@@ -58,7 +58,7 @@ from __future__ import annotations
 import logging
 import threading
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from enum import Enum
 
 from taskflight.clock import Clock
@@ -177,11 +177,12 @@ class CommandQueue:
     def run(self) -> None:
         with self._lock:
             self._refuse_if_overridden("run")
+            was_running = self._state is QueueState.RUNNING and self._behaviour is None
             if self._behaviour is not None:
                 log.info("run(): abandoning pause behaviour %s", self._behaviour.behaviour.id)
                 self._behaviour = None
             self._state = QueueState.RUNNING
-            if self._exec is not None and self._ref is not None:
+            if not was_running and self._exec is not None and self._ref is not None:
                 self._exec.resume(self._ref)
 
     def stop(self) -> None:
@@ -311,8 +312,6 @@ class CommandQueue:
                     raise ValueError("tick: the first tick (and the first after an override) needs the vehicle state")
                 self._ref = self._gen.initial(now_s, vehicle_state.p, vehicle_state.v, vehicle_state.yaw)
                 self._last_t = now_s
-                if self._exec is not None:
-                    self._exec.resume(self._ref)
                 self._last_setpoint = self._setpoint(None, False)
                 return self._last_setpoint
             assert self._last_t is not None
@@ -330,8 +329,7 @@ class CommandQueue:
                 outcome = execution.step(self._ref, dt, elapsed, now_s, self._ext, self._gen, vehicle_state)
                 result = outcome.step
                 land_now = outcome.land_now
-            self._ref = Reference(now_s, *[getattr(result.reference, f) for f in ("p", "v", "a", "yaw", "yaw_rate",
-                                                                                  "yaw_acc")])
+            self._ref = replace(result.reference, t_s=now_s)
             self._limit_reached = result.limit_reached
             self._unreachable = result.target_unreachable
             setpoint = self._setpoint(execution, land_now)
@@ -405,7 +403,7 @@ class CommandQueue:
             log.info("pause behaviour %s finished", b.behaviour.id)
             self._behaviour = None
             self._state = QueueState.RUNNING if b.continuing else QueueState.STOPPED
-            if self._exec is not None and self._ref is not None:
+            if b.continuing and self._exec is not None and self._ref is not None:
                 self._exec.resume(self._ref)
             return
         log.info("command %d finished", self._index)

@@ -401,7 +401,9 @@ class ReferenceGenerator:
         if isinstance(t, AxisTarget):
             speed = min(t.speed, L.vertical_speed)
             end_v = float(np.clip(t.end_velocity, -speed, speed))
-            if pl.plan(*cur, np.array([t.down]), np.array([end_v]), np.array([speed]), lim_a, lim_j, min_duration):
+            trivial = abs(t.down - p) < 1e-6 and abs(v) < 1e-6 and abs(a) < 1e-6 and abs(end_v) < 1e-6
+            if pl.plan(*cur, np.array([t.down]), np.array([end_v]), np.array([speed]), lim_a, lim_j,
+                       None if trivial else min_duration):
                 if pl.duration <= dt:
                     return t.down, end_v, 0.0, pl.duration, True
                 pp, vv, aa = pl.sample(dt)
@@ -474,20 +476,24 @@ class ReferenceGenerator:
         along, cross = self._along, (self._cross2 if k == 2 else self._cross3)
         m = k - 1
         s_args = (np.array([-dist]), np.array([float(v @ u)]), np.array([float(a @ u)]), np.zeros(1),
-                  np.array([end_s]), np.array([s_vmax]), np.array([alpha * s_amax]), np.array([alpha * s_jmax]))
-        c_args = (np.zeros(m), vc, ac, np.zeros(m), end_c, np.full(m, c_vmax), np.full(m, beta * c_amax),
-                  np.full(m, beta * c_jmax))
-        if not (along.plan(*s_args) and cross.plan(*c_args)):
-            return self._brake_path(p, v, dt) + (False,)
-        goal = max(along.duration, cross.duration, t_mod)
-        if along.duration < goal - 1e-9 and not along.plan(*s_args, min_duration=goal):
-            return self._brake_path(p, v, dt) + (False,)
-        if cross.duration < goal - 1e-9 and not cross.plan(*c_args, min_duration=goal):
-            return self._brake_path(p, v, dt) + (False,)
-        if max(along.duration, cross.duration) <= dt:
+                  np.array([end_s]), np.array([s_vmax]), np.array([alpha * s_amax]),
+                  np.array([alpha * s_jmax]))
+        if not along.plan(*s_args):
+            return (*self._brake_path(p, v, dt), False)
+        t_cross = 0.0
+        if cross_active:  # the cross part is never stretched; the along part waits for it instead
+            if not cross.plan(np.zeros(m), vc, ac, np.zeros(m), end_c, np.full(m, c_vmax),
+                              np.full(m, beta * c_amax), np.full(m, beta * c_jmax)):
+                return (*self._brake_path(p, v, dt), False)
+            t_cross = cross.duration
+        goal = max(t_cross, t_mod)
+        trivial = dist < 1e-6 and abs(float(v @ u)) < 1e-6 and abs(float(a @ u)) < 1e-6 and abs(end_s) < 1e-6
+        if along.duration < goal - 1e-9 and not trivial and not along.plan(*s_args, min_duration=goal):
+            return (*self._brake_path(p, v, dt), False)
+        if max(along.duration, t_cross) <= dt:
             return target, end_v, np.zeros(k), True
         s, vs, as_ = along.sample(dt)
-        c, vcs, acs = cross.sample(dt)
+        c, vcs, acs = cross.sample(dt) if cross_active else (np.zeros(m), np.zeros(m), np.zeros(m))
         p1 = target + s[0] * u + sum(c[i] * basis[i] for i in range(m))
         v1 = vs[0] * u + sum(vcs[i] * basis[i] for i in range(m))
         a1 = as_[0] * u + sum(acs[i] * basis[i] for i in range(m))
@@ -504,34 +510,30 @@ class ReferenceGenerator:
         """Enforce the step bounds of the module docstring, whatever the planner proposed."""
         L = self.limits
         p0, v0 = np.array(ref.p), np.array(ref.v)
-        changed = False
         # velocities: within the speed limits, and within a_max*dt of the previous ones
-        vh, c1 = _clamp_norm(v1[:2], L.horizontal_speed)
-        dvh, c2 = _clamp_norm(vh - v0[:2], L.horizontal_acceleration * dt)
+        vh, _ = _clamp_norm(v1[:2], L.horizontal_speed)
+        dvh, _ = _clamp_norm(vh - v0[:2], L.horizontal_acceleration * dt)
         vv = float(np.clip(v1[2], -L.vertical_speed, L.vertical_speed))
         dvv = float(np.clip(vv - v0[2], -L.vertical_acceleration * dt, L.vertical_acceleration * dt))
-        c3 = dvv != vv - v0[2] or vv != v1[2]
         v_new = np.array([v0[0] + dvh[0], v0[1] + dvh[1], v0[2] + dvv])
         # positions: within v_max*dt of the previous ones
-        dph, c4 = _clamp_norm(p1[:2] - p0[:2], L.horizontal_speed * dt)
+        dph, _ = _clamp_norm(p1[:2] - p0[:2], L.horizontal_speed * dt)
         dpv = float(np.clip(p1[2] - p0[2], -L.vertical_speed * dt, L.vertical_speed * dt))
-        c5 = dpv != p1[2] - p0[2]
         p_new = np.array([p0[0] + dph[0], p0[1] + dph[1], p0[2] + dpv])
         # accelerations: within the limits
-        ah, c6 = _clamp_norm(a1[:2], L.horizontal_acceleration)
+        ah, _ = _clamp_norm(a1[:2], L.horizontal_acceleration)
         av = float(np.clip(a1[2], -L.vertical_acceleration, L.vertical_acceleration))
         a_new = np.array([ah[0], ah[1], av])
         # yaw
         max_dyaw = L.yaw_rate_rad * dt
-        dyaw = yaw - ref.yaw
-        c7 = abs(dyaw) > max_dyaw or abs(yaw_rate) > L.yaw_rate_rad
-        yaw = ref.yaw + float(np.clip(dyaw, -max_dyaw, max_dyaw))
-        yaw_rate = float(np.clip(yaw_rate, -L.yaw_rate_rad, L.yaw_rate_rad))
-        changed = c1 or c2 or c3 or c4 or c5 or c6 or c7
-        if changed:
+        yaw_new = ref.yaw + float(np.clip(yaw - ref.yaw, -max_dyaw, max_dyaw))
+        rate_new = float(np.clip(yaw_rate, -L.yaw_rate_rad, L.yaw_rate_rad))
+        deviation = max(float(np.max(np.abs(v_new - v1))), float(np.max(np.abs(p_new - p1))),
+                        float(np.max(np.abs(a_new - a1))), abs(yaw_new - yaw), abs(rate_new - yaw_rate))
+        if deviation > 1e-9:
             self.guard_interventions += 1
-            log.debug("guard corrected a step (v %s %s %s, p %s %s, a %s, yaw %s)", c1, c2, c3, c4, c5, c6, c7)
-        return p_new, v_new, a_new, yaw, yaw_rate
+            log.debug("guard corrected a step by %.3g", deviation)
+        return p_new, v_new, a_new, yaw_new, rate_new
 
 
 def _t3(x: np.ndarray) -> Vec3:

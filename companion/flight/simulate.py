@@ -1,0 +1,114 @@
+"""Helpers to fly the queue without an autopilot, and to check the streamed setpoints' continuity.
+
+:class:`FlightSim` ticks a :class:`~companion.flight.queue.CommandQueue` on simulated time with a
+kinematic stand-in for the vehicle (it follows the setpoint with a one-tick delay and reports
+``landed`` on the ground). :func:`step_violations` checks a recorded setpoint stream against the
+step bounds of seed 000 Sec. IV-D as :mod:`companion.flight.reference` states them; the link's
+integration tests can apply it to what was really streamed.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
+from .limits import Limits
+from .queue import CommandQueue
+from .reference import wrap_pi
+from .setpoint import Setpoint, VehicleState
+
+
+@dataclass(frozen=True)
+class Violation:
+    """One pair of consecutive setpoints breaking a bound: ``quantity`` moved ``value`` > ``bound``."""
+
+    index: int
+    t_s: float
+    quantity: str
+    value: float
+    bound: float
+
+
+def step_violations(setpoints: Sequence[Setpoint], limits: Limits, rel_tol: float = 1e-9) -> list[Violation]:
+    """All violations of |dv| <= a_max*dt, |dp| <= v_max*dt (horizontal norm, vertical) and
+    |dyaw| <= yaw_rate*dt between consecutive setpoints (dt from their time stamps)."""
+    out: list[Violation] = []
+    L = limits
+    for i in range(1, len(setpoints)):
+        s0, s1 = setpoints[i - 1], setpoints[i]
+        dt = s1.t_s - s0.t_s
+        if dt <= 0:
+            if s0 != s1:
+                out.append(Violation(i, s1.t_s, "time", dt, 0.0))
+            continue
+        checks = (
+            ("dv_h", math.hypot(s1.v[0] - s0.v[0], s1.v[1] - s0.v[1]), L.horizontal_acceleration * dt),
+            ("dv_v", abs(s1.v[2] - s0.v[2]), L.vertical_acceleration * dt),
+            ("dp_h", math.hypot(s1.p[0] - s0.p[0], s1.p[1] - s0.p[1]), L.horizontal_speed * dt),
+            ("dp_v", abs(s1.p[2] - s0.p[2]), L.vertical_speed * dt),
+            ("dyaw", abs(wrap_pi(s1.yaw - s0.yaw)), math.radians(L.yaw_rate) * dt),
+        )
+        for name, value, bound in checks:
+            if value > bound * (1.0 + rel_tol) + 1e-12:
+                out.append(Violation(i, s1.t_s, name, value, bound))
+    return out
+
+
+@dataclass
+class FlightSim:
+    """Tick ``queue`` every ``dt`` seconds of simulated time; the vehicle follows one tick behind.
+
+    ``ground_altitude`` is where the vehicle stands (``landed`` is reported at or below it).
+    Every setpoint is kept in ``setpoints``; ``on_tick`` callbacks run before each tick (feed
+    external data there).
+    """
+
+    queue: CommandQueue
+    dt: float = 0.05
+    t: float = 0.0
+    p: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    yaw: float = 0.0
+    ground_altitude: float = 0.0
+    setpoints: list[Setpoint] = field(default_factory=list)
+    on_tick: list[Callable[[FlightSim], None]] = field(default_factory=list)
+    _v: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+    @property
+    def landed(self) -> bool:
+        return -self.p[2] <= self.ground_altitude + 0.02
+
+    def state(self) -> VehicleState:
+        return VehicleState(self.p, self._v, self.yaw, self.landed)
+
+    def tick(self) -> Setpoint | None:
+        for cb in self.on_tick:
+            cb(self)
+        sp = self.queue.tick(self.t, self.state())
+        if sp is not None:
+            self.setpoints.append(sp)
+            alt = max(-sp.p[2], self.ground_altitude)  # the ground stops the vehicle
+            self.p = (sp.p[0], sp.p[1], -alt)
+            self._v = sp.v
+            self.yaw = sp.yaw
+        self.t = round(self.t + self.dt, 9)
+        return sp
+
+    def run_for(self, seconds: float) -> Setpoint | None:
+        sp = None
+        for _ in range(max(1, round(seconds / self.dt))):
+            sp = self.tick()
+        return sp
+
+    def run_until(self, predicate: Callable[[FlightSim], bool], timeout_s: float) -> float:
+        """Tick until ``predicate(self)``; returns the simulated time; raises TimeoutError."""
+        end = self.t + timeout_s
+        while self.t <= end:
+            self.tick()
+            if predicate(self):
+                return self.t
+        raise TimeoutError(f"not reached within {timeout_s} s (t={self.t:.2f}, status={self.queue.status()})")
+
+    @property
+    def last(self) -> Setpoint:
+        return self.setpoints[-1]
