@@ -68,8 +68,8 @@ def modules_with_mavlink(modules_file: Path, out_dir: Path) -> Path:
     data["modules"] = list(data["modules"]) + missing
     out_dir.mkdir(parents=True, exist_ok=True)
     out = out_dir / "modules.generated.yaml"
-    out.write_text("# generated from %s plus the MAVLink modules\n%s" % (
-        modules_file, yaml.safe_dump(data, sort_keys=False)), encoding="utf-8")
+    header = f"# generated from {modules_file} plus the MAVLink modules\n"
+    out.write_text(header + yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
     return out
 
 
@@ -169,7 +169,8 @@ def add_autopilot_arguments(parser: argparse.ArgumentParser) -> None:
                         help="udpin:HOST:PORT, udpout:HOST:PORT or tcpin:HOST:PORT (repeatable; "
                              "default tcpin:0.0.0.0:5760+10N and udpin:0.0.0.0:14550+10N)")
     parser.add_argument("--state-dir", default=None,
-                        help="where parameters and missions persist (default $TASKFLIGHT_STATE or ~/.taskflight)")
+                        help="where parameters and missions persist "
+                             "(default $TASKFLIGHT_STATE or ~/.taskflight)")
     parser.add_argument("--signing-key", default=None, metavar="KEY",
                         help="MAVLink 2 signing: 64 hex digits, or a passphrase (sha256, as MAVProxy)")
     parser.add_argument("--no-persist", action="store_true", help="do not load or save parameters")
@@ -216,8 +217,8 @@ def run_autopilot(args: argparse.Namespace) -> int:
         for k, val in sorted(sitl.endpoint.stats.items()):
             print(f"  {k:28s} {val}")
         loop = sitl.vehicle.loop
-        if loop is not None and hasattr(loop, "report"):
-            print(loop.report())
+        if loop is not None and hasattr(loop, "stats"):
+            print(loop.stats.table())
     return 0
 
 

@@ -22,7 +22,8 @@ performed, per target format, so the once-per-update rule can be checked.
 
 Performance (the estimator writes at 500 Hz and every controller reads at 500 Hz inside a loop that runs many
 times faster than real time): plain attributes, tuples of floats and :mod:`math`; the geodetic conversion
-(pymap3d, ~0.3 ms a call) only runs when somebody actually reads the other position format.
+(ArduPilot's flat-earth convention, :mod:`taskflight.geo`) only runs when somebody actually reads the other
+position format.
 """
 
 from __future__ import annotations
@@ -32,7 +33,7 @@ import math
 from collections.abc import Sequence
 from typing import Any
 
-import pymap3d
+from taskflight.geo import geodetic_to_ned, ned_to_geodetic
 
 __all__ = [
     "StateInterface",
@@ -391,8 +392,7 @@ class StateInterface:
         p = self._ned
         if p is None:
             lat, lon, alt = self._lla  # type: ignore[misc]
-            lat0, lon0, alt0 = self.origin
-            n, e, d = pymap3d.geodetic2ned(lat, lon, alt, lat0, lon0, alt0)
+            n, e, d = geodetic_to_ned(self.origin, lat, lon, alt)
             p = self._ned = (float(n), float(e), float(d))
             self.conversions["ned"] += 1
         return p
@@ -403,8 +403,7 @@ class StateInterface:
         g = self._lla
         if g is None:
             n, e, d = self._ned  # type: ignore[misc]
-            lat0, lon0, alt0 = self.origin
-            lat, lon, alt = pymap3d.ned2geodetic(n, e, d, lat0, lon0, alt0)
+            lat, lon, alt = ned_to_geodetic(self.origin, n, e, d)
             g = self._lla = (float(lat), float(lon), float(alt))
             self.conversions["geodetic"] += 1
         return g

@@ -16,7 +16,6 @@ import logging
 import math
 import random
 import socket
-import struct
 import sys
 import time
 from pathlib import Path
@@ -24,7 +23,7 @@ from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from pymavlink.dialects.v20 import ardupilotmega as mavlink2  # noqa: E402
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 log = logging.getLogger("bench_mavlink_fuzz")
 
@@ -41,7 +40,8 @@ def _corpus(mav: Any, sysid: int) -> list[bytes]:
         m.set_mode_encode(sysid, 1, 4),
         m.param_set_encode(sysid, 1, b"WPNAV_SPEED", 900.0, 9),
         m.param_request_read_encode(sysid, 1, b"RTL_ALT", -1),
-        m.set_position_target_local_ned_encode(0, sysid, 1, 1, 0b110111111000, 10, 0, -10, 0, 0, 0, 0, 0, 0, 0,
+        m.set_position_target_local_ned_encode(0, sysid, 1, 1, 0b110111111000, 10, 0, -10, 0, 0, 0, 0, 0, 0,
+                                               0,
                                                0),
         m.set_position_target_global_int_encode(0, sysid, 1, 6, 0b110111000111, 0, 0, 0, 1, 0, 0, 0, 0, 0, 0,
                                                 0),
@@ -102,14 +102,25 @@ def _mutate(rng: random.Random, frame: bytes) -> bytes:
 
 
 def _is_valid(data: bytes, checker: Any) -> bool:
-    checker.buf = bytearray()
-    checker.buf_index = 0
-    checker.expected_length = 8
-    try:
-        msgs = checker.parse_buffer(data) or []
-    except Exception:
-        return False
-    return any(m.get_type() != "BAD_DATA" for m in msgs)
+    """Whether a CRC-valid MAVLink frame starts at *any* offset of ``data`` (pymavlink decides).
+
+    Any offset, because the endpoint resynchronises one byte after a false start, so it finds a
+    genuine frame hidden behind garbage whose fake header claimed a long length.
+    """
+    for i, byte in enumerate(data):
+        if byte not in (0xFD, 0xFE):
+            continue
+        checker.buf = bytearray()
+        checker.buf_index = 0
+        checker.expected_length = 8
+        checker.have_prefix_error = False
+        try:
+            m = checker.parse_char(data[i:])
+        except Exception:
+            continue
+        if m is not None and m.get_type() != "BAD_DATA":
+            return True
+    return False
 
 
 def _snapshot(sitl: Any) -> tuple[Any, ...]:
@@ -176,8 +187,9 @@ def run_fuzz(count: int, seed: int = 1, state_dir: str | None = None) -> dict[st
     wall = time.perf_counter() - t0
     after = _snapshot(sitl)
     # still answering?
-    sock.sendto(mav.command_long_encode(ep.sysid, 1, mavlink2.MAV_CMD_REQUEST_MESSAGE, 0,
-                                        mavlink2.MAVLINK_MSG_ID_AUTOPILOT_VERSION, 0, 0, 0, 0, 0, 0).pack(mav), addr)
+    probe_cmd = mav.command_long_encode(ep.sysid, 1, mavlink2.MAV_CMD_REQUEST_MESSAGE, 0,
+                                        mavlink2.MAVLINK_MSG_ID_AUTOPILOT_VERSION, 0, 0, 0, 0, 0, 0)
+    sock.sendto(probe_cmd.pack(mav), addr)
     rx = mavlink2.MAVLink(None, 0, 0)
     rx.robust_parsing = True
     answered = False

@@ -24,8 +24,11 @@ def main() -> None:
     ap.add_argument("--duration", type=float, default=60.0, help="wall seconds to run (default 60)")
     args = ap.parse_args()
     logging.basicConfig(level=logging.WARNING)
-    v = Vehicle.from_files(sensors="indoor", speedup=1.0)
+    v = Vehicle.from_files(sensors="indoor", speedup=0.0)
     loop = v.start()
+    v.run_for(1.0)  # warm-up in lockstep: the compiled kernels load on their first call
+    v.clock.set_speedup(1.0)
+    loop.stats.reset()
     t0 = time.perf_counter()
     deadline = t0 + args.duration
     takeoff(v, 5.0)

@@ -17,9 +17,8 @@ from typing import Any
 import pytest
 
 os.environ.setdefault("MAVLINK20", "1")
-from pymavlink import mavutil  # noqa: E402
-
-from test_mavlink_support import SitlProcess, free_port  # noqa: E402
+from pymavlink import mavutil
+from test_mavlink_support import SitlProcess, free_port
 
 SPEEDUP = 10.0
 M = mavutil.mavlink

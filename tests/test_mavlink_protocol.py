@@ -159,7 +159,7 @@ def test_retransmission_executed_once_acked_twice(setup: Any) -> None:
 
 
 def test_set_message_interval_and_request_message(setup: Any) -> None:
-    v, ep, gcs = setup
+    v, _ep, gcs = setup
     _hello(v, gcs)
     ack = gcs.command(v, mavlink2.MAV_CMD_SET_MESSAGE_INTERVAL, mavlink2.MAVLINK_MSG_ID_SYSTEM_TIME, 20000)
     assert ack.result == ACCEPTED

@@ -38,7 +38,8 @@ class SitlProcess:
         args += list(extra)
         env = dict(os.environ)
         env["PYTHONPATH"] = str(ROOT) + os.pathsep + env.get("PYTHONPATH", "")
-        self.proc = subprocess.Popen(args, cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+        self.proc = subprocess.Popen(args, cwd=ROOT, env=env, stdout=subprocess.PIPE,
+                                     stderr=subprocess.STDOUT,
                                      text=True)
         end = time.monotonic() + timeout_s
         self.ready = ""
@@ -63,7 +64,8 @@ class SitlProcess:
                 self.proc.wait(5)
 
 
-def wait_for(pred: Callable[[], Any], timeout_s: float, what: str, poll: Callable[[], None] | None = None) -> Any:
+def wait_for(pred: Callable[[], Any], timeout_s: float, what: str,
+             poll: Callable[[], None] | None = None) -> Any:
     """Call ``poll`` and test ``pred`` until it is truthy or the wall deadline passes."""
     end = time.monotonic() + timeout_s
     while time.monotonic() < end:

@@ -18,7 +18,6 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-
 from test_mavlink_gcs import Gcs
 from test_mavlink_support import ROOT, SitlProcess, free_port
 
@@ -67,8 +66,8 @@ def setup(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Lines, Gcs
     d = tmp_path_factory.mktemp("mavproxy")
     sitl = SitlProcess([f"tcpin:127.0.0.1:{tcp}", f"udpin:127.0.0.1:{udp}"], d / "state", speedup=10)
     env = dict(os.environ, PYTHONPATH=str(ROOT))
-    proc = subprocess.Popen(_mavproxy() + [f"--master=tcp:127.0.0.1:{tcp}", "--non-interactive",
-                                           f"--state-basedir={d}"],
+    proc = subprocess.Popen([*_mavproxy(), f"--master=tcp:127.0.0.1:{tcp}", "--non-interactive",
+                             f"--state-basedir={d}"],
                             cwd=d, env=env, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
                             stderr=subprocess.STDOUT, text=True)
     gcs = Gcs(udp)

@@ -9,7 +9,6 @@ from __future__ import annotations
 import asyncio
 import math
 from collections.abc import Awaitable, Callable, Iterator
-from pathlib import Path
 from typing import Any
 
 import pytest
@@ -21,7 +20,6 @@ from mavsdk.asyncio.plugins.offboard import OffboardAsync  # noqa: E402
 from mavsdk.asyncio.plugins.telemetry import TelemetryAsync  # noqa: E402
 from mavsdk.component_type import ComponentType  # noqa: E402
 from mavsdk.plugins.offboard import PositionNedYaw, VelocityNedYaw  # noqa: E402
-
 from test_mavlink_support import SitlProcess, free_port  # noqa: E402
 
 SPEEDUP = 10.0

@@ -3,7 +3,7 @@
 Handlers are registered per MAV_CMD with :meth:`CommandDispatcher.add`; each gets a normalised
 :class:`Command` and returns ``(MAV_RESULT, reason)``. A DENIED or FAILED result with a reason is also
 announced by STATUSTEXT, as ArduPilot does for pre-arm failures. A command nobody handles is answered
-UNSUPPORTED. A handler that raises :class:`~.endpoint.InvalidField` (NaN where a number is needed ...)
+UNSUPPORTED. A handler that raises :class:`~.endpoint.InvalidFieldError` (NaN where a number is needed ...)
 gets DENIED, and nothing is changed.
 
 Retransmissions are acted on once. A ground station that gets no ACK sends the same command again,
@@ -12,7 +12,8 @@ the same sender (link, system, component) with the same id and parameters as the
 retransmission if its ``confirmation`` is greater than zero (within :attr:`CommandDispatcher.retry_window_s`)
 or if it arrives within :attr:`CommandDispatcher.dup_window_s`: it is answered with the stored result
 and not executed again. Only an *accepted* command is remembered this way: a refused one changed
-nothing, so sending it again (e.g. arming after the reason for the refusal went away) re-evaluates it. The windows are wall time on purpose: retransmission is a property of the
+nothing, so sending it again (e.g. arming after the reason for the refusal went away) re-evaluates it.
+The windows are wall time on purpose: retransmission is a property of the
 link and the client's timers, which run on the wall clock, not of simulated time. Commands that are
 harmless to repeat (requests for messages, intervals) are never deduplicated.
 """
@@ -28,7 +29,7 @@ from typing import TYPE_CHECKING, Any
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-from .endpoint import InvalidField
+from .endpoint import InvalidFieldError
 
 if TYPE_CHECKING:
     from .endpoint import MavlinkEndpoint
@@ -71,7 +72,7 @@ class Command:
         """param i, which must be a finite number (else the command is denied as invalid)."""
         v = self.params[i - 1]
         if not math.isfinite(v):
-            raise InvalidField(f"{what or f'param{i}'} must be a number")
+            raise InvalidFieldError(f"{what or f'param{i}'} must be a number")
         return v
 
     def key(self) -> tuple[Any, ...]:
@@ -163,7 +164,7 @@ class CommandDispatcher:
         self._after_ack.clear()
         try:
             result, reason = fn(cmd, peer)
-        except InvalidField as exc:
+        except InvalidFieldError as exc:
             ep.stats["invalid_field"] += 1
             result, reason = DENIED, f"{_name(cmd.command)}: {exc}"
             self._after_ack.clear()

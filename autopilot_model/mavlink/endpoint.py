@@ -37,7 +37,7 @@ log = logging.getLogger(__name__)
 Handler = Callable[[Any, Peer], None]
 
 #: Wall-time budget for reading sockets in one poll (a flood must not stall the 500 Hz loop).
-POLL_BUDGET_S = 0.0008
+POLL_BUDGET_S = 0.0006
 STATUSTEXT_LEN = 50
 
 MAV_TYPE_GCS = mavlink2.MAV_TYPE_GCS
@@ -101,7 +101,8 @@ class MavlinkEndpoint:
         if register and hasattr(vehicle, "register"):
             vehicle.register("mavlink.poll", self.poll)
             vehicle.register("mavlink.telemetry", self.telemetry)
-        log.info("MAVLink endpoint sysid %d on %s", self.sysid, ", ".join(str(t.url) for t in self.transports))
+        log.info("MAVLink endpoint sysid %d on %s", self.sysid,
+                 ", ".join(str(t.url) for t in self.transports))
 
     # --- plumbing ------------------------------------------------------------------------------
     def add_handler(self, msg_type: str, fn: Handler) -> None:
@@ -196,7 +197,7 @@ class MavlinkEndpoint:
             return
         try:
             fn(msg, peer)
-        except InvalidField as exc:
+        except InvalidFieldError as exc:
             self.stats["invalid_field"] += 1
             log.debug("%s from %s rejected: %s", msg.get_type(), peer.name, exc)
         except Exception:
@@ -225,12 +226,12 @@ class MavlinkEndpoint:
         self.poller.close()
 
 
-class InvalidField(ValueError):
+class InvalidFieldError(ValueError):
     """A received message carries a field value that cannot be acted on (NaN, out of range ...)."""
 
 
 def require_finite(*values: float, what: str = "field") -> None:
-    """Raise :class:`InvalidField` unless every value is a finite number."""
+    """Raise :class:`InvalidFieldError` unless every value is a finite number."""
     for v in values:
         if not math.isfinite(v):
-            raise InvalidField(f"{what} is not finite")
+            raise InvalidFieldError(f"{what} is not finite")

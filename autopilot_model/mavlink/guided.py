@@ -31,7 +31,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from autopilot_model.modules.flight_modes import GUIDED, FlightModes, GuidedTarget, geodetic_to_ned, home_ned
 
-from .endpoint import InvalidField, require_finite
+from .endpoint import InvalidFieldError, require_finite
 
 if TYPE_CHECKING:
     from .endpoint import MavlinkEndpoint
@@ -210,4 +210,4 @@ class GuidedTargetsProtocol:
             a[0], a[1], a[2], t.yaw or 0.0, t.yaw_rate or 0.0)
 
 
-__all__ = ["GuidedTargetsProtocol", "InvalidField"]
+__all__ = ["GuidedTargetsProtocol", "InvalidFieldError"]

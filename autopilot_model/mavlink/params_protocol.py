@@ -25,7 +25,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from autopilot_model.params import PARAM_INT, ParamError
 
-from .endpoint import InvalidField
+from .endpoint import InvalidFieldError
 
 if TYPE_CHECKING:
     from .endpoint import MavlinkEndpoint
@@ -98,7 +98,7 @@ class ParamsProtocol:
             ep.statustext(mavlink2.MAV_SEVERITY_WARNING, str(exc), peer)
             ep.send(self.value_message(self.store.index_of(name)), peer)
             if not math.isfinite(value):
-                raise InvalidField(f"{name}: value not finite") from None
+                raise InvalidFieldError(f"{name}: value not finite") from None
             return
         log.info("parameter %s set to %g", name, self.store.get(name))
         ep.send(self.value_message(self.store.index_of(name)), None)

@@ -48,7 +48,7 @@ class StreamRequests:
     def _set_interval(self, cmd: Command, peer: Peer) -> CommandResult:
         name = message_name(cmd.p(1))
         interval = cmd.p(2)
-        if name is None or not self.endpoint.streams.supports(name) and name != "HEARTBEAT":
+        if name is None or (not self.endpoint.streams.supports(name) and name != "HEARTBEAT"):
             return UNSUPPORTED, None
         if not math.isfinite(interval) or interval < -1:
             return DENIED, "SET_MESSAGE_INTERVAL: bad interval"
@@ -77,5 +77,6 @@ class StreamRequests:
         if not self.endpoint.streams.supports("AUTOPILOT_VERSION"):
             return UNSUPPORTED, None
         if cmd.p(1) == 1:
-            self.endpoint.commands.after_ack(lambda: self.endpoint.streams.send_now("AUTOPILOT_VERSION", peer))
+            streams = self.endpoint.streams
+            self.endpoint.commands.after_ack(lambda: streams.send_now("AUTOPILOT_VERSION", peer))
         return ACCEPTED, None

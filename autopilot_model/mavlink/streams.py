@@ -69,7 +69,7 @@ def interval_us_for(hz: float) -> int:
     """Interval in microseconds for a rate in Hz, capped at :data:`MAX_RATE_HZ`; 0 Hz = off (-1)."""
     if not hz > 0:
         return -1
-    return int(round(1e6 / min(hz, MAX_RATE_HZ)))
+    return round(1e6 / min(hz, MAX_RATE_HZ))
 
 
 class StreamScheduler:

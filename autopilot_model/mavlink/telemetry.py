@@ -114,7 +114,8 @@ class VehicleTelemetry:
         return M.MAV_STATE_ACTIVE if self.modes.in_air() else M.MAV_STATE_STANDBY
 
     def heartbeat(self) -> Any:
-        return self.mav.heartbeat_encode(M.MAV_TYPE_QUADROTOR, M.MAV_AUTOPILOT_ARDUPILOTMEGA, self.base_mode(),
+        return self.mav.heartbeat_encode(M.MAV_TYPE_QUADROTOR, M.MAV_AUTOPILOT_ARDUPILOTMEGA,
+                                         self.base_mode(),
                                          self.modes.mode, self.system_status(), 3)
 
     def _battery(self) -> tuple[float, float, float, float]:
@@ -175,7 +176,7 @@ class VehicleTelemetry:
                                                    w[0], w[1], w[2], [0.0, 0.0, 0.0, 0.0])
 
     def _heading_cdeg(self) -> int:
-        return int(round(math.degrees(self.v.state.euler[2]) * 100)) % 36000
+        return round(math.degrees(self.v.state.euler[2]) * 100) % 36000
 
     def global_position_int(self) -> Any:
         st = self.v.state
@@ -202,7 +203,7 @@ class VehicleTelemetry:
                                                65535, 65535, gps.satellites)
         lat, lon, alt = fm.ned_to_geodetic((sample[0], sample[1], sample[2]), self.v.state.origin)
         vel = math.hypot(sample[3], sample[4])
-        cog = int(round(math.degrees(math.atan2(sample[4], sample[3])) * 100)) % 36000 if vel > 0.2 else 0
+        cog = round(math.degrees(math.atan2(sample[4], sample[3])) * 100) % 36000 if vel > 0.2 else 0
         eph = getattr(gps, "eph_m", 1.0)
         epv = getattr(gps, "epv_m", 1.5)
         return self.mav.gps_raw_int_encode(

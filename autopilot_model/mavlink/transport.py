@@ -18,6 +18,7 @@ accepted as ``udpin:`` and ``tcp:`` as ``tcpin:`` for convenience.
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import logging
 import select
@@ -324,10 +325,8 @@ class TcpIn(Transport):
             return
         client.peer.closed = True
         self.poller.unregister(fd)
-        try:
+        with contextlib.suppress(OSError):
             client.sock.close()
-        except OSError:  # pragma: no cover
-            pass
         log.info("MAVLink TCP client %s disconnected", client.peer.name)
 
     def close(self) -> None:
@@ -349,10 +348,8 @@ class Poller:
 
     def unregister(self, fd: int) -> None:
         self._owners.pop(fd, None)
-        try:
+        with contextlib.suppress(OSError, ValueError):
             self._ep.unregister(fd)
-        except (OSError, ValueError):  # pragma: no cover
-            pass
 
     def poll(self, on_data: OnData, budget_s: float) -> int:
         """Read what is waiting (at most ``budget_s`` of wall time); returns the ready socket count."""

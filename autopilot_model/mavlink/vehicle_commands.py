@@ -119,13 +119,14 @@ class VehicleCommands:
         speed = cmd.p(1)
         flags = cmd.p(2)
         lat, lon, alt = cmd.p(5), cmd.p(6), cmd.p(7)
-        if self.modes.mode != fm.GUIDED:
-            if not (math.isfinite(flags) and int(flags) & M.MAV_DO_REPOSITION_FLAGS_CHANGE_MODE):
-                return DENIED, "Reposition: not in GUIDED"
+        may_switch = math.isfinite(flags) and int(flags) & M.MAV_DO_REPOSITION_FLAGS_CHANGE_MODE
+        if self.modes.mode != fm.GUIDED and not may_switch:
+            return DENIED, "Reposition: not in GUIDED"
         if not self.modes.in_air():
             return DENIED, "Reposition: not flying"
         cur = self.v.state.position_geodetic
-        if not math.isfinite(lat) or not math.isfinite(lon) or (cmd.is_int and cmd.x_int == 0 and cmd.y_int == 0):
+        no_ll = cmd.is_int and cmd.x_int == 0 and cmd.y_int == 0
+        if not math.isfinite(lat) or not math.isfinite(lon) or no_ll:
             lat, lon = cur[0], cur[1]
         if not (-90 <= lat <= 90 and -180 <= lon <= 180):
             return DENIED, "Reposition: bad latitude/longitude"

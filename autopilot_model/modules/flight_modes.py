@@ -95,7 +95,8 @@ def home_ned(vehicle: Any) -> Vec3:
     key = (tuple(vehicle.home[:3]), tuple(vehicle.state.origin))
     cached = _home_cache.get(id(vehicle))
     if cached is None or cached[0] != key:
-        cached = (key, geodetic_to_ned(vehicle.home[0], vehicle.home[1], vehicle.home[2], vehicle.state.origin))
+        h = vehicle.home
+        cached = (key, geodetic_to_ned(h[0], h[1], h[2], vehicle.state.origin))
         _home_cache[id(vehicle)] = cached
     return cached[1]
 
@@ -178,18 +179,20 @@ class GuidedTargets:
         self.reset()
 
     def update(self) -> None:
-        if self.kind in (G_VEL, G_ACCEL, G_POSVEL) and not self.timed_out:
-            if self.v.clock.now() - self.last_update_s > self.v.params.get("GUID_TIMEOUT"):
-                self.timed_out = True
-                if self.kind == G_POSVEL and self.target.pos is not None:
-                    # keep the position target, drop the feed-forward
-                    self.v.guidance.set_position_target(tuple(self.target.pos), speed=self.modes.speed_h(),
-                                                        end_speed=0.0)
-                else:
-                    self.v.nav.hold()
-                if self.target.yaw_rate is not None:
-                    self.v.nav.yaw_rate(0.0)
-                log.info("GUIDED: target timed out, stopping")
+        if self.kind not in (G_VEL, G_ACCEL, G_POSVEL) or self.timed_out:
+            return
+        if self.v.clock.now() - self.last_update_s <= self.v.params.get("GUID_TIMEOUT"):
+            return
+        self.timed_out = True
+        if self.kind == G_POSVEL and self.target.pos is not None:
+            # keep the position target, drop the feed-forward
+            self.v.guidance.set_position_target(tuple(self.target.pos), speed=self.modes.speed_h(),
+                                                end_speed=0.0)
+        else:
+            self.v.nav.hold()
+        if self.target.yaw_rate is not None:
+            self.v.nav.yaw_rate(0.0)
+        log.info("GUIDED: target timed out, stopping")
 
 
 class FlightModes:
@@ -358,6 +361,5 @@ class FlightModes:
                 self.guided.update()
         elif mode == RTL:
             self._rtl_update()
-        elif mode == AUTO:
-            if not self.paused and self.mission_runner is not None:
-                self.mission_runner.update()
+        elif mode == AUTO and not self.paused and self.mission_runner is not None:
+            self.mission_runner.update()

@@ -409,40 +409,43 @@ class MissionRunner:
         modes.on_mode_change(on_change)
 
     def start(self) -> tuple[bool, str]:
-        """Entering AUTO. In the air: fly the current item now. On the ground: wait for MISSION_START
-        (an armed copter on the ground needs a take-off as its first navigation item)."""
+        """Entering AUTO (refused without a plan, as ArduCopter). In the air: fly the current item now
+        (from item 1 if the plan had been completed). On the ground: wait for MISSION_START; an armed
+        copter on the ground needs a take-off as its first navigation item."""
         nav = self.vehicle.nav
+        if self.store.count(MISSION) <= 1:
+            return False, "Auto: no mission"
         if nav.armed and nav.landed_state == _LANDED_ON_GROUND and not self._starts_with_takeoff():
             return False, "Auto: Missing Takeoff Cmd"
-        self.finished = False
+        self.start_requested = False
         if self._on_ground():
             self.state = WAITING
-            self.start_requested = False
             return True, ""
-        self._run_from(self.store.current)
+        self._run_from(1 if self.finished else self.store.current)
         return True, ""
 
     def mission_start(self, first: int = 0) -> tuple[bool, str]:
-        """MAV_CMD_MISSION_START (in AUTO): start at ``first`` (0 = the current item, or item 1)."""
+        """MAV_CMD_MISSION_START (in AUTO): start at ``first`` (0 = the current item; from the ground,
+        or after the plan was completed, item 1). A disarmed vehicle starts once it is armed."""
         if self.store.count(MISSION) <= 1:
             return False, "Mission: no items"
         if first > 0 and not self.store.set_current(first):
             return False, f"Mission: invalid item {first}"
         if self.state == RUNNING:
             return True, ""
-        self.finished = False
-        if self.vehicle.nav.armed:
-            if self._on_ground() and not self._starts_with_takeoff():
-                return False, "Auto: Missing Takeoff Cmd"
-            first_seq = self.store.current if self.store.current > 0 else 1
-            if self.state == COMPLETE:
-                first_seq = 1
-            if first_seq == 1:
-                self.speed = None  # a fresh start flies at WPNAV_SPEED
-            self._run_from(first_seq)
-        else:
+        if not self.vehicle.nav.armed:
             self.state = WAITING
             self.start_requested = True  # take off as soon as the vehicle is armed
+            return True, ""
+        on_ground = self._on_ground()
+        if on_ground and not self._starts_with_takeoff():
+            return False, "Auto: Missing Takeoff Cmd"
+        first_seq = self.store.current
+        if on_ground or self.finished or first_seq < 1:
+            first_seq = 1
+        if first_seq == 1:
+            self.speed = None  # a fresh start flies at WPNAV_SPEED
+        self._run_from(first_seq)
         return True, ""
 
     def resume(self) -> None:
@@ -492,6 +495,7 @@ class MissionRunner:
             self._finish()
             return
         self.state = RUNNING
+        self.finished = False
         self.store.running = True
         self._set_current(seq)
         self._begin(self.store.item(seq))

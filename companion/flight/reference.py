@@ -150,8 +150,16 @@ class StepResult:
 
 
 # --- ruckig wrapper ---------------------------------------------------------------------------------
+Array = np.ndarray
+
+
 class _Planner:
-    """One ruckig problem of ``dofs`` degrees of freedom, planned from scratch each call (online)."""
+    """One ruckig problem of ``dofs`` degrees of freedom, kept while it stays valid (online use).
+
+    Like ruckig's own ``update()``, a trajectory is only recalculated when the request changes or
+    the reference left it (a channel switch, the guard): replanning every tick from a state on a
+    time-optimal braking curve would let rounding push it just past the curve and overshoot.
+    """
 
     def __init__(self, dofs: int) -> None:
         self.dofs = dofs
@@ -159,12 +167,53 @@ class _Planner:
         self._inp = InputParameter(dofs)
         self._traj = Trajectory(dofs)
         self.duration = 0.0
+        self.t = 0.0
         self.ok = False
+        self.stretched = False
+        self._key: Array | None = None
+        self._target_p: Array | None = None
+        self._target_v = np.zeros(dofs)
 
-    def plan(self, p: np.ndarray, v: np.ndarray, a: np.ndarray, target_p: np.ndarray | None,
-             target_v: np.ndarray, vmax: np.ndarray, amax: np.ndarray, jmax: np.ndarray,
-             min_duration: float | None = None) -> bool:
-        """Plan to (target_p, target_v) or, with ``target_p`` None, to velocity ``target_v``."""
+    @property
+    def remaining(self) -> float:
+        return max(0.0, self.duration - self.t) if self.ok else 0.0
+
+    def reusable(self, key: Array, p: Array, v: Array, a: Array, goal: float = 0.0, key_tol: float = 1e-9) -> bool:
+        """Whether the current trajectory serves ``key`` from state (p, v, a) with a modifier ``goal``."""
+        if not self.ok or self._key is None or key.shape != self._key.shape:
+            return False
+        if not _close(key, self._key, key_tol):
+            return False
+        if not self.on_track(p, v, a):
+            return False
+        rem = self.remaining
+        if goal > rem + 1e-6:  # a modifier now needs us to be slower
+            return False
+        return not (self.stretched and goal < rem - 1e-6)  # or allows us to be faster again
+
+    def on_track(self, p: Array, v: Array, a: Array) -> bool:
+        pp, vv, aa = self.state(self.t)
+        return _close(pp, p, 1e-9) and _close(vv, v, 1e-9) and _close(aa, a, 1e-9)
+
+    def plan(self, p: Array, v: Array, a: Array, target_p: Array | None, target_v: Array, vmax: Array,
+             amax: Array, jmax: Array, goal: float = 0.0, key: Array | None = None) -> bool:
+        """Plan to (target_p, target_v), or with ``target_p`` None to velocity ``target_v``; at least
+        ``goal`` seconds long (speed modifier) unless the motion is trivial."""
+        if not self._calculate(p, v, a, target_p, target_v, vmax, amax, jmax, None):
+            return False
+        self.stretched = False
+        trivial = (target_p is None or _close(target_p, p, 1e-6)) and _close(v, target_v, 1e-6) \
+            and _close(a, np.zeros(self.dofs), 1e-6)
+        if goal > self.duration + 1e-9 and not trivial:
+            if not self._calculate(p, v, a, target_p, target_v, vmax, amax, jmax, goal):
+                return False
+            self.stretched = True
+        self.t = 0.0
+        self._key = key
+        return True
+
+    def _calculate(self, p: Array, v: Array, a: Array, target_p: Array | None, target_v: Array, vmax: Array,
+                   amax: Array, jmax: Array, min_duration: float | None) -> bool:
         inp = self._inp
         inp.control_interface = ControlInterface.Velocity if target_p is None else ControlInterface.Position
         inp.synchronization = Synchronization.Time
@@ -177,24 +226,61 @@ class _Planner:
         inp.max_velocity = [max(float(x), 1e-6) for x in vmax]
         inp.max_acceleration = [max(float(x), 1e-6) for x in amax]
         inp.max_jerk = [max(float(x), 1e-6) for x in jmax]
-        inp.minimum_duration = min_duration if min_duration and min_duration > 0 else None
+        inp.minimum_duration = min_duration
+        self._target_p = None if target_p is None else np.array(target_p, dtype=float)
+        self._target_v = np.array(target_v, dtype=float)
         try:
             result = self._otg.calculate(inp, self._traj)
         except Exception as exc:  # ruckig raises on invalid input or unmapped error codes
             log.debug("ruckig failed (%s) for p=%s v=%s a=%s tp=%s tv=%s", exc, p, v, a, target_p, target_v)
-            self.ok = False
-            return False
+            result = Result.Error
         self.ok = result in (Result.Working, Result.Finished)
         self.duration = float(self._traj.duration) if self.ok else 0.0
+        if not self.ok:
+            self._key = None
         return self.ok
 
-    def sample(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        p, v, a = self._traj.at_time(min(t, self.duration))
-        p_arr, v_arr, a_arr = np.array(p), np.array(v), np.array(a)
-        if t > self.duration:  # after the end the trajectory continues with its final velocity
-            p_arr = p_arr + v_arr * (t - self.duration)
-            a_arr = np.zeros(self.dofs)
-        return p_arr, v_arr, a_arr
+    def state(self, t: float) -> tuple[Array, Array, Array]:
+        """State at ``t`` after the start; after the end it continues with its final velocity."""
+        if t < self.duration:
+            p, v, a = self._traj.at_time(t)
+            return np.array(p), np.array(v), np.array(a)
+        # at and after the end: exactly the target, then on with the target velocity
+        if self._target_p is not None:
+            p_end = self._target_p
+        else:
+            p_end = np.array(self._traj.at_time(self.duration)[0])
+        return p_end + self._target_v * (t - self.duration), self._target_v.copy(), np.zeros(self.dofs)
+
+    def advance(self, dt: float) -> tuple[Array, Array, Array]:
+        """Move ``dt`` along the trajectory and return the state there."""
+        self.t += dt
+        return self.state(self.t)
+
+    def invalidate(self) -> None:
+        self._key = None
+
+
+_NONE = 1.2345e300  # stands for None in a key
+
+
+def _close(x: Array, y: Array, tol: float) -> bool:
+    """Max-norm closeness, fast for the tiny arrays used here."""
+    xs = x.tolist() if isinstance(x, np.ndarray) else list(x)
+    ys = y.tolist() if isinstance(y, np.ndarray) else list(y)
+    return len(xs) == len(ys) and all(abs(a - b) <= tol for a, b in zip(xs, ys, strict=True))
+
+
+def _key(*parts: object) -> Array:
+    out: list[float] = []
+    for part in parts:
+        if part is None:
+            out.append(_NONE)
+        elif isinstance(part, np.ndarray | list | tuple):
+            out.extend(float(x) for x in part)  # type: ignore[union-attr]
+        else:
+            out.append(float(part))  # type: ignore[arg-type]
+    return np.array(out)
 
 
 def _unit(x: np.ndarray) -> tuple[np.ndarray, float]:
@@ -227,6 +313,27 @@ def stopping_speed(distance: float, accel: float, jerk: float) -> float:
     return -k + math.sqrt(k * k + 2.0 * a * d)
 
 
+@dataclass
+class _PathFrame:
+    """The line frame of a path plan: along ``u`` from the target, across along ``basis``."""
+
+    dims: int
+    u: Array
+    basis: list[Array]
+    target: Array
+    key: Array
+    cross_active: bool = False
+    t_cross: float = 0.0
+
+    def along_state(self, p: Array, v: Array, a: Array) -> tuple[Array, Array, Array]:
+        return (np.array([float((p - self.target) @ self.u)]), np.array([float(v @ self.u)]),
+                np.array([float(a @ self.u)]))
+
+    def cross_state(self, p: Array, v: Array, a: Array) -> tuple[Array, Array, Array]:
+        return (np.array([float((p - self.target) @ n) for n in self.basis]),
+                np.array([float(v @ n) for n in self.basis]), np.array([float(a @ n) for n in self.basis]))
+
+
 class ReferenceGenerator:
     """Turns :class:`ChannelTargets` into the next :class:`Reference` (see module docstring)."""
 
@@ -239,7 +346,7 @@ class ReferenceGenerator:
         self._hvel = _Planner(2)
         self._vert = _Planner(1)
         self._yaw = _Planner(1)
-        self._brake3 = _Planner(3)
+        self._frame: _PathFrame | None = None
         #: How often the final guard had to correct the planned step (diagnostics).
         self.guard_interventions = 0
 
@@ -266,8 +373,8 @@ class ReferenceGenerator:
         v_arrived = False
         pd = vd = ad = 0.0
         if targets.vertical is not None:
-            min_dur = t_hd if (targets.v_sync_heading and isinstance(targets.heading, YawTarget)) else None
-            pd, vd, ad, t_v, v_arrived = self._step_vertical(p0[2], v0[2], a0[2], targets.vertical, dt, min_dur)
+            v_goal = t_hd if (targets.v_sync_heading and isinstance(targets.heading, YawTarget)) else 0.0
+            pd, vd, ad, t_v, v_arrived = self._step_vertical(p0[2], v0[2], a0[2], targets.vertical, dt, v_goal)
         # horizontal
         t_mod = 0.0
         if targets.h_sync_vertical and isinstance(targets.vertical, AxisTarget):
@@ -289,8 +396,8 @@ class ReferenceGenerator:
         v1 = np.array([vh[0], vh[1], vd])
         a1 = np.array([ah[0], ah[1], ad])
         p1, held = self._hold_inside(p0, p1, targets.floor_exempt)
-        p1, v1, a1, yaw, yaw_rate = self._guard(ref, p1, v1, a1, yaw, yaw_rate, dt)
-        new = Reference(ref.t_s + dt, _t3(p1), _t3(v1), _t3(a1), yaw, yaw_rate, yaw_acc)
+        pg, vg, ag, yaw, yaw_rate = self._guard(ref, p1, v1, a1, yaw, yaw_rate, dt)
+        new = Reference(ref.t_s + dt, pg, vg, ag, yaw, yaw_rate, yaw_acc)
         return StepResult(new, h_arrived, v_arrived, hd_arrived, limit_reached or held, unreachable)
 
     # --- envelope -------------------------------------------------------------------------------------
@@ -364,35 +471,38 @@ class ReferenceGenerator:
     # --- channels -------------------------------------------------------------------------------------
     def _step_heading(self, ref: Reference, t: YawTarget | YawRateTarget, dt: float
                       ) -> tuple[float, float, float, float, bool]:
+        """Returns yaw, rate, acceleration, remaining duration (before this step), arrived."""
         L = self.limits
         pl = self._yaw
-        y0 = np.array([ref.yaw])
-        r0 = np.array([ref.yaw_rate])
-        ya0 = np.array([ref.yaw_acc])
+        cur = (np.array([ref.yaw]), np.array([ref.yaw_rate]), np.array([ref.yaw_acc]))
         lim_a = np.array([L.yaw_acceleration_rad])
         lim_j = np.array([L.yaw_jerk_rad])
         if isinstance(t, YawTarget):
             rate = min(abs(t.rate), L.yaw_rate_rad)
-            if pl.plan(y0, r0, ya0, np.array([t.yaw]), np.zeros(1), np.array([rate]), lim_a, lim_j):
-                if pl.duration <= dt:
-                    return t.yaw, 0.0, 0.0, pl.duration, True
-                y, r, acc = pl.sample(dt)
-                return float(y[0]), float(r[0]), float(acc[0]), pl.duration, False
+            key = _key(0, t.yaw, rate)
+            if pl.reusable(key, *cur, key_tol=1e-6) or pl.plan(*cur, np.array([t.yaw]), np.zeros(1),
+                                                                np.array([rate]), lim_a, lim_j, key=key):
+                remaining = pl.remaining
+                if remaining <= dt:
+                    pl.advance(dt)
+                    return t.yaw, 0.0, 0.0, remaining, True
+                y, r, acc = pl.advance(dt)
+                return float(y[0]), float(r[0]), float(acc[0]), remaining, False
         else:
             rate = float(np.clip(t.rate, -L.yaw_rate_rad, L.yaw_rate_rad))
-            if pl.plan(y0, r0, ya0, None, np.array([rate]), np.array([L.yaw_rate_rad]), lim_a, lim_j):
-                y, r, acc = pl.sample(dt)
+            key = _key(1, rate)
+            if pl.reusable(key, *cur) or pl.plan(*cur, None, np.array([rate]), np.array([L.yaw_rate_rad]),
+                                                 lim_a, lim_j, key=key):
+                y, r, acc = pl.advance(dt)
                 return float(y[0]), float(r[0]), float(acc[0]), 0.0, False
-        return self._brake_yaw(ref, dt)
-
-    def _brake_yaw(self, ref: Reference, dt: float) -> tuple[float, float, float, float, bool]:
+        pl.invalidate()
         r = ref.yaw_rate
-        dr = -math.copysign(min(abs(r), self.limits.yaw_acceleration_rad * dt), r)
-        r1 = r + dr
-        return ref.yaw + 0.5 * (r + r1) * dt, r1, dr / dt, 0.0, False
+        dr = -math.copysign(min(abs(r), L.yaw_acceleration_rad * dt), r)
+        return ref.yaw + (r + 0.5 * dr) * dt, r + dr, dr / dt, 0.0, False
 
     def _step_vertical(self, p: float, v: float, a: float, t: AxisTarget | VelocityTarget, dt: float,
-                       min_duration: float | None) -> tuple[float, float, float, float, bool]:
+                       goal: float) -> tuple[float, float, float, float, bool]:
+        """Returns down, velocity, acceleration, remaining duration (before this step), arrived."""
         L = self.limits
         pl = self._vert
         lim_a = np.array([L.vertical_acceleration])
@@ -401,41 +511,80 @@ class ReferenceGenerator:
         if isinstance(t, AxisTarget):
             speed = min(t.speed, L.vertical_speed)
             end_v = float(np.clip(t.end_velocity, -speed, speed))
-            trivial = abs(t.down - p) < 1e-6 and abs(v) < 1e-6 and abs(a) < 1e-6 and abs(end_v) < 1e-6
-            if pl.plan(*cur, np.array([t.down]), np.array([end_v]), np.array([speed]), lim_a, lim_j,
-                       None if trivial else min_duration):
-                if pl.duration <= dt:
-                    return t.down, end_v, 0.0, pl.duration, True
-                pp, vv, aa = pl.sample(dt)
-                return float(pp[0]), float(vv[0]), float(aa[0]), pl.duration, False
+            key = _key(0, t.down, end_v, speed)
+            if pl.reusable(key, *cur, goal=goal) or pl.plan(*cur, np.array([t.down]), np.array([end_v]),
+                                                            np.array([speed]), lim_a, lim_j, goal, key):
+                remaining = pl.remaining
+                if remaining <= dt:
+                    pl.advance(dt)
+                    return t.down, end_v, 0.0, remaining, True
+                pp, vv, aa = pl.advance(dt)
+                return float(pp[0]), float(vv[0]), float(aa[0]), remaining, False
         else:
             target_v = float(np.clip(t.velocity[0], -L.vertical_speed, L.vertical_speed))
-            if pl.plan(*cur, None, np.array([target_v]), np.array([L.vertical_speed]), lim_a, lim_j):
-                pp, vv, aa = pl.sample(dt)
+            key = _key(1, target_v)
+            if pl.reusable(key, *cur) or pl.plan(*cur, None, np.array([target_v]), np.array([L.vertical_speed]),
+                                                 lim_a, lim_j, key=key):
+                pp, vv, aa = pl.advance(dt)
                 return float(pp[0]), float(vv[0]), float(aa[0]), 0.0, False
-        # fallback: brake at constant deceleration
+        pl.invalidate()
         dv = -math.copysign(min(abs(v), L.vertical_acceleration * dt), v)
         return p + (v + 0.5 * dv) * dt, v + dv, dv / dt, 0.0, False
 
-    def _step_hvel(self, p: np.ndarray, v: np.ndarray, a: np.ndarray, target_v: np.ndarray, dt: float
-                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _step_hvel(self, p: Array, v: Array, a: Array, target_v: Array, dt: float) -> tuple[Array, Array, Array]:
         L = self.limits
+        pl = self._hvel
         target_v, _ = _clamp_norm(target_v, L.horizontal_speed)
+        key = _key(target_v)
         lim_v = np.full(2, L.horizontal_speed)
         lim_a = np.full(2, L.horizontal_acceleration * _SQRT1_2)
         lim_j = np.full(2, L.horizontal_jerk * _SQRT1_2)
-        if self._hvel.plan(p, v, a, None, target_v, lim_v, lim_a, lim_j):
-            return self._hvel.sample(dt)
-        dv, _ = _clamp_norm(-v, L.horizontal_acceleration * dt)
-        return p + (v + 0.5 * dv) * dt, v + dv, dv / dt
+        if pl.reusable(key, p, v, a) or pl.plan(p, v, a, None, target_v, lim_v, lim_a, lim_j, key=key):
+            return pl.advance(dt)
+        return self._brake_path(p, v, dt)
 
-    def _step_path(self, p: np.ndarray, v: np.ndarray, a: np.ndarray, t: PathTarget, dt: float,
-                   t_mod: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool]:
+    def _step_path(self, p: Array, v: Array, a: Array, t: PathTarget, dt: float,
+                   goal: float) -> tuple[Array, Array, Array, bool]:
         """Along-the-line plus across-the-line planning (see module docstring)."""
         L = self.limits
         k = p.shape[0]
+        m = k - 1
+        along, cross = self._along, (self._cross2 if k == 2 else self._cross3)
         target = np.array(t.position, dtype=float)
         end_v = np.array(t.end_velocity, dtype=float) if t.end_velocity is not None else np.zeros(k)
+        speed = min(t.speed, L.horizontal_speed)
+        key = _key(k, target, end_v, speed)
+        frame = self._frame
+        reuse = (frame is not None and frame.dims == k and frame.key.shape == key.shape
+                 and _close(frame.key, key, 1e-9) and along.ok
+                 and along.reusable(key, *frame.along_state(p, v, a),
+                                  goal=max(goal, cross.remaining if frame.cross_active else 0.0))
+                 and (not frame.cross_active or cross.on_track(*frame.cross_state(p, v, a))))
+        if not reuse:
+            frame = self._plan_path(p, v, a, target, end_v, speed, goal, key)
+            if frame is None:
+                self._frame = None
+                return (*self._brake_path(p, v, dt), False)
+            self._frame = frame
+        remaining = max(along.remaining, cross.remaining if frame.cross_active else 0.0)
+        if remaining <= dt:
+            along.advance(dt)
+            if frame.cross_active:
+                cross.advance(dt)
+            return target, end_v, np.zeros(k), True
+        s, vs, as_ = along.advance(dt)
+        c, vc, ac = cross.advance(dt) if frame.cross_active else (np.zeros(m), np.zeros(m), np.zeros(m))
+        p1 = target + s[0] * frame.u + sum(c[i] * frame.basis[i] for i in range(m))
+        v1 = vs[0] * frame.u + sum(vc[i] * frame.basis[i] for i in range(m))
+        a1 = as_[0] * frame.u + sum(ac[i] * frame.basis[i] for i in range(m))
+        return p1, v1, a1, False
+
+    def _plan_path(self, p: Array, v: Array, a: Array, target: Array, end_v: Array, speed: float, goal: float,
+                   key: Array) -> _PathFrame | None:
+        L = self.limits
+        k = p.shape[0]
+        m = k - 1
+        along, cross = self._along, (self._cross2 if k == 2 else self._cross3)
         u, dist = _unit(target - p)
         if dist <= _EPS:
             u, n = _unit(end_v)
@@ -443,11 +592,9 @@ class ReferenceGenerator:
                 u, n = _unit(v)
             if n <= _EPS:
                 u = np.eye(k)[0]
-        basis = _perp_basis(u)
-        # limits of the line
+        frame = _PathFrame(k, u, _perp_basis(u), target, key)
         uh = float(np.linalg.norm(u[:2]))
         uv = abs(float(u[2])) if k == 3 else 0.0
-        speed = min(t.speed, L.horizontal_speed)
 
         def along_limit(h_lim: float, v_lim: float) -> float:
             lim = math.inf
@@ -463,78 +610,71 @@ class ReferenceGenerator:
         c_amax = min(L.horizontal_acceleration, L.vertical_acceleration) if k == 3 else L.horizontal_acceleration
         c_jmax = min(L.horizontal_jerk, L.vertical_jerk) if k == 3 else L.horizontal_jerk
         c_vmax = 0.5 * (min(speed, L.vertical_speed) if k == 3 else speed)
+        s0, vs0, as0 = frame.along_state(p, v, a)
+        c0, vc0, ac0 = frame.cross_state(p, v, a)
+        end_s = float(np.clip(end_v @ u, -s_vmax, s_vmax))
+        end_c = np.array([end_v @ n for n in frame.basis])
+        frame.cross_active = bool(np.any(np.abs(vc0) > 1e-6) or np.any(np.abs(ac0) > 1e-6)
+                                  or np.any(np.abs(end_c) > 1e-6))
+        alpha, beta = (0.8, 0.6) if frame.cross_active else (1.0, 0.6)
+        if frame.cross_active:  # the cross part is never stretched; the along part waits for it instead
+            c_vmax = max(c_vmax, float(np.max(np.abs(end_c))) + 1e-6)
+            if not cross.plan(c0, vc0, ac0, np.zeros(m), end_c, np.full(m, c_vmax), np.full(m, beta * c_amax),
+                              np.full(m, beta * c_jmax), key=key):
+                return None
+            frame.t_cross = cross.duration
+        if not along.plan(s0, vs0, as0, np.zeros(1), np.array([end_s]), np.array([s_vmax]),
+                          np.array([alpha * s_amax]), np.array([alpha * s_jmax]), max(goal, frame.t_cross), key):
+            return None
+        return frame
 
-        vc = np.array([v @ n for n in basis])
-        ac = np.array([a @ n for n in basis])
-        end_s = float(end_v @ u)
-        end_c = np.array([end_v @ n for n in basis])
-        cross_active = bool(np.any(np.abs(vc) > 1e-3) or np.any(np.abs(ac) > 1e-3) or np.any(np.abs(end_c) > 1e-3))
-        alpha, beta = (0.8, 0.6) if cross_active else (1.0, 0.6)
-        end_s = float(np.clip(end_s, -s_vmax, s_vmax))
-        c_vmax = max(c_vmax, float(np.max(np.abs(end_c))) + 1e-6)
-
-        along, cross = self._along, (self._cross2 if k == 2 else self._cross3)
-        m = k - 1
-        s_args = (np.array([-dist]), np.array([float(v @ u)]), np.array([float(a @ u)]), np.zeros(1),
-                  np.array([end_s]), np.array([s_vmax]), np.array([alpha * s_amax]),
-                  np.array([alpha * s_jmax]))
-        if not along.plan(*s_args):
-            return (*self._brake_path(p, v, dt), False)
-        t_cross = 0.0
-        if cross_active:  # the cross part is never stretched; the along part waits for it instead
-            if not cross.plan(np.zeros(m), vc, ac, np.zeros(m), end_c, np.full(m, c_vmax),
-                              np.full(m, beta * c_amax), np.full(m, beta * c_jmax)):
-                return (*self._brake_path(p, v, dt), False)
-            t_cross = cross.duration
-        goal = max(t_cross, t_mod)
-        trivial = dist < 1e-6 and abs(float(v @ u)) < 1e-6 and abs(float(a @ u)) < 1e-6 and abs(end_s) < 1e-6
-        if along.duration < goal - 1e-9 and not trivial and not along.plan(*s_args, min_duration=goal):
-            return (*self._brake_path(p, v, dt), False)
-        if max(along.duration, t_cross) <= dt:
-            return target, end_v, np.zeros(k), True
-        s, vs, as_ = along.sample(dt)
-        c, vcs, acs = cross.sample(dt) if cross_active else (np.zeros(m), np.zeros(m), np.zeros(m))
-        p1 = target + s[0] * u + sum(c[i] * basis[i] for i in range(m))
-        v1 = vs[0] * u + sum(vcs[i] * basis[i] for i in range(m))
-        a1 = as_[0] * u + sum(acs[i] * basis[i] for i in range(m))
-        return p1, v1, a1, False
-
-    def _brake_path(self, p: np.ndarray, v: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        log.warning("path planning failed; braking")
+    def _brake_path(self, p: Array, v: Array, dt: float) -> tuple[Array, Array, Array]:
+        log.warning("planning failed; braking")
         dv, _ = _clamp_norm(-v, min(self.limits.horizontal_acceleration, self.limits.vertical_acceleration) * dt)
         return p + (v + 0.5 * dv) * dt, v + dv, dv / dt
 
     # --- the guard --------------------------------------------------------------------------------------
-    def _guard(self, ref: Reference, p1: np.ndarray, v1: np.ndarray, a1: np.ndarray, yaw: float,
-               yaw_rate: float, dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, float]:
+    def _guard(self, ref: Reference, p1: Array, v1: Array, a1: Array, yaw: float,
+               yaw_rate: float, dt: float) -> tuple[Vec3, Vec3, Vec3, float, float]:
         """Enforce the step bounds of the module docstring, whatever the planner proposed."""
         L = self.limits
-        p0, v0 = np.array(ref.p), np.array(ref.v)
+        (p0n, p0e, p0d), (v0n, v0e, v0d) = ref.p, ref.v
+        pn, pe, pd = (float(x) for x in p1)
+        vn, ve, vd = (float(x) for x in v1)
+        an, ae, ad = (float(x) for x in a1)
         # velocities: within the speed limits, and within a_max*dt of the previous ones
-        vh, _ = _clamp_norm(v1[:2], L.horizontal_speed)
-        dvh, _ = _clamp_norm(vh - v0[:2], L.horizontal_acceleration * dt)
-        vv = float(np.clip(v1[2], -L.vertical_speed, L.vertical_speed))
-        dvv = float(np.clip(vv - v0[2], -L.vertical_acceleration * dt, L.vertical_acceleration * dt))
-        v_new = np.array([v0[0] + dvh[0], v0[1] + dvh[1], v0[2] + dvv])
+        vn2, ve2 = _clamp2(vn, ve, L.horizontal_speed)
+        dvn, dve = _clamp2(vn2 - v0n, ve2 - v0e, L.horizontal_acceleration * dt)
+        vd2 = _clip(vd, L.vertical_speed)
+        dvd = _clip(vd2 - v0d, L.vertical_acceleration * dt)
+        v_new = (v0n + dvn, v0e + dve, v0d + dvd)
         # positions: within v_max*dt of the previous ones
-        dph, _ = _clamp_norm(p1[:2] - p0[:2], L.horizontal_speed * dt)
-        dpv = float(np.clip(p1[2] - p0[2], -L.vertical_speed * dt, L.vertical_speed * dt))
-        p_new = np.array([p0[0] + dph[0], p0[1] + dph[1], p0[2] + dpv])
+        dpn, dpe = _clamp2(pn - p0n, pe - p0e, L.horizontal_speed * dt)
+        dpd = _clip(pd - p0d, L.vertical_speed * dt)
+        p_new = (p0n + dpn, p0e + dpe, p0d + dpd)
         # accelerations: within the limits
-        ah, _ = _clamp_norm(a1[:2], L.horizontal_acceleration)
-        av = float(np.clip(a1[2], -L.vertical_acceleration, L.vertical_acceleration))
-        a_new = np.array([ah[0], ah[1], av])
+        an2, ae2 = _clamp2(an, ae, L.horizontal_acceleration)
+        a_new = (an2, ae2, _clip(ad, L.vertical_acceleration))
         # yaw
-        max_dyaw = L.yaw_rate_rad * dt
-        yaw_new = ref.yaw + float(np.clip(yaw - ref.yaw, -max_dyaw, max_dyaw))
-        rate_new = float(np.clip(yaw_rate, -L.yaw_rate_rad, L.yaw_rate_rad))
-        deviation = max(float(np.max(np.abs(v_new - v1))), float(np.max(np.abs(p_new - p1))),
-                        float(np.max(np.abs(a_new - a1))), abs(yaw_new - yaw), abs(rate_new - yaw_rate))
+        yaw_new = ref.yaw + _clip(yaw - ref.yaw, L.yaw_rate_rad * dt)
+        rate_new = _clip(yaw_rate, L.yaw_rate_rad)
+        deviation = max(max(abs(x - y) for x, y in zip(v_new, (vn, ve, vd), strict=True)),
+                        max(abs(x - y) for x, y in zip(p_new, (pn, pe, pd), strict=True)),
+                        max(abs(x - y) for x, y in zip(a_new, (an, ae, ad), strict=True)),
+                        abs(yaw_new - yaw), abs(rate_new - yaw_rate))
         if deviation > 1e-9:
             self.guard_interventions += 1
             log.debug("guard corrected a step by %.3g", deviation)
         return p_new, v_new, a_new, yaw_new, rate_new
 
 
-def _t3(x: np.ndarray) -> Vec3:
-    return (float(x[0]), float(x[1]), float(x[2]))
+def _clamp2(x: float, y: float, limit: float) -> tuple[float, float]:
+    n = math.hypot(x, y)
+    if n > limit:
+        k = limit / n
+        return x * k, y * k
+    return x, y
+
+
+def _clip(x: float, limit: float) -> float:
+    return limit if x > limit else (-limit if x < -limit else x)

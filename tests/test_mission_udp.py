@@ -1,0 +1,317 @@
+"""Missions over loopback UDP: pymavlink as the ground station, the model in a SITL subprocess (lockstep,
+paced at SPEEDUP). Upload, download (equal to what was sent), a refused upload that changes nothing,
+and an AUTO flight that visits the waypoints. Deadlines are wall time derived from simulated time.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+import pymap3d
+import pytest
+
+os.environ.setdefault("MAVLINK20", "1")
+from pymavlink import mavutil
+from test_mavlink_support import SitlProcess, free_port
+
+SPEEDUP = 10.0
+M = mavutil.mavlink
+GUIDED, AUTO, RTL, LAND, BRAKE = 4, 3, 6, 9, 17
+REL = M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT
+
+
+def wall(sim_s: float) -> float:
+    """Wall deadline for ``sim_s`` simulated seconds (generous: a loaded 2-core machine)."""
+    return 5.0 + 3.0 * sim_s / SPEEDUP
+
+
+class Gcs:
+    """A pymavlink ground station that records what it receives and sends heartbeats while pumping."""
+
+    def __init__(self, port: int) -> None:
+        mavutil.set_dialect("ardupilotmega")
+        self.conn = mavutil.mavlink_connection(f"udpout:127.0.0.1:{port}", source_system=255,
+                                               source_component=190)
+        self.heartbeats = True
+        self.last: dict[str, Any] = {}
+        self.texts: list[str] = []
+        self.acks: list[Any] = []
+        self.mission: list[Any] = []  # MISSION_* messages from the vehicle, in order
+        self.reached: list[int] = []
+        self.modes_seen: list[int] = []
+        self.positions: list[tuple[float, float, float]] = []
+        self._hb_t = 0.0
+
+    def pump(self) -> None:
+        now = time.monotonic()
+        if self.heartbeats and now - self._hb_t > 0.5 / SPEEDUP:
+            self._hb_t = now
+            self.conn.mav.heartbeat_send(M.MAV_TYPE_GCS, M.MAV_AUTOPILOT_INVALID, 0, 0, 0)
+        while True:
+            m = self.conn.recv_match(blocking=False)
+            if m is None:
+                return
+            t = m.get_type()
+            self.last[t] = m
+            if t == "STATUSTEXT":
+                self.texts.append(m.text)
+            elif t == "COMMAND_ACK":
+                self.acks.append(m)
+            elif t == "MISSION_ITEM_REACHED":
+                self.reached.append(m.seq)
+            elif t.startswith("MISSION_") and t != "MISSION_CURRENT":
+                self.mission.append(m)
+            elif t == "HEARTBEAT" and m.get_srcSystem() == 1:
+                if not self.modes_seen or self.modes_seen[-1] != m.custom_mode:
+                    self.modes_seen.append(m.custom_mode)
+            elif t == "LOCAL_POSITION_NED":
+                self.positions.append((m.x, m.y, m.z))
+
+    def wait(self, pred: Callable[[], Any], timeout_s: float, what: str) -> Any:
+        end = time.monotonic() + timeout_s
+        while time.monotonic() < end:
+            self.pump()
+            r = pred()
+            if r:
+                return r
+            time.sleep(0.002)
+        raise AssertionError(f"timed out waiting for {what}; last texts {self.texts[-6:]}")
+
+    def fresh(self, t: str, timeout_s: float = 5.0) -> Any:
+        self.last.pop(t, None)
+        return self.wait(lambda: self.last.get(t), timeout_s, t)
+
+    def next_mission(self, types: tuple[str, ...], timeout_s: float = 5.0) -> Any:
+        def first() -> Any:
+            for i, m in enumerate(self.mission):
+                if m.get_type() in types:
+                    del self.mission[: i + 1]
+                    return m
+            return None
+        return self.wait(first, timeout_s, "/".join(types))
+
+    def command(self, cmd: int, *p: float) -> int:
+        params = list(p) + [0.0] * (7 - len(p))
+        self.acks.clear()
+        self.conn.mav.command_long_send(1, 1, cmd, 0, *params)
+        ack = self.wait(lambda: next((a for a in self.acks if a.command == cmd), None), 10, f"ACK of {cmd}")
+        return ack.result
+
+    def set_param(self, name: str, value: float) -> None:
+        self.last.pop("PARAM_VALUE", None)
+        self.conn.mav.param_set_send(1, 1, name.encode(), value, M.MAV_PARAM_TYPE_REAL32)
+        self.wait(lambda: (m := self.last.get("PARAM_VALUE")) is not None and m.param_id == name
+                  and abs(m.param_value - value) < 1e-4, 5, f"PARAM_VALUE {name}={value}")
+
+    def set_mode(self, mode: int) -> int:
+        return self.command(M.MAV_CMD_DO_SET_MODE, M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, mode)
+
+    def heartbeat(self) -> Any:
+        return self.wait(lambda: (m := self.fresh("HEARTBEAT")) and m.get_srcSystem() == 1 and m, 5, "HB")
+
+    def wait_mode(self, mode: int, sim_s: float) -> None:
+        self.wait(lambda: mode in self.modes_seen[-1:], wall(sim_s), f"mode {mode}")
+
+    def wait_disarmed(self, sim_s: float) -> None:
+        self.wait(lambda: self.last.get("HEARTBEAT") is not None
+                  and not self.last["HEARTBEAT"].base_mode & M.MAV_MODE_FLAG_SAFETY_ARMED, wall(sim_s),
+                  "disarmed")
+
+    def home(self) -> tuple[float, float, float]:
+        h = self.fresh("HOME_POSITION", 10)
+        return h.latitude * 1e-7, h.longitude * 1e-7, h.altitude * 1e-3
+
+    def wait_alt(self, alt: float, sim_s: float, tol: float = 0.5) -> None:
+        self.wait(lambda: (m := self.last.get("LOCAL_POSITION_NED")) is not None and abs(-m.z - alt) < tol,
+                  wall(sim_s), f"altitude {alt}")
+
+    def takeoff(self, alt: float) -> None:
+        """GUIDED, arm, take off; returns when at altitude."""
+        assert self.set_mode(GUIDED) == M.MAV_RESULT_ACCEPTED
+        self.wait(lambda: self.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1) == M.MAV_RESULT_ACCEPTED,
+                  wall(20), "arming")
+        assert self.command(M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, alt) == M.MAV_RESULT_ACCEPTED
+        self.wait_alt(alt, 30)
+
+    def land_and_disarm(self) -> None:
+        assert self.set_mode(LAND) == M.MAV_RESULT_ACCEPTED
+        self.wait_disarmed(90)
+
+
+def start(tmp: Path) -> tuple[SitlProcess, Gcs]:
+    port = free_port()
+    sitl = SitlProcess([f"udpin:127.0.0.1:{port}"], tmp, speedup=SPEEDUP)
+    gcs = Gcs(port)
+    gcs.heartbeat()
+    return sitl, gcs
+
+
+@pytest.fixture(scope="module")
+def gcs(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Gcs]:
+    sitl, g = start(tmp_path_factory.mktemp("sitl_mission"))
+    try:
+        yield g
+    finally:
+        g.conn.close()
+        sitl.stop()
+
+
+# --- the mission protocol as a ground station uses it ---------------------------------------------
+def upload(gcs: Gcs, items: list[Any], mission_type: int = 0) -> int:
+    """Upload by the protocol (answer each MISSION_REQUEST_INT); returns the MISSION_ACK type."""
+    gcs.mission.clear()
+    gcs.conn.mav.mission_count_send(1, 1, len(items), mission_type)
+    while True:
+        m = gcs.next_mission(("MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_ACK"))
+        if m.get_type() == "MISSION_ACK":
+            return m.type
+        it = items[m.seq]
+        gcs.conn.mav.mission_item_int_send(1, 1, m.seq, it.frame, it.command, 0, it.autocontinue, it.param1,
+                                           it.param2, it.param3, it.param4, it.x, it.y, it.z, mission_type)
+
+
+def download(gcs: Gcs, mission_type: int = 0) -> list[Any]:
+    gcs.mission.clear()
+    gcs.conn.mav.mission_request_list_send(1, 1, mission_type)
+    n = gcs.next_mission(("MISSION_COUNT",)).count
+    out = []
+    for seq in range(n):
+        gcs.conn.mav.mission_request_int_send(1, 1, seq, mission_type)
+        out.append(gcs.next_mission(("MISSION_ITEM_INT",)))
+    gcs.conn.mav.mission_ack_send(1, 1, M.MAV_MISSION_ACCEPTED, mission_type)
+    return out
+
+
+class Item:
+    """A mission item as the GCS composes it."""
+
+    def __init__(self, command: int, frame: int = REL, p1: float = 0, p2: float = 0, p4: float = 0,
+                 x: int = 0, y: int = 0, z: float = 0) -> None:
+        self.command, self.frame, self.autocontinue = command, frame, 1
+        self.param1, self.param2, self.param3, self.param4 = p1, p2, 0.0, p4
+        self.x, self.y, self.z = x, y, z
+
+
+def at(home: tuple[float, float, float], n: float, e: float) -> tuple[int, int]:
+    lat, lon, _ = pymap3d.ned2geodetic(n, e, 0, *home)
+    return round(lat * 1e7), round(lon * 1e7)
+
+
+WAYPOINTS = [(25.0, 0.0, 10.0), (25.0, 25.0, 15.0), (0.0, 20.0, 12.0)]
+
+
+def wp(command: int, home: tuple[float, float, float], n: float, e: float, alt: float, **kw: Any) -> Item:
+    x, y = at(home, n, e)
+    return Item(command, x=x, y=y, z=alt, **kw)
+
+
+def plan(home: tuple[float, float, float]) -> list[Item]:
+    """Home, take-off, waypoint (radius 1 m), speed 8 m/s, waypoint (hold 2 s, yaw NaN), loiter 1 s, land."""
+    hx, hy = round(home[0] * 1e7), round(home[1] * 1e7)
+    (n1, e1, a1), (n2, e2, a2), (n3, e3, a3) = WAYPOINTS
+    return [Item(M.MAV_CMD_NAV_WAYPOINT, M.MAV_FRAME_GLOBAL, x=hx, y=hy, z=home[2]),
+            Item(M.MAV_CMD_NAV_TAKEOFF, z=10.0),
+            wp(M.MAV_CMD_NAV_WAYPOINT, home, n1, e1, a1, p2=1.0),
+            Item(M.MAV_CMD_DO_CHANGE_SPEED, M.MAV_FRAME_MISSION, p1=1, p2=8.0),
+            wp(M.MAV_CMD_NAV_WAYPOINT, home, n2, e2, a2, p1=2.0, p4=math.nan),
+            wp(M.MAV_CMD_NAV_LOITER_TIME, home, n3, e3, a3, p1=1.0),
+            Item(M.MAV_CMD_NAV_LAND)]
+
+
+FIELDS = ("seq", "frame", "command", "autocontinue", "param1", "param2", "param3", "param4", "x", "y", "z")
+
+
+def same(a: float, b: float) -> bool:
+    return a == b or (math.isnan(a) and math.isnan(b))
+
+
+def test_upload_download_equal_and_bad_upload_changes_nothing(gcs: Gcs) -> None:
+    home = gcs.home()
+    items = plan(home)
+    assert upload(gcs, items) == M.MAV_MISSION_ACCEPTED
+    got = download(gcs)
+    assert len(got) == len(items)
+    for seq, (sent, back) in enumerate(zip(items, got, strict=True)):
+        assert back.seq == seq
+        for f in FIELDS[1:]:
+            assert same(float(getattr(sent, f)), float(getattr(back, f))), (seq, f, getattr(sent, f),
+                                                                             getattr(back, f))
+    # an unsupported command in item 3: refused with MAV_MISSION_UNSUPPORTED, stored plan unchanged
+    bad = plan(home)
+    bad[3] = Item(M.MAV_CMD_DO_SET_SERVO, M.MAV_FRAME_MISSION, p1=5, p2=1500)
+    assert upload(gcs, bad) == M.MAV_MISSION_UNSUPPORTED
+    # NaN altitude in a waypoint: invalid param7
+    bad = plan(home)
+    bad[2].z = math.nan
+    assert upload(gcs, bad) == M.MAV_MISSION_INVALID_PARAM7
+    # an item sent out of sequence: MAV_MISSION_INVALID_SEQUENCE
+    gcs.mission.clear()
+    gcs.conn.mav.mission_count_send(1, 1, 3, 0)
+    gcs.next_mission(("MISSION_REQUEST_INT",))
+    gcs.conn.mav.mission_item_int_send(1, 1, 2, REL, 16, 0, 1, 0, 0, 0, 0, 1, 1, 5, 0)
+    assert gcs.next_mission(("MISSION_ACK",)).type == M.MAV_MISSION_INVALID_SEQUENCE
+    # a mission type the vehicle does not have
+    gcs.conn.mav.mission_count_send(1, 1, 3, 7)
+    assert gcs.next_mission(("MISSION_ACK",)).type == M.MAV_MISSION_UNSUPPORTED
+    again = download(gcs)
+    assert [(m.command, m.x, m.y) for m in again] == [(m.command, m.x, m.y) for m in got]
+
+
+def test_upload_abandoned_is_cancelled_after_retries(gcs: Gcs) -> None:
+    before = download(gcs)
+    gcs.mission.clear()
+    gcs.conn.mav.mission_count_send(1, 1, 4, 0)
+    t0 = time.monotonic()
+    gcs.wait(lambda: any(m.get_type() == "MISSION_ACK" for m in gcs.mission), 30, "MISSION_ACK")
+    requests = [m.seq for m in gcs.mission if m.get_type() == "MISSION_REQUEST_INT"]
+    ack = next(m for m in gcs.mission if m.get_type() == "MISSION_ACK")
+    assert ack.type == M.MAV_MISSION_OPERATION_CANCELLED
+    assert requests == [0] * 6  # the request and 5 repeats
+    assert time.monotonic() - t0 >= 5.5  # 1 s apart on the wall too (the GCS lives on the wall)
+    assert len(download(gcs)) == len(before)
+
+
+def test_mission_persists_across_restart(tmp_path: Path) -> None:
+    sitl, g = start(tmp_path)
+    try:
+        items = plan(g.home())
+        assert upload(g, items) == M.MAV_MISSION_ACCEPTED
+    finally:
+        g.conn.close()
+        sitl.stop()
+    sitl, g = start(tmp_path)
+    try:
+        got = download(g)
+        assert [(m.command, m.x, m.y, m.z) for m in got[1:]] == \
+            [(i.command, i.x, i.y, i.z) for i in items[1:]]
+    finally:
+        g.conn.close()
+        sitl.stop()
+
+
+def test_auto_flight_visits_waypoints(gcs: Gcs) -> None:
+    home = gcs.home()
+    assert upload(gcs, plan(home)) == M.MAV_MISSION_ACCEPTED
+    assert gcs.set_mode(GUIDED) == M.MAV_RESULT_ACCEPTED
+    gcs.wait(lambda: gcs.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1) == M.MAV_RESULT_ACCEPTED, wall(20),
+             "arming")
+    gcs.reached.clear()
+    gcs.positions.clear()
+    assert gcs.command(M.MAV_CMD_MISSION_START, 0, 0) == M.MAV_RESULT_ACCEPTED
+    gcs.wait_mode(AUTO, 5)
+    gcs.wait(lambda: 6 in gcs.reached, wall(150), "the landing (item 6) reached")
+    gcs.wait_disarmed(10)
+    assert gcs.reached == [1, 2, 4, 5, 6]
+    for n, e, alt in WAYPOINTS:
+        closest = min(math.dist(p, (n, e, -alt)) for p in gcs.positions)
+        assert closest < 2.5, (n, e, alt, closest)
+    assert any("Reached command #2" in t for t in gcs.texts)
+    n, e, d = gcs.positions[-1]
+    assert math.hypot(n - WAYPOINTS[2][0], e - WAYPOINTS[2][1]) < 2.5 and abs(d) < 0.5
+    cur = gcs.fresh("MISSION_CURRENT")
+    assert cur.seq == 6 and cur.total == 6
