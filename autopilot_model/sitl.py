@@ -33,44 +33,15 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 log = logging.getLogger(__name__)
 
 #: Module library entries the MAVLink side needs, merged in when the library file lacks them.
-EXTRA_MODULES: list[dict[str, Any]] = [
-    {"name": "flight_modes", "task_group": "navigation", "depends": "navigator",
-     "periodic": [{"function": "flight_modes.update", "freq": 50}]},
-    {"name": "mission", "task_group": "navigation", "depends": "flight_modes",
-     "periodic": [{"function": "mission.periodic", "freq": 10}]},
-    {"name": "safety", "task_group": "core", "depends": "flight_modes",
-     "periodic": [{"function": "safety.periodic", "freq": 10}]},
-    {"name": "mavlink", "task_group": "telemetry", "event": ["mavlink.poll"],
-     "periodic": [{"function": "mavlink.telemetry", "freq": 50}]},
-]
-
-
 def default_urls(instance: int) -> list[str]:
     return [f"tcpin:0.0.0.0:{5760 + 10 * instance}", f"udpin:0.0.0.0:{14550 + 10 * instance}"]
 
 
 def default_state_dir() -> Path:
     return Path(os.environ.get("TASKFLIGHT_STATE", Path.home() / ".taskflight"))
-
-
-def modules_with_mavlink(modules_file: Path, out_dir: Path) -> Path:
-    """The module library, with :data:`EXTRA_MODULES` appended where it lacks them."""
-    data = yaml.safe_load(modules_file.read_text(encoding="utf-8"))
-    names = {m.get("name") for m in data.get("modules", [])}
-    missing = [m for m in EXTRA_MODULES if m["name"] not in names]
-    if not missing:
-        return modules_file
-    data["modules"] = list(data["modules"]) + missing
-    out_dir.mkdir(parents=True, exist_ok=True)
-    out = out_dir / "modules.generated.yaml"
-    header = f"# generated from {modules_file} plus the MAVLink modules\n"
-    out.write_text(header + yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
-    return out
 
 
 class Sitl:
@@ -92,7 +63,7 @@ class Sitl:
         base = Path(state_dir) if state_dir is not None else default_state_dir()
         self.state_dir = base / f"instance{instance}"
         self.state_dir.mkdir(parents=True, exist_ok=True)
-        mod_file = modules_with_mavlink(Path(modules) if modules else DEFAULT_MODULES, self.state_dir)
+        mod_file = Path(modules) if modules else DEFAULT_MODULES
         kwargs: dict[str, Any] = {"home": tuple(home) if home else DEFAULT_HOME, "speedup": speedup,
                                   "instance": instance, "use_truth": use_truth, "seed": seed}
         if sensors:

@@ -118,7 +118,7 @@ def _is_valid(data: bytes, checker: Any) -> bool:
             m = checker.parse_char(data[i:])
         except Exception:
             continue
-        if m is not None and m.get_type() != "BAD_DATA":
+        if m is not None and m.get_type() != "BAD_DATA" and not m.get_type().startswith("UNKNOWN"):
             return True
     return False
 

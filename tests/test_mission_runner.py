@@ -261,3 +261,19 @@ def test_item_to_ned_frames():
     assert item_to_ned(absolute, HOME, HOME[2] + 3.0, (0, 0, 0))[2] == pytest.approx(-20.0)
     here = MissionItem(seq=1, frame=3, command=16, x=0, y=0, z=0.0)
     assert item_to_ned(here, HOME, HOME[2], (1.0, 2.0, -7.0)) == (1.0, 2.0, -7.0)
+
+
+def test_auto_refused_without_plan_and_restart_after_completion(rig):
+    v, store, _, runner = rig
+    assert runner.start() == (False, "Auto: no mission")
+    store.replace(0, [HOME_ITEM, item(1, 22, z=5, here=True), item(2, 16, 10, 0, 5)])
+    v.nav.arm()
+    runner.start()
+    runner.mission_start()
+    v.run(20, runner.update)
+    assert runner.finished and store.current == 2 and v.nav.armed  # holding at the end
+    runner.stop()
+    v.nav.goto((0.0, 0.0, -5.0))
+    v.run(5)
+    assert runner.start() == (True, "")  # back in AUTO after completion: from the beginning
+    assert store.current == 1 and runner.state == RUNNING

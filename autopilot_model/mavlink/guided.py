@@ -29,7 +29,8 @@ from typing import TYPE_CHECKING, Any
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-from autopilot_model.modules.flight_modes import GUIDED, FlightModes, GuidedTarget, geodetic_to_ned, home_ned
+from autopilot_model.modules.flight_modes import GUIDED, FlightModes, GuidedTarget, home_ned
+from taskflight.geo import geodetic_to_ned
 
 from .endpoint import InvalidFieldError, require_finite
 
@@ -174,7 +175,7 @@ class GuidedTargetsProtocol:
                 self.endpoint.stats["target_bad_frame"] += 1
                 self.modes.guided.stop()
                 return
-            pos = geodetic_to_ned(msg.lat_int * 1e-7, msg.lon_int * 1e-7, alt, self.v.state.origin)
+            pos = geodetic_to_ned(self.v.state.origin, msg.lat_int * 1e-7, msg.lon_int * 1e-7, alt)
         vel = None if vel_i else (msg.vx, msg.vy, msg.vz)
         acc = None if acc_i else (msg.afx, msg.afy, msg.afz)
         yaw = None if yaw_i else msg.yaw

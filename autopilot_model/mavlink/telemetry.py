@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING, Any
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from autopilot_model.modules import flight_modes as fm
+from taskflight.geo import ned_to_geodetic
 
 if TYPE_CHECKING:
     from .endpoint import MavlinkEndpoint
@@ -201,7 +202,7 @@ class VehicleTelemetry:
         if sample is None or gps.fix_type < 2:
             return self.mav.gps_raw_int_encode(self.v.clock.time_usec, gps.fix_type, 0, 0, 0, 65535, 65535,
                                                65535, 65535, gps.satellites)
-        lat, lon, alt = fm.ned_to_geodetic((sample[0], sample[1], sample[2]), self.v.state.origin)
+        lat, lon, alt = ned_to_geodetic(self.v.state.origin, sample[0], sample[1], sample[2])
         vel = math.hypot(sample[3], sample[4])
         cog = round(math.degrees(math.atan2(sample[4], sample[3])) * 100) % 36000 if vel > 0.2 else 0
         eph = getattr(gps, "eph_m", 1.0)

@@ -20,6 +20,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from autopilot_model.modules import flight_modes as fm
 from autopilot_model.modules.navigation import LANDED_ON_GROUND
+from taskflight.geo import geodetic_to_ned
 
 from .commands import ACCEPTED, DENIED, Command, CommandResult
 
@@ -146,7 +147,7 @@ class VehicleCommands:
                 return DENIED, why
         if math.isfinite(speed) and speed > 0:
             self.modes.speed_override_h = min(speed, 50.0)
-        target = fm.GuidedTarget(pos=fm.geodetic_to_ned(lat, lon, alt_amsl, self.v.state.origin))
+        target = fm.GuidedTarget(pos=geodetic_to_ned(self.v.state.origin, lat, lon, alt_amsl))
         yaw = cmd.p(4)
         if math.isfinite(yaw):
             target.yaw = math.radians(yaw)
@@ -202,7 +203,7 @@ class VehicleCommands:
                 return DENIED, "Set home: bad latitude/longitude"
             if (lat, lon) == (0.0, 0.0):
                 return DENIED, "Set home: zero location"
-            n, e, _ = fm.geodetic_to_ned(lat, lon, alt, self.v.state.origin)
+            n, e, _ = geodetic_to_ned(self.v.state.origin, lat, lon, alt)
             if math.hypot(n, e) > 50_000:
                 return DENIED, "Set home: more than 50 km from origin"
         self.v.home = (float(lat), float(lon), float(alt))

@@ -32,9 +32,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
-import pymap3d
-
 from autopilot_model.modules import navigation as navmod
+from taskflight.geo import geodetic_to_ned
 
 if TYPE_CHECKING:
     from autopilot_model.vehicle import Vehicle
@@ -76,17 +75,6 @@ RTL_RETURN = "return"
 RTL_LAND = "land"
 
 
-def geodetic_to_ned(lat: float, lon: float, alt: float, origin: tuple[float, float, float]) -> Vec3:
-    """Local NED (m) of a geodetic point relative to ``origin`` (lat, lon, alt AMSL)."""
-    n, e, d = pymap3d.geodetic2ned(lat, lon, alt, origin[0], origin[1], origin[2])
-    return float(n), float(e), float(d)
-
-
-def ned_to_geodetic(p: Vec3, origin: tuple[float, float, float]) -> tuple[float, float, float]:
-    lat, lon, alt = pymap3d.ned2geodetic(p[0], p[1], p[2], origin[0], origin[1], origin[2])
-    return float(lat), float(lon), float(alt)
-
-
 _home_cache: dict[int, tuple[Any, Vec3]] = {}
 
 
@@ -96,7 +84,7 @@ def home_ned(vehicle: Any) -> Vec3:
     cached = _home_cache.get(id(vehicle))
     if cached is None or cached[0] != key:
         h = vehicle.home
-        cached = (key, geodetic_to_ned(h[0], h[1], h[2], vehicle.state.origin))
+        cached = (key, geodetic_to_ned(vehicle.state.origin, h[0], h[1], h[2]))
         _home_cache[id(vehicle)] = cached
     return cached[1]
 

@@ -402,6 +402,7 @@ class MissionRunner:
         """Follow a FlightModes object: :meth:`stop` whenever the mode leaves AUTO; honour its
         DO_CHANGE_SPEED override (a MAV_CMD_DO_CHANGE_SPEED command while in AUTO)."""
         self._modes = modes
+
         def on_change(*args: Any) -> None:
             mode = getattr(modes, "mode", None)
             if mode != auto_mode:
@@ -513,7 +514,10 @@ class MissionRunner:
         self._run_from(seq)  # MISSION_SET_CURRENT while flying the plan: go there now
 
     def _on_change(self, mission_type: int) -> None:
-        if mission_type != MISSION or self.state != RUNNING:
+        if mission_type != MISSION:
+            return
+        if self.state != RUNNING:
+            self._item = None  # a new plan: nothing paused any more
             return
         if self.store.current >= 1 and self.store.current < self.store.count(MISSION):
             self._run_from(self.store.current)  # plan replaced in flight: restart the current item

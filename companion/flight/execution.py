@@ -104,7 +104,7 @@ class CommandExecution:
         if h.mode is HorizontalMode.POS:
             assert h.north is not None and h.east is not None
             if h.resolved_frame is Frame.ABSOLUTE:
-                self.h_target = np.array([h.north, h.east])
+                self.h_target = np.array([h.north, h.east], dtype=float)
             elif h.resolved_frame is Frame.RELATIVE:
                 self.h_target = np.array([ref.p[0] + h.north, ref.p[1] + h.east])
             else:  # body relative: north = forward, east = right
@@ -117,10 +117,10 @@ class CommandExecution:
         if v.mode is VerticalMode.POS:
             assert v.altitude is not None
             alt = v.altitude if v.resolved_frame is Frame.ABSOLUTE else ref.altitude + v.altitude
-            self.v_target_down = -alt
+            self.v_target_down = -float(alt)
         elif v.mode is VerticalMode.WITH_HOR:
             assert v.altitude is not None
-            self.v_target_down = -v.altitude
+            self.v_target_down = -float(v.altitude)
         self.hd_target_abs: float | None = None
         if hd.mode is HeadingMode.POS:
             assert hd.heading is not None

@@ -66,7 +66,7 @@ from taskflight.clock import Clock
 from .behaviours import DEFAULT_BEHAVIOUR, BehaviourCatalog, PauseBehaviour, default_catalog
 from .commands import CommandError, FlightCommand, Frame, HorizontalMode, VerticalMode
 from .execution import CommandExecution
-from .external import ExternalData
+from .external import ExternalData, Sample
 from .limits import Envelope, Limits
 from .reference import HOLD, Reference, ReferenceGenerator, wrap_pi
 from .setpoint import Setpoint, SetpointKind, VehicleState
@@ -172,6 +172,7 @@ class CommandQueue:
             self._commands.append(command)
             index = len(self._commands) - 1
             log.info("command %d added", index)
+            self._maybe_start()
             return index
 
     def run(self) -> None:
@@ -184,6 +185,7 @@ class CommandQueue:
             self._state = QueueState.RUNNING
             if not was_running and self._exec is not None and self._ref is not None:
                 self._exec.resume(self._ref)
+            self._maybe_start()
 
     def stop(self) -> None:
         with self._lock:
@@ -266,6 +268,11 @@ class CommandQueue:
             if t_s is None:
                 t_s = self._clock.now() if self._clock is not None else (self._last_t or 0.0)
             return self._ext.push(stream, values, validity_s, t_s)
+
+    def external_sample(self, stream: str) -> Sample | None:
+        """The newest sample of an external stream, fresh or not (read-only view)."""
+        with self._lock:
+            return self._ext.sample(stream)
 
     # --- status ------------------------------------------------------------------------------------------
     def status(self) -> QueueStatus:
@@ -372,8 +379,9 @@ class CommandQueue:
         return None
 
     def _maybe_start(self) -> None:
-        """Create the execution of whatever should run now (lazily, from the current reference)."""
-        assert self._ref is not None
+        """Create the execution of whatever should run now, from the current reference (none yet: later)."""
+        if self._ref is None:
+            return
         if self._behaviour is not None:
             if self._behaviour.execution is None:
                 cmd = self._behaviour.behaviour.commands[self._behaviour.index]
@@ -386,8 +394,7 @@ class CommandQueue:
     def _start_behaviour(self, behaviour: PauseBehaviour, *, continuing: bool) -> None:
         self._pending_pause = None
         self._behaviour = _ActiveBehaviour(behaviour, 0, None, continuing)
-        if self._ref is not None:
-            self._maybe_start()
+        self._maybe_start()
         log.info("pause behaviour %s started (%s afterwards)", behaviour.id, "continue" if continuing else "stop")
 
     def _finish_active(self) -> None:
@@ -397,21 +404,22 @@ class CommandQueue:
             b.index += 1
             b.execution = None
             if b.index < len(b.behaviour.commands):
-                if self._ref is not None:
-                    self._maybe_start()
+                self._maybe_start()
                 return
             log.info("pause behaviour %s finished", b.behaviour.id)
             self._behaviour = None
             self._state = QueueState.RUNNING if b.continuing else QueueState.STOPPED
             if b.continuing and self._exec is not None and self._ref is not None:
                 self._exec.resume(self._ref)
+            self._maybe_start()
             return
         log.info("command %d finished", self._index)
         self._exec = None
         self._index += 1
         if self._pending_pause is not None:
-            pause = self._pending_pause
-            self._start_behaviour(pause, continuing=True)
+            self._start_behaviour(self._pending_pause, continuing=True)
+        else:
+            self._maybe_start()
 
     def _queue_state(self) -> QueueState:
         if self._behaviour is not None:

@@ -14,8 +14,8 @@ How the channels are planned
       is exactly straight and the commanded speed is reached exactly; otherwise the reference bends
       smoothly onto the line. Both parts arrive at the same time (ruckig ``minimum_duration``).
     * Velocity channels (ExtVel, RCVel, DNU = come to rest and hold): ruckig's velocity interface;
-      the two horizontal axes are time-synchronised (straight change of velocity) and each gets
-      ``1/sqrt(2)`` of the acceleration and jerk, so the horizontal norm stays within the limits.
+      the two horizontal axes are time-synchronised (straight change of velocity) and share the
+      acceleration and jerk by the direction of the change (norm within the limits).
     * Vertical and heading: 1-D each. Yaw is planned unwrapped.
     * Speed modifiers (Fig. 7): a channel modified by another is given that channel's remaining
       duration as ruckig ``minimum_duration``: it slows down so that both arrive together.
@@ -47,7 +47,6 @@ from .setpoint import Vec3
 
 log = logging.getLogger(__name__)
 
-_SQRT1_2 = math.sqrt(0.5)
 _EPS = 1e-9
 
 
@@ -532,14 +531,19 @@ class ReferenceGenerator:
         return p + (v + 0.5 * dv) * dt, v + dv, dv / dt, 0.0, False
 
     def _step_hvel(self, p: Array, v: Array, a: Array, target_v: Array, dt: float) -> tuple[Array, Array, Array]:
+        """Horizontal velocity target: both axes time-synchronised (a straight change of velocity);
+        per-axis acceleration and jerk shares weighted by the direction of the change so that their
+        norm stays within the limits while a change along an axis gets most of them."""
         L = self.limits
         pl = self._hvel
         target_v, _ = _clamp_norm(target_v, L.horizontal_speed)
         key = _key(target_v)
+        if pl.reusable(key, p, v, a):
+            return pl.advance(dt)
+        w = np.maximum(np.abs(_unit(target_v - v)[0]), 0.3)
+        w = w / float(np.linalg.norm(w))
         lim_v = np.full(2, L.horizontal_speed)
-        lim_a = np.full(2, L.horizontal_acceleration * _SQRT1_2)
-        lim_j = np.full(2, L.horizontal_jerk * _SQRT1_2)
-        if pl.reusable(key, p, v, a) or pl.plan(p, v, a, None, target_v, lim_v, lim_a, lim_j, key=key):
+        if pl.plan(p, v, a, None, target_v, lim_v, L.horizontal_acceleration * w, L.horizontal_jerk * w, key=key):
             return pl.advance(dt)
         return self._brake_path(p, v, dt)
 

@@ -1,0 +1,455 @@
+"""The command queue and its QAPI verbs (seed 000 Sec. V), flown on simulated time with a kinematic
+stand-in for the vehicle (companion.flight.simulate.FlightSim): no sockets, no sleeps."""
+
+from __future__ import annotations
+
+import math
+import threading
+
+import pytest
+
+from companion.flight import (
+    CommandError,
+    CommandQueue,
+    CommandStatus,
+    EndCondition,
+    Envelope,
+    ExternalDataError,
+    FlightCommand,
+    HeadingChannel,
+    HeadingMode,
+    HorizontalChannel,
+    HorizontalMode,
+    Limits,
+    QueueError,
+    QueueState,
+    QueueStateError,
+    QueueSystemStatus,
+    SetpointKind,
+    VehicleState,
+    VerticalChannel,
+    VerticalMode,
+)
+from companion.flight.reference import wrap_pi
+from companion.flight.simulate import FlightSim, step_violations
+
+LIMITS = Limits(horizontal_speed=5, horizontal_acceleration=2.5, horizontal_jerk=5, vertical_speed=2,
+                vertical_acceleration=1.5, vertical_jerk=3, yaw_rate=90)
+
+
+# --- commands used by the tests (the executors of seed 000 Sec. VI) --------------------------------------
+def takeoff(alt: float = 5.0) -> FlightCommand:
+    return FlightCommand(vertical=VerticalChannel(VerticalMode.POS, altitude=alt, take_off=True),
+                         end=EndCondition(e_v=True))
+
+
+def waypoint(n: float, e: float, alt: float, speed: float = 4.0) -> FlightCommand:
+    return FlightCommand(HorizontalChannel(HorizontalMode.POS, north=n, east=e, speed=speed),
+                         VerticalChannel(VerticalMode.WITH_HOR, altitude=alt), end=EndCondition(e_h=True, e_v=True))
+
+
+def land() -> FlightCommand:
+    return FlightCommand(vertical=VerticalChannel(VerticalMode.POS, altitude=-50, frame="relative",
+                                                  allow_landing=True, speed=1.0), end=EndCondition(e_v=True))
+
+
+def joystick() -> FlightCommand:
+    return FlightCommand(HorizontalChannel(HorizontalMode.EXT_VEL), VerticalChannel(VerticalMode.EXT_VEL),
+                         HeadingChannel(HeadingMode.EXT_VEL), EndCondition(e_user=True))
+
+
+def point(n: float, e: float) -> FlightCommand:
+    return FlightCommand(heading=HeadingChannel(HeadingMode.POINT, north=n, east=e, rate=45),
+                         end=EndCondition(e_hd=True))
+
+
+def wait(seconds: float) -> FlightCommand:
+    return FlightCommand(end=EndCondition(e_wait=seconds))
+
+
+def make_sim(*commands: FlightCommand, envelope: Envelope | None = None, dt: float = 0.05) -> FlightSim:
+    queue = CommandQueue(LIMITS, envelope)
+    for c in commands:
+        queue.add_command(c)
+    sim = FlightSim(queue, dt=dt)
+    sim.tick()  # the first tick starts the reference at the vehicle
+    return sim
+
+
+def index_is(i: int):
+    return lambda sim: sim.queue.status().current_command_index >= i
+
+
+def airborne(sim: FlightSim, alt: float = 5.0) -> None:
+    sim.queue.run()
+    sim.run_until(lambda s: s.queue.status().current_command_index >= 1 and s.last.p[2] == -alt, 30)
+
+
+class JoystickFeed:
+    """Feeds ``ext_vel`` on every tick while ``velocity`` is set (validity 0.3 s)."""
+
+    def __init__(self, sim: FlightSim) -> None:
+        self.velocity: tuple[float, float, float, float] | None = None
+        sim.on_tick.append(self)
+
+    def __call__(self, sim: FlightSim) -> None:
+        if self.velocity is not None:
+            sim.queue.push_external("ext_vel", self.velocity, 0.3, sim.t)
+
+
+# --- flights ---------------------------------------------------------------------------------------------
+def test_take_off_reaches_the_altitude_exactly_with_the_take_off_flag() -> None:
+    sim = make_sim(takeoff(5.0))
+    q = sim.queue
+    assert q.status().queue_status is QueueState.STOPPED
+    assert q.status().current_command_status is CommandStatus.STOPPED
+    sim.run_for(1.0)
+    assert sim.last.p == (0.0, 0.0, 0.0)  # nothing moves before run()
+    q.run()
+    sim.tick()
+    assert q.status().current_command_status is CommandStatus.RUNNING
+    assert sim.last.take_off and sim.last.takeoff_altitude == 5.0 and sim.last.command_index == 0
+    sim.run_until(index_is(1), 20)
+    assert sim.last.p == (0.0, 0.0, -5.0) and sim.last.v == (0.0, 0.0, 0.0)
+    st = q.status()
+    assert (st.queue_status, st.current_command_index, st.current_command_status) == \
+        (QueueState.RUNNING, 1, CommandStatus.UNKNOWN)
+    sim.tick()
+    assert not sim.last.take_off and sim.last.p == (0.0, 0.0, -5.0)
+
+
+def test_three_waypoints_with_hor_arrive_exactly_on_straight_lines() -> None:
+    wps = [(20.0, 0.0, 8.0), (20.0, 15.0, 5.0), (0.0, 0.0, 10.0)]
+    sim = make_sim(takeoff(5.0), *(waypoint(*w) for w in wps))
+    airborne(sim)
+    start = (0.0, 0.0, 5.0)
+    for i, w in enumerate(wps, start=1):
+        sim.run_until(index_is(i + 1), 40)
+        assert sim.last.p == (w[0], w[1], -w[2])
+        leg = [sp for sp in sim.setpoints if sp.command_index == i]
+        a, b = start, w
+        length = math.dist(a, b)
+        for sp in leg:  # distance from the straight 3-D line a-b
+            x = (sp.p[0], sp.p[1], -sp.p[2])
+            t = sum((x[k] - a[k]) * (b[k] - a[k]) for k in range(3)) / length ** 2
+            off = math.dist(x, [a[k] + t * (b[k] - a[k]) for k in range(3)])
+            assert off < 1e-6
+        assert max(math.hypot(*sp.v[:2]) for sp in leg) <= 4.0 + 1e-9
+        start = w
+    assert sim.queue.guard_interventions == 0
+
+
+def test_heading_point_ends_pointing_at_the_point() -> None:
+    sim = make_sim(takeoff(), point(-10.0, 10.0))
+    airborne(sim)
+    sim.run_until(index_is(2), 20)
+    bearing = math.atan2(10.0, -10.0)
+    assert abs(wrap_pi(sim.last.yaw - bearing)) <= math.radians(LIMITS.heading_tolerance)
+    assert sim.last.p == (0.0, 0.0, -5.0)
+
+
+def test_wait_is_a_pause_of_the_given_length() -> None:
+    sim = make_sim(takeoff(), wait(3.0))
+    airborne(sim)
+    t0 = sim.t
+    sim.run_until(index_is(2), 10)
+    assert sim.t - t0 == pytest.approx(3.0, abs=2 * sim.dt)
+    assert all(sp.p == (0.0, 0.0, -5.0) for sp in sim.setpoints if sp.command_index == 1)
+
+
+def test_joystick_ext_vel_segment_ended_by_user_confirm() -> None:
+    sim = make_sim(takeoff(), joystick(), waypoint(0, 0, 5))
+    feed = JoystickFeed(sim)
+    airborne(sim)
+    assert sim.queue.status().confirmation_required_status
+    feed.velocity = (1.0, 0.5, -0.2, 20.0)
+    sim.run_for(4.0)
+    assert sim.last.kind is SetpointKind.VELOCITY
+    assert sim.last.v == pytest.approx((1.0, 0.5, -0.2), abs=1e-9)
+    assert sim.last.yaw_rate == pytest.approx(math.radians(20.0), abs=1e-9)
+    assert sim.queue.status().current_command_index == 1
+    sim.queue.user_confirm()
+    st = sim.queue.status()
+    assert st.current_command_index == 2 and not st.confirmation_required_status
+    sim.tick()
+    assert sim.last.kind is SetpointKind.POSITION and sim.last.command_index == 2
+    sim.run_until(index_is(3), 30)
+    assert sim.last.p == (0.0, 0.0, -5.0)
+
+
+def test_stale_external_velocity_goes_to_zero_and_position_holds() -> None:
+    sim = make_sim(takeoff(), joystick())
+    feed = JoystickFeed(sim)
+    airborne(sim)
+    feed.velocity = (2.0, 0.0, 0.0, 0.0)
+    sim.run_for(3.0)
+    assert sim.last.v[0] == pytest.approx(2.0)
+    feed.velocity = None  # the joystick stops sending
+    sim.run_for(0.25)
+    assert sim.last.v[0] == pytest.approx(2.0)  # still within the 0.3 s validity
+    sim.run_for(4.0)
+    assert sim.last.v == (0.0, 0.0, 0.0)
+    held = sim.last.p
+    sim.run_for(1.0)
+    assert sim.last.p == held
+    assert sim.queue.status().current_command_index == 1  # the command itself goes on
+
+
+def test_pause_direct_then_run_again_resumes_the_command() -> None:
+    sim = make_sim(takeoff(), waypoint(40.0, 0.0, 5.0))
+    airborne(sim)
+    sim.run_for(3.0)
+    sim.queue.pause_direct()
+    st = sim.queue.status()
+    assert st.queue_status is QueueState.WAITING_FOR_BEHAVIOR_AND_CONTINUING
+    assert st.current_command_status is CommandStatus.PAUSED and st.current_command_index == 1
+    assert st.confirmation_required_status  # hover waits for user_confirm
+    assert sim.queue.behaviour_id == "hover"
+    sim.run_for(6.0)
+    assert sim.last.v == (0.0, 0.0, 0.0) and 5.0 < sim.last.p[0] < 40.0
+    assert sim.last.behaviour_id == "hover" and sim.last.command_index is None
+    sim.queue.run()
+    st = sim.queue.status()
+    assert (st.queue_status, st.current_command_status) == (QueueState.RUNNING, CommandStatus.RUNNING)
+    sim.run_until(index_is(2), 30)
+    assert sim.last.p == (40.0, 0.0, -5.0)
+
+
+def test_pause_direct_with_joystick_resumes_after_user_confirm() -> None:
+    sim = make_sim(takeoff(), waypoint(30.0, 0.0, 5.0))
+    feed = JoystickFeed(sim)
+    airborne(sim)
+    sim.run_for(2.0)
+    sim.queue.pause_direct("joystick")
+    feed.velocity = (0.0, 2.0, 0.0, 0.0)
+    sim.run_for(4.0)
+    assert sim.last.v[1] == pytest.approx(2.0) and sim.last.kind is SetpointKind.VELOCITY
+    feed.velocity = None
+    sim.queue.user_confirm()
+    assert sim.queue.status().queue_status is QueueState.RUNNING and sim.queue.behaviour_id is None
+    sim.run_until(index_is(2), 40)
+    assert sim.last.p == (30.0, 0.0, -5.0)
+
+
+def test_pause_after_current_runs_the_behaviour_between_commands() -> None:
+    sim = make_sim(takeoff(), waypoint(10.0, 0.0, 5.0), waypoint(10.0, 10.0, 5.0))
+    airborne(sim)
+    sim.queue.pause_after_current()
+    st = sim.queue.status()
+    assert (st.queue_status, st.current_command_status) == (QueueState.RUNNING, CommandStatus.RUNNING)
+    with pytest.raises(QueueStateError):
+        sim.queue.pause_after_current()
+    sim.run_until(index_is(2), 20)
+    assert sim.last.p == (10.0, 0.0, -5.0)  # the current command ended normally, at its waypoint
+    st = sim.queue.status()
+    assert st.queue_status is QueueState.WAITING_FOR_BEHAVIOR_AND_CONTINUING
+    assert st.current_command_status is CommandStatus.PAUSED and st.current_command_index == 2
+    sim.run_for(3.0)
+    assert sim.last.p == (10.0, 0.0, -5.0)
+    sim.queue.user_confirm()
+    sim.run_until(index_is(3), 20)
+    assert sim.last.p == (10.0, 10.0, -5.0)
+
+
+def test_reset_in_mid_flight_hovers_where_it_is() -> None:
+    sim = make_sim(takeoff(), waypoint(60.0, 0.0, 5.0))
+    airborne(sim)
+    sim.run_for(6.0)
+    v = sim.last.v[0]
+    assert v == pytest.approx(4.0)
+    at_reset = sim.last.p
+    sim.queue.reset()
+    st = sim.queue.status()
+    assert (st.queue_status, st.current_command_index, st.current_command_status) == \
+        (QueueState.STOPPED, 0, CommandStatus.UNKNOWN)
+    assert sim.queue.commands == ()
+    sim.run_for(6.0)
+    assert sim.last.v == (0.0, 0.0, 0.0)
+    braking = v * v / (2 * LIMITS.horizontal_acceleration) + v * LIMITS.horizontal_acceleration / LIMITS.horizontal_jerk
+    assert 0.0 < sim.last.p[0] - at_reset[0] <= braking + 0.01
+    hover = sim.last.p
+    assert sim.queue.add_command(waypoint(0, 0, 5)) == 0
+    sim.run_for(1.0)
+    assert sim.last.p == hover  # reset leaves the queue stopped
+    sim.queue.run()
+    sim.run_until(index_is(1), 30)
+    assert sim.last.p == (0.0, 0.0, -5.0)
+
+
+def test_stop_then_run_resumes_the_stopped_command() -> None:
+    sim = make_sim(takeoff(), waypoint(30.0, 0.0, 5.0))
+    airborne(sim)
+    sim.run_for(3.0)
+    sim.queue.stop()
+    st = sim.queue.status()
+    assert (st.queue_status, st.current_command_index, st.current_command_status) == \
+        (QueueState.STOPPED, 1, CommandStatus.STOPPED)
+    sim.run_for(5.0)
+    assert sim.last.v == (0.0, 0.0, 0.0) and sim.last.p[0] < 30.0
+    assert sim.last.command_index is None
+    sim.queue.run()
+    sim.run_until(index_is(2), 30)
+    assert sim.last.p == (30.0, 0.0, -5.0)
+
+
+def test_landing_with_allow_landing_asks_for_land_and_ends_on_the_ground() -> None:
+    sim = make_sim(takeoff(), land())
+    airborne(sim)
+    sim.tick()
+    assert sim.last.allow_landing and not sim.last.land_now
+    sim.run_until(lambda s: s.last.land_now, 20)
+    assert sim.landed or sim.last.p[2] == -0.0
+    sim.run_until(index_is(2), 5)
+    assert -sim.p[2] <= 0.02
+
+
+def test_override_stops_the_stream_and_resumes_from_the_measured_state() -> None:
+    sim = make_sim(takeoff(), waypoint(20.0, 0.0, 5.0))
+    airborne(sim)
+    sim.run_for(2.0)
+    q = sim.queue
+    q.set_overridden(True)
+    assert q.tick(sim.t + 0.05, sim.state()) is None
+    st = q.status()
+    assert st.queue_system_status is QueueSystemStatus.OVERRIDDEN and st.queue_status is QueueState.STOPPED
+    for verb in (q.run, q.pause_direct, q.pause_after_current, q.user_confirm):
+        with pytest.raises(QueueStateError):
+            verb()
+    q.set_overridden(False)
+    sp = q.tick(sim.t + 0.1, VehicleState((3.0, 2.0, -6.0), (0.0, 0.0, 0.0), 0.5))
+    assert sp is not None and sp.p == (3.0, 2.0, -6.0) and sp.yaw == pytest.approx(0.5)
+    assert q.status().queue_system_status is QueueSystemStatus.RUNNING
+    sim.p, sim.t = sp.p, sim.t + 0.15
+    q.run()
+    sim.run_until(index_is(2), 30)
+    assert sim.last.p == (20.0, 0.0, -5.0)
+
+
+def test_run_before_anything_is_queued_starts_with_the_first_command() -> None:
+    sim = make_sim()
+    sim.queue.run()
+    sim.run_for(1.0)
+    st = sim.queue.status()
+    assert (st.queue_status, st.current_command_index, st.current_command_status) == \
+        (QueueState.RUNNING, 0, CommandStatus.UNKNOWN)
+    sim.queue.add_command(takeoff(3.0))
+    assert sim.queue.status().current_command_status is CommandStatus.RUNNING
+    sim.run_until(index_is(1), 20)
+    assert sim.last.p == (0.0, 0.0, -3.0)
+
+
+def test_envelope_limits_the_joystick_and_flags_an_unreachable_external_position() -> None:
+    env = Envelope.box(-10, 10, -10, 10, altitude_floor=2.0, altitude_ceiling=20.0)
+    ext_pos = FlightCommand(HorizontalChannel(HorizontalMode.EXT_POS), VerticalChannel(VerticalMode.DNU),
+                            end=EndCondition(e_h=True))
+    sim = make_sim(takeoff(), joystick(), ext_pos, envelope=env)
+    feed = JoystickFeed(sim)
+    airborne(sim)
+    t_airborne = sim.t
+    feed.velocity = (4.0, 0.0, 1.0, 0.0)  # north and down, into the wall and the floor
+    sim.run_for(10.0)
+    st = sim.queue.status()
+    assert st.limit_reached and not st.target_position_unreachable
+    assert all(env.contains(sp.p) for sp in sim.setpoints if sp.t_s >= t_airborne)
+    assert sim.last.p[0] > 9.0 and -sim.last.p[2] > 2.0 - 1e-9
+    feed.velocity = None
+    sim.queue.user_confirm()
+    sim.on_tick.append(lambda s: s.queue.push_external("ext_pos", (30.0, 0.0, -5.0), 1.0, s.t))
+    sim.run_for(3.0)
+    st = sim.queue.status()
+    assert st.current_command_index == 2 and st.target_position_unreachable and st.limit_reached
+    assert all(env.contains(sp.p) for sp in sim.setpoints if sp.t_s >= t_airborne)
+
+
+# --- bad input: a clear error and nothing changes ------------------------------------------------------
+def test_user_confirm_with_nothing_waiting_is_an_error_and_changes_nothing() -> None:
+    sim = make_sim(takeoff(), waypoint(10.0, 0.0, 5.0))
+    q = sim.queue
+    for running in (False, True):
+        if running:
+            q.run()
+            sim.run_for(1.0)
+        before = (q.status(), q.commands, q.reference)
+        with pytest.raises(QueueStateError, match="nothing is waiting for a confirmation"):
+            q.user_confirm()
+        assert (q.status(), q.commands, q.reference) == before
+    sim.run_until(index_is(2), 30)  # and the flight goes on as if nothing happened
+    assert sim.last.p == (10.0, 0.0, -5.0)
+
+
+def test_invalid_commands_and_arguments_are_refused_without_change() -> None:
+    env = Envelope.box(-10, 10, -10, 10, altitude_ceiling=20.0)
+    sim = make_sim(takeoff(), envelope=env)
+    q = sim.queue
+    before = (q.status(), q.commands)
+    with pytest.raises(CommandError) as info:
+        q.add_command(waypoint(50.0, 0.0, 5.0))
+    assert info.value.field == "horizontal.north" and "envelope" in info.value.reason
+    with pytest.raises(CommandError) as info:
+        q.add_command(FlightCommand(vertical=VerticalChannel(VerticalMode.POS, altitude=30), end=EndCondition(e_v=True)))
+    assert info.value.field == "vertical.altitude"
+    with pytest.raises(QueueError):
+        q.add_command({"vertical": {"mode": "POS"}})  # type: ignore[arg-type]
+    with pytest.raises(QueueError, match="unknown behaviour"):
+        q.pause_direct("dance")
+    assert (q.status(), q.commands) == before
+
+
+def test_malformed_external_sample_is_an_error_and_changes_nothing() -> None:
+    sim = make_sim(takeoff(), joystick())
+    feed = JoystickFeed(sim)
+    airborne(sim)
+    feed.velocity = (1.0, 0.0, 0.0, 0.0)
+    sim.run_for(2.0)
+    good = sim.queue.external_sample("ext_vel")
+    status = sim.queue.status()
+    for values, validity in (((1.0, math.nan, 0.0, 0.0), 0.3), ((1.0, 0.0, 0.0), 0.3), ((9.0, 0, 0, 0), -1.0)):
+        with pytest.raises(ExternalDataError):
+            sim.queue.push_external("ext_vel", values, validity, sim.t)
+        assert sim.queue.external_sample("ext_vel") == good
+    with pytest.raises(ExternalDataError, match="unknown stream"):
+        sim.queue.push_external("joystick", (1, 2, 3, 4), 0.3, sim.t)
+    assert sim.queue.status() == status
+
+
+def test_status_snapshot_to_dict_has_exactly_the_qapi_fields() -> None:
+    q = CommandQueue(LIMITS)
+    q.set_synced(True)
+    assert q.status().to_dict() == {
+        "queue_system_status": "RUNNING", "queue_status": "STOPPED", "current_command_index": 0,
+        "current_command_status": "UNKNOWN", "confirmation_required_status": False, "limit_reached": False,
+        "target_position_unreachable": False, "is_synced": True}
+
+
+def test_verbs_from_another_thread_while_ticking() -> None:
+    sim = make_sim(takeoff(), joystick(), waypoint(5.0, 5.0, 5.0))
+    q = sim.queue
+    errors: list[BaseException] = []
+    done = threading.Event()
+
+    def control() -> None:
+        try:
+            n = 0
+            while not done.is_set() and n < 20000:
+                n += 1
+                q.status()
+                q.push_external("ext_vel", (0.5, 0.0, 0.0, 0.0), 0.3)
+                if q.status().confirmation_required_status and n % 50 == 0:
+                    try:
+                        q.user_confirm()
+                    except QueueStateError:
+                        pass
+        except BaseException as exc:  # pragma: no cover - reported below
+            errors.append(exc)
+
+    q.run()
+    worker = threading.Thread(target=control)
+    worker.start()
+    try:
+        sim.run_until(index_is(3), 60)
+    finally:
+        done.set()
+        worker.join()
+    assert not errors
+    assert sim.last.p == (5.0, 5.0, -5.0)
+    assert step_violations(sim.setpoints, LIMITS) == []
