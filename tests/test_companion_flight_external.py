@@ -25,19 +25,22 @@ def test_older_sample_is_ignored() -> None:
     assert ext.latest("ext_point", 5.0) == (1.0, 2.0)
 
 
-@pytest.mark.parametrize(("stream", "values", "validity", "t", "message"), [
-    ("ext_velocity", (1, 2, 3, 4), 1.0, 0.0, "unknown stream"),
-    ("ext_vel", (1, 2, 3), 1.0, 0.0, "expected 4 values"),
-    ("ext_vel", (1, 2, math.nan, 0), 1.0, 0.0, "finite"),
-    ("ext_pos", (1, 2, math.inf), 1.0, 0.0, "finite"),
-    ("ext_pos", (1, 2, 3), -0.5, 0.0, "validity"),
-    ("ext_pos", (1, 2, 3), 0.0, 0.0, "validity"),
-    ("ext_pos", (1, 2, 3), math.nan, 0.0, "validity"),
-    ("ext_pos", (1, 2, 3), 1.0, math.nan, "time"),
-    ("ext_heading", "90", 1.0, 0.0, "expected 1 values"),
-    ("ext_heading", None, 1.0, 0.0, "expected 1 numbers"),
-    ("ext_point", (True, 2), 1.0, 0.0, "booleans"),
-])
+@pytest.mark.parametrize(
+    ("stream", "values", "validity", "t", "message"),
+    [
+        ("ext_velocity", (1, 2, 3, 4), 1.0, 0.0, "unknown stream"),
+        ("ext_vel", (1, 2, 3), 1.0, 0.0, "expected 4 values"),
+        ("ext_vel", (1, 2, math.nan, 0), 1.0, 0.0, "finite"),
+        ("ext_pos", (1, 2, math.inf), 1.0, 0.0, "finite"),
+        ("ext_pos", (1, 2, 3), -0.5, 0.0, "validity"),
+        ("ext_pos", (1, 2, 3), 0.0, 0.0, "validity"),
+        ("ext_pos", (1, 2, 3), math.nan, 0.0, "validity"),
+        ("ext_pos", (1, 2, 3), 1.0, math.nan, "time"),
+        ("ext_heading", "90", 1.0, 0.0, "expected 1 values"),
+        ("ext_heading", None, 1.0, 0.0, "expected 1 numbers"),
+        ("ext_point", (True, 2), 1.0, 0.0, "booleans"),
+    ],
+)
 def test_malformed_sample_raises_and_changes_nothing(stream, values, validity, t, message) -> None:
     ext = ExternalData()
     for name, n in STREAMS.items():

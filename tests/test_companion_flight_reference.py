@@ -22,8 +22,15 @@ from companion.flight.reference import (
     wrap_pi,
 )
 
-LIMITS = Limits(horizontal_speed=5, horizontal_acceleration=2.5, horizontal_jerk=5, vertical_speed=2,
-                vertical_acceleration=1.5, vertical_jerk=3, yaw_rate=90)
+LIMITS = Limits(
+    horizontal_speed=5,
+    horizontal_acceleration=2.5,
+    horizontal_jerk=5,
+    vertical_speed=2,
+    vertical_acceleration=1.5,
+    vertical_jerk=3,
+    yaw_rate=90,
+)
 DT = 0.02
 
 
@@ -41,8 +48,9 @@ def _check_step(r0: Reference, r1: Reference, dt: float = DT) -> None:
     assert abs(r1.yaw - r0.yaw) <= math.radians(L.yaw_rate) * dt + tol
 
 
-def _fly(gen: ReferenceGenerator, ref: Reference, targets: ChannelTargets, until, max_s: float = 60.0
-         ) -> tuple[Reference, list[StepResult]]:
+def _fly(
+    gen: ReferenceGenerator, ref: Reference, targets: ChannelTargets, until, max_s: float = 60.0
+) -> tuple[Reference, list[StepResult]]:
     results: list[StepResult] = []
     for _ in range(int(max_s / DT)):
         res = gen.step(ref, targets, DT)
@@ -70,7 +78,9 @@ def test_straight_line_from_rest_arrives_exactly_at_commanded_speed() -> None:
 def test_3d_line_arrives_exactly_with_end_speed_and_slows_for_the_vertical_limit() -> None:
     gen = ReferenceGenerator(LIMITS)
     end_v = (0.0, 1.0, -0.5)  # along the line (0, 10, -5): horizontal end speed 1
-    targets = ChannelTargets(PathTarget((0.0, 10.0, -10.0), speed=5.0, end_velocity=end_v), None, YawRateTarget(0.0))
+    targets = ChannelTargets(
+        PathTarget((0.0, 10.0, -10.0), speed=5.0, end_velocity=end_v), None, YawRateTarget(0.0)
+    )
     ref, results = _fly(gen, _rest(), targets, lambda r: r.h_arrived)
     assert ref.p == (0.0, 10.0, -10.0) and ref.v == end_v
     assert max(abs(r.reference.v[2]) for r in results) == pytest.approx(2.0, abs=1e-6)  # vertical limit bound
@@ -88,24 +98,32 @@ def test_new_target_while_moving_sideways_is_continuous_and_exact() -> None:
 
 def test_speed_modifier_makes_channels_arrive_together() -> None:
     gen = ReferenceGenerator(LIMITS)
-    targets = ChannelTargets(PathTarget((5.0, 0.0), speed=5.0), AxisTarget(-15.0, 2.0), YawRateTarget(0.0),
-                             h_sync_vertical=True)
+    targets = ChannelTargets(
+        PathTarget((5.0, 0.0), speed=5.0), AxisTarget(-15.0, 2.0), YawRateTarget(0.0), h_sync_vertical=True
+    )
     _, results = _fly(gen, _rest(), targets, lambda r: r.h_arrived and r.v_arrived)
     first_h = next(i for i, r in enumerate(results) if r.h_arrived)
     first_v = next(i for i, r in enumerate(results) if r.v_arrived)
     assert first_h == first_v
     # without the modifier the horizontal is much earlier
-    _, results = _fly(ReferenceGenerator(LIMITS), _rest(), ChannelTargets(
-        PathTarget((5.0, 0.0), speed=5.0), AxisTarget(-15.0, 2.0), YawRateTarget(0.0)),
-        lambda r: r.v_arrived)
+    _, results = _fly(
+        ReferenceGenerator(LIMITS),
+        _rest(),
+        ChannelTargets(PathTarget((5.0, 0.0), speed=5.0), AxisTarget(-15.0, 2.0), YawRateTarget(0.0)),
+        lambda r: r.v_arrived,
+    )
     assert next(i for i, r in enumerate(results) if r.h_arrived) < first_v - 50
 
 
 def test_yaw_goes_the_long_way_when_the_unwrapped_target_says_so() -> None:
     gen = ReferenceGenerator(LIMITS)
     target = -math.radians(270)  # from 0, turning negative to +90 deg
-    ref, results = _fly(gen, _rest(), ChannelTargets(VelocityTarget((0, 0)), VelocityTarget((0,)),
-                                                      YawTarget(target, math.radians(60))), lambda r: r.hd_arrived)
+    ref, results = _fly(
+        gen,
+        _rest(),
+        ChannelTargets(VelocityTarget((0, 0)), VelocityTarget((0,)), YawTarget(target, math.radians(60))),
+        lambda r: r.hd_arrived,
+    )
     assert ref.yaw == target and wrap_pi(ref.yaw) == pytest.approx(math.radians(90))
     assert all(r.reference.yaw_rate <= 1e-12 for r in results)
 

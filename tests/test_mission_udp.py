@@ -311,7 +311,8 @@ def test_auto_flight_visits_waypoints(gcs: Gcs) -> None:
         closest = min(math.dist(p, (n, e, -alt)) for p in gcs.positions)
         assert closest < 2.5, (n, e, alt, closest)
     assert any("Reached command #2" in t for t in gcs.texts)
-    n, e, d = gcs.positions[-1]
-    assert math.hypot(n - WAYPOINTS[2][0], e - WAYPOINTS[2][1]) < 2.5 and abs(d) < 0.5
+    n, e, _ = gcs.positions[-1]  # landed where the last waypoint was (LAND with lat = lon = 0)
+    assert math.hypot(n - WAYPOINTS[2][0], e - WAYPOINTS[2][1]) < 2.5
+    assert gcs.fresh("EXTENDED_SYS_STATE").landed_state == M.MAV_LANDED_STATE_ON_GROUND
     cur = gcs.fresh("MISSION_CURRENT")
     assert cur.seq == 6 and cur.total == 6

@@ -260,6 +260,8 @@ class CascadedController:
         self.prev = np.zeros(6)
         self.out = np.zeros(12)
         self.commands = self.out  # [thrust, tx, ty, tz] in out[0:4]
+        self._clear = False
+        self.reset()
 
     def _on_param(self, name: str, value: float) -> None:
         entry = self._index.get(name)
@@ -271,10 +273,14 @@ class CascadedController:
         return float(self.g[G_MAX_TILT])
 
     def reset(self) -> None:
+        """Clear integrators and outputs (cheap when already clear: called every iteration disarmed)."""
+        if self._clear:
+            return
         self.integ[:] = 0.0
         self.prev[:] = 0.0
         self.out[:] = 0.0
         self.out[4] = 1.0
+        self._clear = True
 
     def step(self, est: np.ndarray, p: tuple, v: tuple, a: tuple, yaw: float, yaw_rate: float) -> None:
         ref = self.ref
@@ -283,4 +289,5 @@ class CascadedController:
         ref[6], ref[7], ref[8] = a
         ref[9] = yaw
         ref[10] = yaw_rate
+        self._clear = False
         cascade_step(est, ref, self.g, self.integ, self.prev, self.dt, self.out)

@@ -166,6 +166,38 @@ def ins_correct_position(est, abias, gbias, hist, hidx, sample, sample_time, gai
         gbias[2] -= gains[6] * bz
 
 
+@njit(cache=True, fastmath=True)
+def ins_align_gravity(est, accel, k):  # pragma: no cover - numba
+    """Mahony's accelerometer term (e = f x v, body frame), used only at rest on the ground."""
+    n = math.sqrt(accel[0] * accel[0] + accel[1] * accel[1] + accel[2] * accel[2])
+    if n < 1e-3:
+        return
+    fx = accel[0] / n
+    fy = accel[1] / n
+    fz = accel[2] / n
+    qw = est[6]
+    qx = est[7]
+    qy = est[8]
+    qz = est[9]
+    # v = R^T (0, 0, -1): the expected direction of the measured specific force
+    vx = -2.0 * (qx * qz - qw * qy)
+    vy = -2.0 * (qy * qz + qw * qx)
+    vz = -(1.0 - 2.0 * (qx * qx + qy * qy))
+    ex = fy * vz - fz * vy
+    ey = fz * vx - fx * vz
+    hx = 0.5 * k * ex
+    hy = 0.5 * k * ey
+    nw = qw - qx * hx - qy * hy
+    nx = qx + qw * hx - qz * hy
+    ny = qy + qw * hy + qz * hx
+    nz = qz + qx * hy - qy * hx
+    m = 1.0 / math.sqrt(nw * nw + nx * nx + ny * ny + nz * nz)
+    est[6] = nw * m
+    est[7] = nx * m
+    est[8] = ny * m
+    est[9] = nz * m
+
+
 def _rotate_world(est: np.ndarray, cx: float, cy: float, cz: float) -> None:
     """Rotate the attitude estimate by the small world-frame rotation vector c: q <- dq(c) (x) q."""
     qw, qx, qy, qz = est[6], est[7], est[8], est[9]
@@ -324,21 +356,4 @@ class Estimator:
 
     def _align_gravity(self) -> None:
         """On the ground the accelerometer measures gravity alone: pull roll and pitch to it."""
-        f = self.imu.accel
-        n = math.sqrt(f[0] * f[0] + f[1] * f[1] + f[2] * f[2])
-        if n < 1e-3:
-            return
-        fx, fy, fz = f[0] / n, f[1] / n, f[2] / n
-        vx, vy, vz = _world_to_body(self.est, (0.0, 0.0, -1.0))
-        # e = f x v (body frame), rotate the estimate so that v aligns with f
-        ex = fy * vz - fz * vy
-        ey = fz * vx - fx * vz
-        k = self.k_grav * self.dt
-        qw, qx, qy, qz = self.est[6], self.est[7], self.est[8], self.est[9]
-        hx, hy = 0.5 * k * ex, 0.5 * k * ey
-        nw = qw - qx * hx - qy * hy
-        nx = qx + qw * hx - qz * hy
-        ny = qy + qw * hy + qz * hx
-        nz = qz + qx * hy - qy * hx
-        m = 1.0 / math.sqrt(nw * nw + nx * nx + ny * ny + nz * nz)
-        self.est[6], self.est[7], self.est[8], self.est[9] = nw * m, nx * m, ny * m, nz * m
+        ins_align_gravity(self.est, self.imu.accel, self.k_grav * self.dt)

@@ -45,7 +45,8 @@ from .setpoint import Setpoint, SetpointKind, VehicleState
 
 __all__ = [
     "STREAMS", "BehaviourCatalog", "CommandError", "CommandQueue", "CommandStatus", "EndCondition",
-    "Envelope", "ExternalData", "ExternalDataError", "FlightCommand", "Frame", "HeadingChannel", "HeadingMode",
+    "Envelope", "ExternalData", "ExternalDataError", "FlightCommand", "Frame", "HeadingChannel",
+    "HeadingMode",
     "HorizontalChannel", "HorizontalMode", "Limits", "PauseBehaviour", "QueueError", "QueueState",
     "QueueStateError", "QueueStatus", "QueueSystemStatus", "Reference", "ReferenceGenerator", "Setpoint",
     "SetpointKind", "SpeedModifier", "VehicleState", "VerticalChannel", "VerticalMode", "command_from_dict",

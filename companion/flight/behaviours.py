@@ -102,7 +102,8 @@ def joystick_command() -> FlightCommand:
 def default_catalog() -> BehaviourCatalog:
     return BehaviourCatalog([
         PauseBehaviour("hover", (hover_command(),), "hold position until user_confirm"),
-        PauseBehaviour("joystick", (joystick_command(),), "all channels ExtVel (ext_vel stream) until user_confirm"),
+        PauseBehaviour("joystick", (joystick_command(),),
+                       "all channels ExtVel (ext_vel stream) until user_confirm"),
     ])
 
 

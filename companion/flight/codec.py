@@ -66,10 +66,12 @@ def _channel_to_dict(channel: Any) -> dict[str, Any]:
 def command_to_dict(command: FlightCommand) -> dict[str, Any]:
     """Plain-data form (JSON/YAML-ready) of a command."""
     end = command.end
-    end_dict: dict[str, Any] = {name: True for name in ("e_h", "e_v", "e_hd", "e_any", "e_user") if getattr(end, name)}
+    flags = ("e_h", "e_v", "e_hd", "e_any", "e_user")
+    end_dict: dict[str, Any] = {name: True for name in flags if getattr(end, name)}
     if end.e_wait is not None:
         end_dict["e_wait"] = end.e_wait
-    return {"horizontal": _channel_to_dict(command.horizontal), "vertical": _channel_to_dict(command.vertical),
+    return {"horizontal": _channel_to_dict(command.horizontal),
+            "vertical": _channel_to_dict(command.vertical),
             "heading": _channel_to_dict(command.heading), "end": end_dict}
 
 

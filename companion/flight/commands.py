@@ -256,7 +256,8 @@ class HorizontalChannel:
         _check_number(f"{p}.distance", self.distance, positive=True)
         _check_params(p, self, self.mode, _H_PARAMS[self.mode], _H_REQUIRED.get(self.mode, ()))
         if self.speed is not None and self.end_speed is not None and self.end_speed > self.speed:
-            raise CommandError(f"{p}.end_speed", f"must not exceed speed ({self.end_speed:g} > {self.speed:g})")
+            raise CommandError(f"{p}.end_speed",
+                               f"must not exceed speed ({self.end_speed:g} > {self.speed:g})")
 
     @property
     def resolved_frame(self) -> Frame:
@@ -303,7 +304,8 @@ class VerticalChannel:
         if SpeedModifier.VERTICAL in self.speed_modified_by:
             raise CommandError(f"{p}.speed_modified_by", "the vertical channel cannot modify itself")
         if self.speed is not None and self.end_speed is not None and self.end_speed > self.speed:
-            raise CommandError(f"{p}.end_speed", f"must not exceed speed ({self.end_speed:g} > {self.speed:g})")
+            raise CommandError(f"{p}.end_speed",
+                               f"must not exceed speed ({self.end_speed:g} > {self.speed:g})")
         if self.take_off and self.allow_landing:
             raise CommandError(f"{p}.take_off", "a command cannot be both a take-off and a landing")
         for flag in ("take_off", "allow_landing"):
@@ -423,7 +425,8 @@ class FlightCommand:
         for name, cls in (("horizontal", HorizontalChannel), ("vertical", VerticalChannel),
                           ("heading", HeadingChannel), ("end", EndCondition)):
             if not isinstance(getattr(self, name), cls):
-                raise CommandError(name, f"expected a {cls.__name__}, got {type(getattr(self, name)).__name__}")
+                got = type(getattr(self, name)).__name__
+                raise CommandError(name, f"expected a {cls.__name__}, got {got}")
         self._check_modes()
         self._check_modifiers()
         self._check_end()
@@ -432,7 +435,8 @@ class FlightCommand:
     def _check_modes(self) -> None:
         h, v = self.horizontal, self.vertical
         if v.mode is VerticalMode.WITH_HOR and h.mode is not HorizontalMode.POS:
-            raise CommandError("vertical.mode", f"WITH_HOR extends horizontal POS, but horizontal is {h.mode.name}")
+            raise CommandError("vertical.mode",
+                               f"WITH_HOR extends horizontal POS, but horizontal is {h.mode.name}")
 
     def _check_modifiers(self) -> None:
         h, v, hd = self.horizontal, self.vertical, self.heading
@@ -442,7 +446,8 @@ class FlightCommand:
         for mod in h.speed_modified_by:
             if mod is SpeedModifier.VERTICAL and v.mode not in (VerticalMode.POS, VerticalMode.EXT_POS):
                 raise CommandError("horizontal.speed_modified_by",
-                                   f"vertical mode {v.mode.name} gives no speed modifier (needs POS or EXT_POS)")
+                                   f"vertical mode {v.mode.name} gives no speed modifier "
+                                   "(needs POS or EXT_POS)")
             if mod is SpeedModifier.HEADING and not heading_sm:
                 raise CommandError("horizontal.speed_modified_by",
                                    f"heading mode {hd.mode.name} gives no speed modifier "
@@ -465,8 +470,8 @@ class FlightCommand:
             for name in selected:
                 if not capable[name]:
                     channel, mode = modes[name]
-                    raise CommandError(f"end.{name}", f"{channel} mode {mode.name} never raises its end flag: "
-                                                      "the command could never end")
+                    raise CommandError(f"end.{name}", f"{channel} mode {mode.name} never raises its end "
+                                                      "flag: the command could never end")
         else:
             pool = selected or ["e_h", "e_v", "e_hd"]
             if not any(capable[name] for name in pool):

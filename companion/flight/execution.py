@@ -232,7 +232,10 @@ class CommandExecution:
         # -- vertical
         vertical: AxisTarget | VelocityTarget | None = VelocityTarget((0.0,))
         if v.mode is VerticalMode.WITH_HOR:
-            vertical = None if isinstance(horizontal, PathTarget) else VelocityTarget((self._end_velocity_v3(),))
+            if isinstance(horizontal, PathTarget):
+                vertical = None  # part of the 3-D line
+            else:
+                vertical = VelocityTarget((self._end_velocity_v3(),))
         elif v.mode is VerticalMode.POS:
             assert self.v_target_down is not None
             if self._v_latched:
@@ -258,12 +261,14 @@ class CommandExecution:
         # -- speed modifiers (Fig. 7)
         h_mods, v_mods = h.speed_modified_by, v.speed_modified_by
         h_sync_hd = SpeedModifier.HEADING in h_mods and hd.mode in (HeadingMode.POS, HeadingMode.EXT_POS)
-        if SpeedModifier.HEADING in h_mods and hd.mode is HeadingMode.FLIGHT_DIR and isinstance(heading, YawTarget):
+        flight_dir_sm = SpeedModifier.HEADING in h_mods and hd.mode is HeadingMode.FLIGHT_DIR
+        if flight_dir_sm and isinstance(heading, YawTarget):
             # Hd_sm of FlightDir: slow down while the heading is off the flight direction
             err = abs(wrap_pi(heading.yaw - ref.yaw))
             scale = max(0.05, math.cos(min(err, math.pi / 2)))
             if isinstance(horizontal, PathTarget):
-                horizontal = PathTarget(horizontal.position, horizontal.speed * scale, horizontal.end_velocity)
+                horizontal = PathTarget(horizontal.position, horizontal.speed * scale,
+                                        horizontal.end_velocity)
         targets = ChannelTargets(
             horizontal, vertical, heading,
             h_sync_vertical=SpeedModifier.VERTICAL in h_mods,
@@ -359,8 +364,8 @@ class CommandExecution:
                 and not result.target_unreachable
         elif h.mode is HorizontalMode.KEEP_DISTANCE and "h_center" in moving:
             assert h.distance is not None
-            h_end = abs(float(np.linalg.norm(p[:2] - moving["h_center"])) - h.distance) <= L.arrival_tolerance \
-                and not result.target_unreachable
+            off = abs(float(np.linalg.norm(p[:2] - moving["h_center"])) - h.distance)
+            h_end = off <= L.arrival_tolerance and not result.target_unreachable
         else:
             h_end = False
         # vertical
@@ -379,7 +384,8 @@ class CommandExecution:
                 # touchdown ends the landing: the vehicle's report when it has one, else the reference
                 v_end = landed is True or (landed is None and self._v_latched)
         elif v.mode is VerticalMode.EXT_POS and "v_goal" in moving:
-            v_end = abs(ref.p[2] - float(moving["v_goal"])) <= L.arrival_tolerance and not result.target_unreachable
+            off = abs(ref.p[2] - float(moving["v_goal"]))
+            v_end = off <= L.arrival_tolerance and not result.target_unreachable
         else:
             v_end = False
         # heading
@@ -394,7 +400,7 @@ class CommandExecution:
                 if (ref.yaw - self.hd_yaw_unwrapped) * self.hd_sign >= 0:
                     self._hd_passed = True
                 hd_end = self._hd_passed
-        elif hd.mode in (HeadingMode.EXT_POS, HeadingMode.POINT, HeadingMode.EXT_POINT) and "hd_goal" in moving:
+        elif "hd_goal" in moving:  # EXT_POS, POINT, EXT_POINT with a valid goal
             hd_end = abs(wrap_pi(ref.yaw - float(moving["hd_goal"]))) <= tol  # type: ignore[arg-type]
         else:
             hd_end = False

@@ -71,9 +71,10 @@ class ExternalData:
             raise ExternalDataError(f"{stream}: expected {n} values, got {len(vals)}")
         if not all(math.isfinite(v) for v in vals):
             raise ExternalDataError(f"{stream}: values must be finite, got {vals}")
-        if isinstance(validity_s, bool) or not isinstance(validity_s, int | float) or not math.isfinite(validity_s) \
-                or validity_s <= 0:
-            raise ExternalDataError(f"{stream}: validity must be a finite number of seconds > 0, got {validity_s!r}")
+        if isinstance(validity_s, bool) or not isinstance(validity_s, int | float) \
+                or not math.isfinite(validity_s) or validity_s <= 0:
+            raise ExternalDataError(f"{stream}: validity must be a finite number of seconds > 0, "
+                                    f"got {validity_s!r}")
         if isinstance(t_s, bool) or not isinstance(t_s, int | float) or not math.isfinite(t_s):
             raise ExternalDataError(f"{stream}: sample time must be finite, got {t_s!r}")
         return Sample(vals, float(t_s), float(validity_s))

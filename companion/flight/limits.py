@@ -113,8 +113,8 @@ class Envelope:
     def box(cls, north_min: float, north_max: float, east_min: float, east_max: float, **kw: Any) -> Envelope:
         if not (north_min < north_max and east_min < east_max):
             raise ValueError("envelope.box: needs north_min < north_max and east_min < east_max")
-        return cls([(north_min, east_min), (north_max, east_min), (north_max, east_max), (north_min, east_max)],
-                   **kw)
+        corners = [(north_min, east_min), (north_max, east_min), (north_max, east_max), (north_min, east_max)]
+        return cls(corners, **kw)
 
     @classmethod
     def from_fields(cls, f: Fields) -> Envelope:
@@ -139,9 +139,11 @@ class Envelope:
             pts = []
             for i, item in enumerate(raw):
                 if not isinstance(item, list | tuple) or len(item) != 2 or not all(
-                        isinstance(c, int | float) and not isinstance(c, bool) and math.isfinite(c) for c in item):
+                        isinstance(c, int | float) and not isinstance(c, bool) and math.isfinite(c)
+                        for c in item):
                     line = raw.line_of(i) if hasattr(raw, "line_of") else f.line("polygon")
-                    raise ConfigError(f.file, line, f"{f.path('polygon')}[{i}]", "expected [north, east] numbers")
+                    raise ConfigError(f.file, line, f"{f.path('polygon')}[{i}]",
+                                      "expected [north, east] numbers")
                 pts.append((float(item[0]), float(item[1])))
             try:
                 return cls(pts, altitude_floor=floor, altitude_ceiling=ceiling)

@@ -199,8 +199,8 @@ class CommandQueue:
             self._refuse_if_overridden("pause_direct")
             behaviour = self._behaviour_of(behaviour_id)
             if self._behaviour is not None:
-                raise QueueStateError(f"pause_direct: already in pause behaviour {self._behaviour.behaviour.id!r} "
-                                      "(user_confirm or run() ends it)")
+                raise QueueStateError(f"pause_direct: already in pause behaviour "
+                                      f"{self._behaviour.behaviour.id!r} (user_confirm or run() ends it)")
             self._start_behaviour(behaviour, continuing=self._state is QueueState.RUNNING)
 
     def pause_after_current(self, behaviour_id: str | None = None) -> None:
@@ -211,7 +211,8 @@ class CommandQueue:
                 raise QueueStateError(f"pause_after_current: already in pause behaviour "
                                       f"{self._behaviour.behaviour.id!r}")
             if self._pending_pause is not None:
-                raise QueueStateError(f"pause_after_current: pause {self._pending_pause.id!r} already pending")
+                raise QueueStateError(f"pause_after_current: pause {self._pending_pause.id!r} "
+                                      "already pending")
             if self._state is QueueState.RUNNING and self._index < len(self._commands):
                 self._pending_pause = behaviour
                 log.info("pause %s after command %d", behaviour.id, self._index)
@@ -242,7 +243,7 @@ class CommandQueue:
 
     # --- link side ------------------------------------------------------------------------------------
     def set_overridden(self, overridden: bool) -> None:
-        """Called by the link: a ground station / RC took the vehicle (mode change, disarm) or gave it back."""
+        """Called by the link: someone else took the vehicle (mode change, disarm) or gave it back."""
         with self._lock:
             if overridden and not self._overridden:
                 log.warning("queue overridden: stopping, no more setpoints")
@@ -279,11 +280,12 @@ class CommandQueue:
         with self._lock:
             execution = self._active_execution()
             return QueueStatus(
-                queue_system_status=QueueSystemStatus.OVERRIDDEN if self._overridden else QueueSystemStatus.RUNNING,
+                queue_system_status=(QueueSystemStatus.OVERRIDDEN if self._overridden
+                                     else QueueSystemStatus.RUNNING),
                 queue_status=self._queue_state(),
                 current_command_index=self._index,
                 current_command_status=self._command_status(),
-                confirmation_required_status=bool(execution is not None and execution.waiting_for_confirmation),
+                confirmation_required_status=execution is not None and execution.waiting_for_confirmation,
                 limit_reached=self._limit_reached,
                 target_position_unreachable=self._unreachable,
                 is_synced=self._synced)
@@ -316,7 +318,8 @@ class CommandQueue:
                 return None
             if self._ref is None:
                 if vehicle_state is None:
-                    raise ValueError("tick: the first tick (and the first after an override) needs the vehicle state")
+                    raise ValueError("tick: the first tick (and the first after an override) needs "
+                                     "the vehicle state")
                 self._ref = self._gen.initial(now_s, vehicle_state.p, vehicle_state.v, vehicle_state.yaw)
                 self._last_t = now_s
                 self._last_setpoint = self._setpoint(None, False)
@@ -359,8 +362,8 @@ class CommandQueue:
 
     def _check_envelope(self, command: FlightCommand) -> None:
         h, v = command.horizontal, command.vertical
-        if h.mode is HorizontalMode.POS and h.resolved_frame is Frame.ABSOLUTE:
-            if not self.envelope.contains_ne((h.north, h.east)):  # type: ignore[arg-type]
+        if h.mode is HorizontalMode.POS and h.resolved_frame is Frame.ABSOLUTE \
+                and not self.envelope.contains_ne((h.north, h.east)):  # type: ignore[arg-type]
                 raise CommandError("horizontal.north", f"target ({h.north:g}, {h.east:g}) lies outside the "
                                                        "operational envelope")
         absolute_alt = v.mode is VerticalMode.WITH_HOR or (v.mode is VerticalMode.POS
@@ -368,8 +371,8 @@ class CommandQueue:
         if absolute_alt and v.altitude is not None:
             _, moved = self.envelope.clamp_altitude(v.altitude, floor_exempt=v.take_off or v.allow_landing)
             if moved:
-                raise CommandError("vertical.altitude", f"altitude {v.altitude:g} m lies outside the operational "
-                                                        "envelope")
+                raise CommandError("vertical.altitude",
+                                   f"altitude {v.altitude:g} m lies outside the operational envelope")
 
     def _active_execution(self) -> CommandExecution | None:
         if self._behaviour is not None:
@@ -395,7 +398,8 @@ class CommandQueue:
         self._pending_pause = None
         self._behaviour = _ActiveBehaviour(behaviour, 0, None, continuing)
         self._maybe_start()
-        log.info("pause behaviour %s started (%s afterwards)", behaviour.id, "continue" if continuing else "stop")
+        log.info("pause behaviour %s started (%s afterwards)", behaviour.id,
+                 "continue" if continuing else "stop")
 
     def _finish_active(self) -> None:
         """The active execution's end condition holds: advance (Sec. IV-B sequencing)."""
@@ -452,5 +456,5 @@ class CommandQueue:
                 takeoff_alt = -execution.v_target_down
             if behaviour_id is None:
                 index = self._index
-        return Setpoint(ref.t_s, ref.p, ref.v, ref.a, wrap_pi(ref.yaw), ref.yaw_rate, kind, take_off, takeoff_alt,
-                        allow_landing, land_now, index, behaviour_id)
+        return Setpoint(ref.t_s, ref.p, ref.v, ref.a, wrap_pi(ref.yaw), ref.yaw_rate, kind, take_off,
+                        takeoff_alt, allow_landing, land_now, index, behaviour_id)

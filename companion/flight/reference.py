@@ -12,13 +12,19 @@ How the channels are planned
       acceleration, jerk of the line; end speed at arrival) and a k-D problem across it that brings
       any sideways velocity back to the line. Starting at rest (or moving along the line) the path
       is exactly straight and the commanded speed is reached exactly; otherwise the reference bends
-      smoothly onto the line. Both parts arrive at the same time (ruckig ``minimum_duration``).
+      smoothly onto the line. The along part is stretched (ruckig ``minimum_duration``) so that it
+      never arrives before the across part.
     * Velocity channels (ExtVel, RCVel, DNU = come to rest and hold): ruckig's velocity interface;
-      the two horizontal axes are time-synchronised (straight change of velocity) and share the
-      acceleration and jerk by the direction of the change (norm within the limits).
+      the two horizontal axes are time-synchronised (straight change of velocity) and each gets
+      ``1/sqrt(2)`` of the acceleration and jerk, so the horizontal norm stays within the limits
+      (braking to a hover along an axis therefore uses 71 % of the horizontal acceleration).
     * Vertical and heading: 1-D each. Yaw is planned unwrapped.
     * Speed modifiers (Fig. 7): a channel modified by another is given that channel's remaining
       duration as ruckig ``minimum_duration``: it slows down so that both arrive together.
+
+A plan is kept and sampled tick after tick while its target is unchanged and the reference is still
+on it (what ruckig's own ``update()`` does); it is recalculated when the target changes or the
+reference left it (a channel switch, the guard below).
 
 End flags are the generator's *arrival* flags: the tick whose planned trajectory ends within the
 tick lands exactly on the target (position and end velocity), so "the setpoints arrive exactly at
@@ -48,6 +54,7 @@ from .setpoint import Vec3
 log = logging.getLogger(__name__)
 
 _EPS = 1e-9
+_SQRT1_2 = math.sqrt(0.5)
 
 
 def wrap_pi(angle: float) -> float:
@@ -177,7 +184,8 @@ class _Planner:
     def remaining(self) -> float:
         return max(0.0, self.duration - self.t) if self.ok else 0.0
 
-    def reusable(self, key: Array, p: Array, v: Array, a: Array, goal: float = 0.0, key_tol: float = 1e-9) -> bool:
+    def reusable(self, key: Array, p: Array, v: Array, a: Array, goal: float = 0.0,
+                 key_tol: float = 1e-9) -> bool:
         """Whether the current trajectory serves ``key`` from state (p, v, a) with a modifier ``goal``."""
         if not self.ok or self._key is None or key.shape != self._key.shape:
             return False
@@ -373,7 +381,8 @@ class ReferenceGenerator:
         pd = vd = ad = 0.0
         if targets.vertical is not None:
             v_goal = t_hd if (targets.v_sync_heading and isinstance(targets.heading, YawTarget)) else 0.0
-            pd, vd, ad, t_v, v_arrived = self._step_vertical(p0[2], v0[2], a0[2], targets.vertical, dt, v_goal)
+            pd, vd, ad, t_v, v_arrived = self._step_vertical(p0[2], v0[2], a0[2], targets.vertical, dt,
+                                                             v_goal)
         # horizontal
         t_mod = 0.0
         if targets.h_sync_vertical and isinstance(targets.vertical, AxisTarget):
@@ -395,7 +404,11 @@ class ReferenceGenerator:
         v1 = np.array([vh[0], vh[1], vd])
         a1 = np.array([ah[0], ah[1], ad])
         p1, held = self._hold_inside(p0, p1, targets.floor_exempt)
-        pg, vg, ag, yaw, yaw_rate = self._guard(ref, p1, v1, a1, yaw, yaw_rate, dt)
+        pg, vg, ag, yaw, yaw_rate, moved, turned = self._guard(ref, p1, v1, a1, yaw, yaw_rate, dt)
+        if moved or held:  # not where the plan arrived: let the next tick replan and arrive
+            h_arrived = v_arrived = False
+        if turned:
+            hd_arrived = False
         new = Reference(ref.t_s + dt, pg, vg, ag, yaw, yaw_rate, yaw_acc)
         return StepResult(new, h_arrived, v_arrived, hd_arrived, limit_reached or held, unreachable)
 
@@ -522,28 +535,26 @@ class ReferenceGenerator:
         else:
             target_v = float(np.clip(t.velocity[0], -L.vertical_speed, L.vertical_speed))
             key = _key(1, target_v)
-            if pl.reusable(key, *cur) or pl.plan(*cur, None, np.array([target_v]), np.array([L.vertical_speed]),
-                                                 lim_a, lim_j, key=key):
+            if pl.reusable(key, *cur) or pl.plan(*cur, None, np.array([target_v]),
+                                                 np.array([L.vertical_speed]), lim_a, lim_j, key=key):
                 pp, vv, aa = pl.advance(dt)
                 return float(pp[0]), float(vv[0]), float(aa[0]), 0.0, False
         pl.invalidate()
         dv = -math.copysign(min(abs(v), L.vertical_acceleration * dt), v)
         return p + (v + 0.5 * dv) * dt, v + dv, dv / dt, 0.0, False
 
-    def _step_hvel(self, p: Array, v: Array, a: Array, target_v: Array, dt: float) -> tuple[Array, Array, Array]:
-        """Horizontal velocity target: both axes time-synchronised (a straight change of velocity);
-        per-axis acceleration and jerk shares weighted by the direction of the change so that their
-        norm stays within the limits while a change along an axis gets most of them."""
+    def _step_hvel(self, p: Array, v: Array, a: Array, target_v: Array, dt: float
+                   ) -> tuple[Array, Array, Array]:
+        """Horizontal velocity target: both axes time-synchronised (a straight change of velocity),
+        each with ``1/sqrt(2)`` of the acceleration and jerk, so that their norm never exceeds the
+        limits whatever the direction of the previous change was (a joystick changes it every tick)."""
         L = self.limits
         pl = self._hvel
         target_v, _ = _clamp_norm(target_v, L.horizontal_speed)
         key = _key(target_v)
-        if pl.reusable(key, p, v, a):
-            return pl.advance(dt)
-        w = np.maximum(np.abs(_unit(target_v - v)[0]), 0.3)
-        w = w / float(np.linalg.norm(w))
-        lim_v = np.full(2, L.horizontal_speed)
-        if pl.plan(p, v, a, None, target_v, lim_v, L.horizontal_acceleration * w, L.horizontal_jerk * w, key=key):
+        if pl.reusable(key, p, v, a) or pl.plan(p, v, a, None, target_v, np.full(2, L.horizontal_speed),
+                                                np.full(2, L.horizontal_acceleration * _SQRT1_2),
+                                                np.full(2, L.horizontal_jerk * _SQRT1_2), key=key):
             return pl.advance(dt)
         return self._brake_path(p, v, dt)
 
@@ -611,8 +622,9 @@ class ReferenceGenerator:
         s_vmax = along_limit(speed, L.vertical_speed)
         s_amax = along_limit(L.horizontal_acceleration, L.vertical_acceleration)
         s_jmax = along_limit(L.horizontal_jerk, L.vertical_jerk)
-        c_amax = min(L.horizontal_acceleration, L.vertical_acceleration) if k == 3 else L.horizontal_acceleration
-        c_jmax = min(L.horizontal_jerk, L.vertical_jerk) if k == 3 else L.horizontal_jerk
+        ha, va = L.horizontal_acceleration, L.vertical_acceleration
+        c_amax = ha if k == 2 else min(ha, va)
+        c_jmax = L.horizontal_jerk if k == 2 else min(L.horizontal_jerk, L.vertical_jerk)
         c_vmax = 0.5 * (min(speed, L.vertical_speed) if k == 3 else speed)
         s0, vs0, as0 = frame.along_state(p, v, a)
         c0, vc0, ac0 = frame.cross_state(p, v, a)
@@ -628,18 +640,20 @@ class ReferenceGenerator:
                 return None
             frame.t_cross = cross.duration
         if not along.plan(s0, vs0, as0, np.zeros(1), np.array([end_s]), np.array([s_vmax]),
-                          np.array([alpha * s_amax]), np.array([alpha * s_jmax]), max(goal, frame.t_cross), key):
+                          np.array([alpha * s_amax]), np.array([alpha * s_jmax]), max(goal, frame.t_cross),
+                          key):
             return None
         return frame
 
     def _brake_path(self, p: Array, v: Array, dt: float) -> tuple[Array, Array, Array]:
         log.warning("planning failed; braking")
-        dv, _ = _clamp_norm(-v, min(self.limits.horizontal_acceleration, self.limits.vertical_acceleration) * dt)
+        L = self.limits
+        dv, _ = _clamp_norm(-v, min(L.horizontal_acceleration, L.vertical_acceleration) * dt)
         return p + (v + 0.5 * dv) * dt, v + dv, dv / dt
 
     # --- the guard --------------------------------------------------------------------------------------
     def _guard(self, ref: Reference, p1: Array, v1: Array, a1: Array, yaw: float,
-               yaw_rate: float, dt: float) -> tuple[Vec3, Vec3, Vec3, float, float]:
+               yaw_rate: float, dt: float) -> tuple[Vec3, Vec3, Vec3, float, float, bool, bool]:
         """Enforce the step bounds of the module docstring, whatever the planner proposed."""
         L = self.limits
         (p0n, p0e, p0d), (v0n, v0e, v0d) = ref.p, ref.v
@@ -662,14 +676,14 @@ class ReferenceGenerator:
         # yaw
         yaw_new = ref.yaw + _clip(yaw - ref.yaw, L.yaw_rate_rad * dt)
         rate_new = _clip(yaw_rate, L.yaw_rate_rad)
-        deviation = max(max(abs(x - y) for x, y in zip(v_new, (vn, ve, vd), strict=True)),
-                        max(abs(x - y) for x, y in zip(p_new, (pn, pe, pd), strict=True)),
-                        max(abs(x - y) for x, y in zip(a_new, (an, ae, ad), strict=True)),
-                        abs(yaw_new - yaw), abs(rate_new - yaw_rate))
-        if deviation > 1e-9:
+        moved = max(max(abs(x - y) for x, y in zip(v_new, (vn, ve, vd), strict=True)),
+                    max(abs(x - y) for x, y in zip(p_new, (pn, pe, pd), strict=True)),
+                    max(abs(x - y) for x, y in zip(a_new, (an, ae, ad), strict=True)))
+        turned = max(abs(yaw_new - yaw), abs(rate_new - yaw_rate))
+        if max(moved, turned) > 1e-9:
             self.guard_interventions += 1
-            log.debug("guard corrected a step by %.3g", deviation)
-        return p_new, v_new, a_new, yaw_new, rate_new
+            log.debug("guard corrected a step by %.3g (position) %.3g (yaw)", moved, turned)
+        return p_new, v_new, a_new, yaw_new, rate_new, moved > 1e-9, turned > 1e-9
 
 
 def _clamp2(x: float, y: float, limit: float) -> tuple[float, float]:

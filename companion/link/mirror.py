@@ -1,0 +1,169 @@
+"""A mirror of the vehicle's state, written only by the link's receive thread (seed 003 one-writer rule).
+
+Seed 000 Fig. 10: the QuadNode derives its topics from the platform's telemetry. The mirror folds
+the autopilot's messages into one :class:`MirrorState` (position, velocity, attitude, mode, armed,
+landed state, battery, home, GPS, the last POSITION_TARGET_LOCAL_NED echo, STATUSTEXTs); readers
+take an immutable :meth:`VehicleMirror.snapshot`. Units are MAVLink's SI units (m, m/s, rad);
+positions are local NED from the EKF origin, as LOCAL_POSITION_NED reports them.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from collections import deque
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
+
+from companion.flight.setpoint import VehicleState
+
+M = mavlink
+Vec3 = tuple[float, float, float]
+
+LANDED_STATE_NAMES = {0: "UNDEFINED", 1: "ON_GROUND", 2: "IN_AIR", 3: "TAKEOFF", 4: "LANDING"}
+#: ArduCopter custom_mode numbers -> names (the companion uses GUIDED and LAND; the rest for status).
+COPTER_MODES = {0: "STABILIZE", 1: "ACRO", 2: "ALT_HOLD", 3: "AUTO", 4: "GUIDED", 5: "LOITER", 6: "RTL",
+                7: "CIRCLE", 9: "LAND", 11: "DRIFT", 13: "SPORT", 14: "FLIP", 15: "AUTOTUNE", 16: "POSHOLD",
+                17: "BRAKE", 18: "THROW", 19: "AVOID_ADSB", 20: "GUIDED_NOGPS", 21: "SMART_RTL",
+                22: "FLOWHOLD", 23: "FOLLOW", 24: "ZIGZAG", 25: "SYSTEMID", 26: "AUTOROTATE",
+                27: "AUTO_RTL"}
+GUIDED = 4
+LAND = 9
+
+
+@dataclass(frozen=True)
+class PositionTargetEcho:
+    """The autopilot's POSITION_TARGET_LOCAL_NED: what it is following."""
+
+    time_boot_ms: int
+    type_mask: int
+    p: Vec3
+    v: Vec3
+
+
+@dataclass(frozen=True)
+class MirrorState:
+    """One consistent view of the vehicle (None / 0 where not yet received)."""
+
+    system_id: int | None = None
+    component_id: int | None = None
+    heartbeats: int = 0
+    last_heartbeat_wall: float | None = None
+    time_boot_ms: int | None = None
+    mode: int | None = None
+    base_mode: int = 0
+    system_status: int = 0
+    armed: bool = False
+    landed_state: int = 0
+    position: Vec3 | None = None
+    velocity: Vec3 = (0.0, 0.0, 0.0)
+    attitude: Vec3 | None = None  # roll, pitch, yaw (rad)
+    battery_voltage: float | None = None
+    battery_remaining: int | None = None
+    home: tuple[float, float, float] | None = None  # lat, lon (deg), alt AMSL (m)
+    home_local: Vec3 | None = None  # home in local NED
+    gps_fix_type: int = 0
+    gps_satellites: int = 0
+    global_position: tuple[float, float, float, float] | None = None  # lat, lon, alt AMSL, rel. alt
+    position_target: PositionTargetEcho | None = None
+    messages: int = 0
+    texts: tuple[str, ...] = field(default_factory=tuple)
+
+    @property
+    def mode_name(self) -> str | None:
+        return None if self.mode is None else COPTER_MODES.get(self.mode, f"MODE{self.mode}")
+
+    @property
+    def landed(self) -> bool | None:
+        """True on the ground, False in the air, None unknown (EXTENDED_SYS_STATE)."""
+        if self.landed_state == M.MAV_LANDED_STATE_ON_GROUND:
+            return True
+        if self.landed_state in (M.MAV_LANDED_STATE_IN_AIR, M.MAV_LANDED_STATE_TAKEOFF,
+                                 M.MAV_LANDED_STATE_LANDING):
+            return False
+        return None
+
+    @property
+    def yaw(self) -> float:
+        return self.attitude[2] if self.attitude is not None else 0.0
+
+    def vehicle_state(self) -> VehicleState | None:
+        """What the command queue's tick wants (None until a position has arrived)."""
+        if self.position is None:
+            return None
+        return VehicleState(self.position, self.velocity, self.yaw, self.landed)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "system_id": self.system_id, "time_boot_ms": self.time_boot_ms, "mode": self.mode_name,
+            "armed": self.armed,
+            "landed_state": LANDED_STATE_NAMES.get(self.landed_state, str(self.landed_state)),
+            "position": list(self.position) if self.position else None, "velocity": list(self.velocity),
+            "attitude": list(self.attitude) if self.attitude else None,
+            "battery_voltage": self.battery_voltage, "battery_remaining": self.battery_remaining,
+            "home": list(self.home) if self.home else None,
+            "home_local": list(self.home_local) if self.home_local else None,
+            "gps_fix_type": self.gps_fix_type, "gps_satellites": self.gps_satellites,
+            "global_position": list(self.global_position) if self.global_position else None,
+            "heartbeats": self.heartbeats, "messages": self.messages, "texts": list(self.texts[-5:]),
+        }
+
+
+class VehicleMirror:
+    """Folds autopilot messages into a :class:`MirrorState`; ``update`` is called by one thread only."""
+
+    def __init__(self, max_texts: int = 50) -> None:
+        self._lock = threading.Lock()
+        self._state = MirrorState()
+        self._texts: deque[str] = deque(maxlen=max_texts)
+
+    def snapshot(self) -> MirrorState:
+        with self._lock:
+            return self._state
+
+    def update(self, msg: Any, wall: float) -> bool:
+        """Fold one message from the autopilot; True if it was one the mirror uses."""
+        t = msg.get_type()
+        s = self._state
+        changes: dict[str, Any] | None = None
+        if t == "HEARTBEAT":
+            armed = bool(msg.base_mode & M.MAV_MODE_FLAG_SAFETY_ARMED)
+            changes = {"mode": msg.custom_mode, "base_mode": msg.base_mode,
+                       "system_status": msg.system_status, "armed": armed, "heartbeats": s.heartbeats + 1,
+                       "last_heartbeat_wall": wall,
+                       "system_id": msg.get_srcSystem(), "component_id": msg.get_srcComponent()}
+        elif t == "LOCAL_POSITION_NED":
+            changes = {"position": (msg.x, msg.y, msg.z), "velocity": (msg.vx, msg.vy, msg.vz),
+                       "time_boot_ms": msg.time_boot_ms}
+        elif t == "ATTITUDE":
+            changes = {"attitude": (msg.roll, msg.pitch, msg.yaw), "time_boot_ms": msg.time_boot_ms}
+        elif t == "EXTENDED_SYS_STATE":
+            changes = {"landed_state": msg.landed_state}
+        elif t == "SYS_STATUS":
+            volt = msg.voltage_battery / 1000.0 if msg.voltage_battery != 65535 else None
+            changes = {"battery_voltage": volt, "battery_remaining": msg.battery_remaining}
+        elif t == "HOME_POSITION":
+            changes = {"home": (msg.latitude * 1e-7, msg.longitude * 1e-7, msg.altitude * 1e-3),
+                       "home_local": (msg.x, msg.y, msg.z)}
+        elif t == "GPS_RAW_INT":
+            changes = {"gps_fix_type": msg.fix_type, "gps_satellites": msg.satellites_visible}
+        elif t == "GLOBAL_POSITION_INT":
+            changes = {"global_position": (msg.lat * 1e-7, msg.lon * 1e-7, msg.alt * 1e-3,
+                                           msg.relative_alt * 1e-3),
+                       "time_boot_ms": msg.time_boot_ms}
+            if s.attitude is None:  # heading until ATTITUDE arrives
+                changes["attitude"] = (0.0, 0.0, math.radians(msg.hdg / 100.0) if msg.hdg != 65535 else 0.0)
+        elif t == "POSITION_TARGET_LOCAL_NED":
+            changes = {"position_target": PositionTargetEcho(msg.time_boot_ms, msg.type_mask,
+                                                             (msg.x, msg.y, msg.z), (msg.vx, msg.vy, msg.vz))}
+        elif t == "STATUSTEXT":
+            self._texts.append(msg.text)
+            changes = {"texts": tuple(self._texts)}
+        if changes is None:
+            return False
+        changes["messages"] = s.messages + 1
+        with self._lock:
+            self._state = replace(s, **changes)
+        return True

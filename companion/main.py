@@ -1,0 +1,81 @@
+"""``taskflight companion``: one vehicle's companion (seed 000 Fig. 10, the QuadNode) from the command line.
+
+``taskflight companion --autopilot URL [--rate HZ] [--control-port P]`` connects to the autopilot
+(``udpout:127.0.0.1:14550`` for the bundled model or ArduPilot SITL, ``serial:/dev/ttyACM0:921600``
+for a flight controller), streams setpoints at ``--rate`` Hz of autopilot time and serves the QAPI
+over HTTP on ``127.0.0.1:P`` (see :mod:`companion.control`). ``--commands FILE`` queues a YAML list
+of flight commands at start; ``--run`` starts executing them.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import signal
+import threading
+from typing import Any
+
+log = logging.getLogger(__name__)
+
+
+def add_companion_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of ``taskflight companion``."""
+    parser.add_argument("--autopilot", required=True, metavar="URL",
+                        help="udpin:HOST:PORT, udpout:HOST:PORT, tcp:HOST:PORT or serial:DEVICE[:BAUD]")
+    parser.add_argument("--rate", type=float, default=20.0, metavar="HZ",
+                        help="setpoint stream rate in Hz of autopilot time (1..50, default 20)")
+    parser.add_argument("--control-port", type=int, default=8765, metavar="P",
+                        help="HTTP control surface on 127.0.0.1:P (default 8765; 0 any free port, -1 off)")
+    parser.add_argument("--baud", type=int, default=57600, help="serial baud rate (default 57600)")
+    parser.add_argument("--source-system", type=int, default=None,
+                        help="our MAVLink system id (default: the autopilot's own)")
+    parser.add_argument("--flight-config", default=None, metavar="YAML",
+                        help="limits and operational envelope (companion.flight.limits)")
+    parser.add_argument("--behaviours", default=None, metavar="YAML", help="extra pause behaviours")
+    parser.add_argument("--commands", default=None, metavar="YAML", help="flight commands to queue at start")
+    parser.add_argument("--run", action="store_true", help="run the queue at start")
+
+
+def run_companion(args: argparse.Namespace) -> int:
+    """Run until SIGINT/SIGTERM; returns the exit status (2 for bad options or files)."""
+    from companion.control import ControlServer
+    from companion.flight import load_catalog, load_commands, load_flight_config
+    from companion.node import QuadNode
+    from taskflight.yamlio import ConfigError
+
+    try:
+        limits, envelope = load_flight_config(args.flight_config) if args.flight_config else (None, None)
+        catalog = load_catalog(args.behaviours) if args.behaviours else None
+        commands = load_commands(args.commands) if args.commands else []
+        node = QuadNode(args.autopilot, rate_hz=args.rate, limits=limits, envelope=envelope, catalog=catalog,
+                        baud=args.baud, source_system=args.source_system)
+    except (ConfigError, ValueError, OSError) as exc:
+        log.error("%s", exc)
+        return 2
+    stop = threading.Event()
+
+    def _stop(*_: Any) -> None:
+        stop.set()
+
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGTERM, _stop)
+        signal.signal(signal.SIGINT, _stop)
+    server = None
+    try:
+        node.start()
+        node.add_commands(commands)
+        if args.run:
+            node.run()
+        if args.control_port >= 0:
+            server = ControlServer(node, args.control_port).start()
+            log.info("companion: autopilot %s, %g Hz, control %s", args.autopilot, args.rate, server.url)
+        while not stop.wait(0.5):
+            pass
+    except (OSError, RuntimeError) as exc:
+        log.error("%s", exc)
+        return 1
+    finally:
+        if server is not None:
+            server.close()
+        node.close()
+    return 0

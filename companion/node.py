@@ -1,0 +1,236 @@
+"""The QuadNode (seed 000 Sec. V, Fig. 10): the command queue, the external data and the link together.
+
+In the paper a ROS QuadNode implements the QAPI service calls and keeps the platform's firmware
+executing the queue. Here :class:`QuadNode` owns
+
+* the :class:`~companion.flight.queue.CommandQueue` (QAPI verbs, status, external-data streams),
+* the :class:`~companion.link.connection.MavlinkLink` (receive thread, mirror, clock),
+* the :class:`~companion.link.guided.GuidedSupervisor` (take-off, streaming, landing, override),
+
+and runs the *tick thread*: at ``rate_hz`` of **autopilot time** (the link's
+:class:`~companion.link.clock.AutopilotClock`) it ticks the queue with the mirrored vehicle state and
+streams the setpoint as SET_POSITION_TARGET_LOCAL_NED when the supervisor says so. Tick times are
+multiples of the period on the autopilot's clock; a loop that falls more than three periods behind
+resynchronises instead of bursting.
+
+The queue's time is the autopilot's minus the time the node held it still: during an autopilot
+take-off (GUIDED, arm, MAV_CMD_NAV_TAKEOFF, lift-off) the queue does not advance, so the reference
+leaves the ground together with the vehicle. External-data samples are stamped on the queue's time.
+
+Threads: the receive thread writes the mirror; the tick thread ticks the queue and sends; callers
+(the HTTP surface, behaviours) use the verbs, which take the queue's own lock.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+from collections.abc import Callable, Iterable, Sequence
+from typing import Any
+
+from companion.flight import (
+    BehaviourCatalog,
+    CommandQueue,
+    Envelope,
+    FlightCommand,
+    Limits,
+    QueueStatus,
+    Setpoint,
+)
+from companion.link import AutopilotClock, GuidedSupervisor, MavlinkLink
+from companion.link.setpoints import TargetFields
+
+log = logging.getLogger(__name__)
+
+MIN_RATE_HZ = 1.0
+MAX_RATE_HZ = 50.0
+#: (setpoint, the fields sent, autopilot time of the tick) for each streamed setpoint
+SetpointListener = Callable[[Setpoint, TargetFields, float], None]
+
+
+class QueueTime:
+    """The queue's clock: autopilot time minus the spans it was held still."""
+
+    def __init__(self, clock: AutopilotClock) -> None:
+        self._clock = clock
+        self._lock = threading.Lock()
+        self._offset = 0.0
+        self._held_at: float | None = None
+
+    def of(self, t_ap: float) -> float:
+        with self._lock:
+            if self._held_at is not None:
+                t_ap = min(t_ap, self._held_at)
+            return t_ap - self._offset
+
+    def now(self) -> float:
+        return self.of(self._clock.now())
+
+    @property
+    def held(self) -> bool:
+        with self._lock:
+            return self._held_at is not None
+
+    def hold(self, t_ap: float) -> None:
+        with self._lock:
+            if self._held_at is None:
+                self._held_at = t_ap
+
+    def release(self, t_ap: float) -> None:
+        with self._lock:
+            if self._held_at is not None:
+                self._offset += max(0.0, t_ap - self._held_at)
+                self._held_at = None
+
+
+class QuadNode:
+    """One vehicle's companion: QAPI verbs and status over a MAVLink autopilot (see module docstring)."""
+
+    def __init__(self, autopilot_url: str, *, rate_hz: float = 20.0, limits: Limits | None = None,
+                 envelope: Envelope | None = None, catalog: BehaviourCatalog | None = None, baud: int = 57600,
+                 source_system: int | None = None) -> None:
+        if not MIN_RATE_HZ <= rate_hz <= MAX_RATE_HZ:
+            raise ValueError(f"rate: {rate_hz:g} Hz is outside {MIN_RATE_HZ:g}..{MAX_RATE_HZ:g} Hz")
+        self.rate_hz = float(rate_hz)
+        self.period_s = 1.0 / self.rate_hz
+        self.clock = AutopilotClock()
+        self.link = MavlinkLink(autopilot_url, baud=baud, rate_hz=rate_hz, source_system=source_system,
+                                clock=self.clock)
+        self.queue_time = QueueTime(self.clock)
+        self.queue = CommandQueue(limits, envelope, catalog, clock=self.queue_time)
+        self.supervisor = GuidedSupervisor(self.link)
+        self.setpoint_listeners: list[SetpointListener] = []
+        self.ticks = 0
+        self.streamed = 0
+        self.resyncs = 0
+        self.last_setpoint: Setpoint | None = None
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+
+    # --- lifecycle ---------------------------------------------------------------------------------------
+    def start(self) -> QuadNode:
+        self.link.start()
+        self._thread = threading.Thread(target=self._loop, name="quadnode-tick", daemon=True)
+        self._thread.start()
+        return self
+
+    def close(self) -> None:
+        """Stop ticking and streaming and close the link (the autopilot's GUID_TIMEOUT takes over)."""
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=2.0)
+        self.link.close()
+
+    def __enter__(self) -> QuadNode:
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # --- QAPI (Sec. V) -----------------------------------------------------------------------------------
+    def add_command(self, command: FlightCommand) -> int:
+        return self.queue.add_command(command)
+
+    def add_commands(self, commands: Iterable[FlightCommand]) -> list[int]:
+        return [self.queue.add_command(c) for c in commands]
+
+    def run(self) -> None:
+        self.queue.run()
+
+    def stop(self) -> None:
+        self.queue.stop()
+
+    def pause_direct(self, behaviour_id: str | None = None) -> None:
+        self.queue.pause_direct(behaviour_id)
+
+    def pause_after_current(self, behaviour_id: str | None = None) -> None:
+        self.queue.pause_after_current(behaviour_id)
+
+    def reset(self) -> None:
+        self.queue.reset()
+
+    def user_confirm(self) -> None:
+        self.queue.user_confirm()
+
+    def push_external(self, stream: str, values: Sequence[float], validity_s: float) -> bool:
+        """An external-data sample (Sec. IV-C), stamped now on the queue's clock."""
+        return self.queue.push_external(stream, values, validity_s)
+
+    def qapi_status(self) -> QueueStatus:
+        return self.queue.status()
+
+    def status(self) -> dict[str, Any]:
+        """QAPI status plus what the node, the link and the vehicle are doing."""
+        sp = self.last_setpoint
+        return {
+            "queue": self.queue.status().to_dict(),
+            "commands": len(self.queue.commands),
+            "behaviour_id": self.queue.behaviour_id,
+            "flight": self.supervisor.status(),
+            "link": self.link.status(),
+            "vehicle": self.link.mirror.snapshot().to_dict(),
+            "node": {"rate_hz": self.rate_hz, "ticks": self.ticks, "streamed": self.streamed,
+                     "resyncs": self.resyncs, "queue_time_s": round(self.queue_time.now(), 3),
+                     "last_setpoint": sp.to_dict() if sp is not None else None},
+        }
+
+    # --- the tick thread ----------------------------------------------------------------------------------
+    def _loop(self) -> None:
+        next_t: float | None = None
+        while not self._stop.is_set():
+            now = self.clock.now()
+            try:
+                self.link.periodic(now)
+            except OSError as exc:
+                log.warning("send failed: %s", exc)
+            if not self.clock.synced:
+                self._stop.wait(0.05)
+                continue
+            if next_t is None or now - next_t > 3 * self.period_s:
+                if next_t is not None:
+                    self.resyncs += 1
+                next_t = now
+            if now < next_t:
+                self._stop.wait(min(self.clock.wall_until(next_t), 0.05))
+                continue
+            try:
+                self._tick(next_t)
+            except OSError as exc:
+                log.warning("send failed: %s", exc)
+            except Exception:
+                log.exception("tick failed")
+            next_t += self.period_s
+
+    def _tick(self, t_ap: float) -> None:
+        """One tick at autopilot time ``t_ap``."""
+        self.ticks += 1
+        sup, queue = self.supervisor, self.queue
+        s = self.link.mirror.snapshot()
+        sup.observe(s)
+        if sup.overridden != (queue.status().queue_system_status.name == "OVERRIDDEN"):
+            queue.set_overridden(sup.overridden)
+        if sup.abandoned:
+            sup.abandoned = False
+            queue.stop()
+            self.queue_time.release(t_ap)
+        if sup.holds_queue:
+            if not sup.step(self.last_setpoint, s, t_ap):
+                return
+            self.queue_time.release(t_ap)  # airborne: the queue runs on from where it was held
+        vs = s.vehicle_state()
+        if self.last_setpoint is None and vs is None:
+            return
+        sp = queue.tick(self.queue_time.of(t_ap), vs)
+        if sp is None:
+            queue.set_synced(False)
+            return
+        self.last_setpoint = sp
+        send = sup.step(sp, s, t_ap)
+        if sup.holds_queue:
+            self.queue_time.hold(t_ap)
+        if send:
+            fields = self.link.send_setpoint(sp, t_ap)
+            self.streamed += 1
+            for fn in self.setpoint_listeners:
+                fn(sp, fields, t_ap)
+        queue.set_synced(send and self.link.sync.synced(t_ap))
