@@ -5,7 +5,6 @@ from __future__ import annotations
 import math
 from typing import Any
 
-import pymap3d
 import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
@@ -20,6 +19,7 @@ from autopilot_model.modules.mission import (
 )
 from autopilot_model.params import ParamStore
 from autopilot_model.physics.battery import Battery
+from taskflight.geo import ned_to_geodetic
 
 HOME = (-35.363261, 149.165230, 584.0)
 ON_GROUND, IN_AIR, TAKEOFF, LANDING = 1, 2, 3, 4
@@ -120,7 +120,7 @@ class Recorder:
 
 
 def geo(n: float, e: float) -> tuple[int, int]:
-    lat, lon, _ = pymap3d.ned2geodetic(n, e, 0, *HOME)
+    lat, lon, _ = ned_to_geodetic(HOME, n, e, 0.0)
     return round(lat * 1e7), round(lon * 1e7)
 
 

@@ -12,8 +12,9 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
-import pymap3d
 import pytest
+
+from taskflight.geo import ned_to_geodetic
 
 os.environ.setdefault("MAVLINK20", "1")
 from pymavlink import mavutil
@@ -198,7 +199,7 @@ class Item:
 
 
 def at(home: tuple[float, float, float], n: float, e: float) -> tuple[int, int]:
-    lat, lon, _ = pymap3d.ned2geodetic(n, e, 0, *home)
+    lat, lon, _ = ned_to_geodetic(home, n, e, 0.0)
     return round(lat * 1e7), round(lon * 1e7)
 
 

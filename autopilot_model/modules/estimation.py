@@ -29,6 +29,7 @@ from numba import njit
 
 from autopilot_model.modules.sensors import Barometer, Compass, Imu, PositionSensor
 from autopilot_model.physics.quadrotor import Quadrotor
+from autopilot_model.quatmath import body_to_ned, ned_to_body, quat_integrate
 
 GRAVITY = 9.80665
 log = logging.getLogger(__name__)
@@ -44,20 +45,7 @@ def ins_predict(est, gyro, accel, gbias, abias, dt, acc_w, hist, hidx, now):  # 
     wx = gyro[0] - gbias[0]
     wy = gyro[1] - gbias[1]
     wz = gyro[2] - gbias[2]
-    qw = est[6]
-    qx = est[7]
-    qy = est[8]
-    qz = est[9]
-    hdt = 0.5 * dt
-    nqw = qw + hdt * (-qx * wx - qy * wy - qz * wz)
-    nqx = qx + hdt * (qw * wx + qy * wz - qz * wy)
-    nqy = qy + hdt * (qw * wy - qx * wz + qz * wx)
-    nqz = qz + hdt * (qw * wz + qx * wy - qy * wx)
-    n = 1.0 / math.sqrt(nqw * nqw + nqx * nqx + nqy * nqy + nqz * nqz)
-    qw = nqw * n
-    qx = nqx * n
-    qy = nqy * n
-    qz = nqz * n
+    qw, qx, qy, qz = quat_integrate(est[6], est[7], est[8], est[9], wx, wy, wz, dt)
     est[6] = qw
     est[7] = qx
     est[8] = qy
@@ -65,15 +53,7 @@ def ins_predict(est, gyro, accel, gbias, abias, dt, acc_w, hist, hidx, now):  # 
     est[10] = wx
     est[11] = wy
     est[12] = wz
-    fx = accel[0]
-    fy = accel[1]
-    fz = accel[2]
-    ax = ((1.0 - 2.0 * (qy * qy + qz * qz)) * fx + 2.0 * (qx * qy - qw * qz) * fy
-          + 2.0 * (qx * qz + qw * qy) * fz)
-    ay = (2.0 * (qx * qy + qw * qz) * fx + (1.0 - 2.0 * (qx * qx + qz * qz)) * fy
-          + 2.0 * (qy * qz - qw * qx) * fz)
-    az = (2.0 * (qx * qz - qw * qy) * fx + 2.0 * (qy * qz + qw * qx) * fy
-          + (1.0 - 2.0 * (qx * qx + qy * qy)) * fz)
+    ax, ay, az = body_to_ned(qw, qx, qy, qz, accel[0], accel[1], accel[2])
     ax -= abias[0]
     ay -= abias[1]
     az += 9.80665 - abias[2]
@@ -157,10 +137,7 @@ def ins_correct_position(est, abias, gbias, hist, hidx, sample, sample_time, gai
         est[7] = qx
         est[8] = qy
         est[9] = qz
-        # world -> body of (cx, cy, 0)
-        bx = (1 - 2 * (qy * qy + qz * qz)) * cx + 2 * (qx * qy + qw * qz) * cy
-        by = 2 * (qx * qy - qw * qz) * cx + (1 - 2 * (qx * qx + qz * qz)) * cy
-        bz = 2 * (qx * qz + qw * qy) * cx + 2 * (qy * qz - qw * qx) * cy
+        bx, by, bz = ned_to_body(qw, qx, qy, qz, cx, cy, 0.0)
         gbias[0] -= gains[6] * bx
         gbias[1] -= gains[6] * by
         gbias[2] -= gains[6] * bz
@@ -180,9 +157,7 @@ def ins_align_gravity(est, accel, k):  # pragma: no cover - numba
     qy = est[8]
     qz = est[9]
     # v = R^T (0, 0, -1): the expected direction of the measured specific force
-    vx = -2.0 * (qx * qz - qw * qy)
-    vy = -2.0 * (qy * qz + qw * qx)
-    vz = -(1.0 - 2.0 * (qx * qx + qy * qy))
+    vx, vy, vz = ned_to_body(qw, qx, qy, qz, 0.0, 0.0, -1.0)
     ex = fy * vz - fz * vy
     ey = fz * vx - fx * vz
     hx = 0.5 * k * ex

@@ -18,8 +18,9 @@ from dataclasses import asdict, dataclass, fields, replace
 from pathlib import Path
 from typing import Any
 
-import pymap3d
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
+
+from taskflight.geo import geodetic_to_ned
 
 log = logging.getLogger(__name__)
 
@@ -297,11 +298,11 @@ def item_to_ned(item: MissionItem, origin: tuple[float, float, float], home_alt:
     Relative-altitude frames are relative to ``home_alt`` (AMSL). As in ArduPilot, lat = lon = 0 means
     "here" (the current horizontal position) and, in relative frames, z = 0 means "this altitude".
     """
-    lat0, lon0, alt0 = origin
+    alt0 = origin[2]
     if item.x == 0 and item.y == 0:
         n, e = current_ned[0], current_ned[1]
     else:
-        n, e, _ = pymap3d.geodetic2ned(item.lat, item.lon, alt0, lat0, lon0, alt0)
+        n, e, _ = geodetic_to_ned(origin, item.lat, item.lon, alt0)
     if item.frame in RELATIVE_FRAMES:
         if item.z == 0:
             d = current_ned[2]
@@ -691,5 +692,5 @@ def vehicle_frames(vehicle: Any) -> tuple[tuple[float, float, float], float, tup
     if home is None:
         return origin, origin[2], (0.0, 0.0, 0.0)  # type: ignore[return-value]
     lat, lon, alt = float(home[0]), float(home[1]), float(home[2])
-    n, e, d = pymap3d.geodetic2ned(lat, lon, alt, *origin)
+    n, e, d = geodetic_to_ned(origin, lat, lon, alt)
     return origin, alt, (float(n), float(e), float(d))  # type: ignore[return-value]

@@ -27,7 +27,6 @@ import logging
 import math
 from typing import Any
 
-import pymap3d
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 from shapely.geometry import Point, Polygon
 
@@ -41,6 +40,7 @@ from autopilot_model.modules.mission import (
     MissionStore,
     vehicle_frames,
 )
+from taskflight.geo import geodetic_to_ned
 
 log = logging.getLogger(__name__)
 
@@ -119,7 +119,7 @@ class FenceShapes:
         shapes = cls()
 
         def ne(it: MissionItem) -> tuple[float, float]:
-            n, e, _ = pymap3d.geodetic2ned(it.lat, it.lon, origin[2], *origin)
+            n, e, _ = geodetic_to_ned(origin, it.lat, it.lon, origin[2])
             return float(n), float(e)
 
         i = 0

@@ -22,6 +22,8 @@ import math
 import numpy as np
 from numba import njit
 
+from autopilot_model.quatmath import quat_integrate
+
 GRAVITY = 9.80665
 
 # indices into the state vector
@@ -151,17 +153,7 @@ def quad_step(x, w_mot, cmd, prm, wind, dt, mx, my, spin, out_f):  # pragma: no 
     x[VY] = vy
     x[VZ] = vz
 
-    # quaternion integration q += 0.5 q (x) (0, w) dt
-    hdt = 0.5 * dt
-    nqw = qw + hdt * (-qx * wx - qy * wy - qz * wz)
-    nqx = qx + hdt * (qw * wx + qy * wz - qz * wy)
-    nqy = qy + hdt * (qw * wy - qx * wz + qz * wx)
-    nqz = qz + hdt * (qw * wz + qx * wy - qy * wx)
-    n = 1.0 / math.sqrt(nqw * nqw + nqx * nqx + nqy * nqy + nqz * nqz)
-    x[QW] = nqw * n
-    x[QX] = nqx * n
-    x[QY] = nqy * n
-    x[QZ] = nqz * n
+    x[QW], x[QX], x[QY], x[QZ] = quat_integrate(qw, qx, qy, qz, wx, wy, wz, dt)
     x[WX] = wx
     x[WY] = wy
     x[WZ] = wz
