@@ -35,13 +35,16 @@ def cmd(data: dict[str, Any]) -> FlightCommand:
 class WireTap:
     """Relay ``127.0.0.1:port`` <-> the model's udpin port; counts message types the companion sends."""
 
-    def __init__(self, model_port: int) -> None:
+    def __init__(self, model_port: int, record: str | None = None) -> None:
         self.front = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.front.bind(("127.0.0.1", 0))
         self.port = self.front.getsockname()[1]
         self.back = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.back.connect(("127.0.0.1", model_port))
         self.sent: Counter[str] = Counter()
+        #: wall arrival times of each message of type ``record`` (for the bench's jitter)
+        self.record = record
+        self.times: list[float] = []
         self._parser = mavlink2.MAVLink(None)
         self._parser.robust_parsing = True
         self._client: tuple[str, int] | None = None
@@ -65,10 +68,13 @@ class WireTap:
                 if s is self.front:
                     self._client = addr
                     self.back.send(data)
+                    t = time.monotonic()
                     msgs = self._parser.parse_buffer(data) or []
                     with self._lock:
                         for m in msgs:
                             self.sent[m.get_type()] += 1
+                            if m.get_type() == self.record:
+                                self.times.append(t)
                 elif self._client is not None:
                     self.front.sendto(data, self._client)
 
@@ -84,8 +90,9 @@ class Gcs:
 
     def __init__(self, port: int, speedup: float) -> None:
         mavutil.set_dialect("ardupilotmega")
-        self.conn = mavutil.mavlink_connection(f"udpout:127.0.0.1:{port}", source_system=255,
-                                               source_component=190)
+        self.conn = mavutil.mavlink_connection(
+            f"udpout:127.0.0.1:{port}", source_system=255, source_component=190
+        )
         self.speedup = speedup
         self.heartbeats = threading.Event()
         self.heartbeats.set()
@@ -125,6 +132,7 @@ class Gcs:
         def ack() -> Any:
             with self._lock:
                 return next((a for a in self.acks if a.command == command), None)
+
         return wait_for(ack, timeout_s, f"ACK of {command}").result
 
     def set_mode(self, mode: int) -> int:
@@ -136,6 +144,7 @@ class Gcs:
         def echoed() -> bool:
             m = self.msg("PARAM_VALUE")
             return m is not None and m.param_id == name and math.isclose(m.param_value, value)
+
         wait_for(echoed, 10, f"PARAM_VALUE {name}={value}")
 
     def mode(self) -> int | None:

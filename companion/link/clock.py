@@ -7,8 +7,10 @@ by the link's receive thread; :meth:`AutopilotClock.now` extrapolates between sa
 
 * ``rate``: autopilot seconds per wall second, the slope over the last ``rate_window_s`` of wall
   time (samples kept every 50 ms; 1 against a real autopilot, K against a sped-up model);
-* the mapping ``ap = intercept + rate * wall`` takes the *least delayed* sample (largest intercept),
-  leaking slowly so that a rate error cannot make it drift; network delay only ever makes samples late;
+* the mapping ``ap = anchor_ap + rate * (wall - anchor_wall)`` is anchored on the *least delayed*
+  recent sample (network and thread delays only ever make samples late): a sample replaces the
+  anchor when it is ahead of the anchor's prediction slowed by ``leak``, so a rate error cannot
+  make the estimate drift away;
 * ``now()`` never runs more than ``max_extrapolation_s`` ahead of the newest sample (a stalled or
   dead autopilot stops the companion's time instead of letting it run on) and never goes backwards;
 * a jump back of more than a second (the autopilot rebooted) restarts the estimate.
@@ -42,7 +44,8 @@ class AutopilotClock:
         self._synced = False
         self._rate = 1.0
         self._rate_measured = False
-        self._intercept = 0.0
+        self._anchor_ap = 0.0
+        self._anchor_wall = 0.0
         self._last_ap = 0.0
         self._last_wall = 0.0
         self._window: deque[tuple[float, float]] = deque()
@@ -61,7 +64,7 @@ class AutopilotClock:
                 self.resets = resets
             if not self._synced:
                 self._synced = True
-                self._intercept = ap - self._rate * w
+                self._anchor_ap, self._anchor_wall = ap, w
                 self._last_ap, self._last_wall = ap, w
                 self._window.append((w, ap))
                 self._returned = ap
@@ -76,9 +79,9 @@ class AutopilotClock:
                 if w - w0 >= min(0.25, self._rate_window_s) and ap > ap0:
                     self._rate = (ap - ap0) / (w - w0)
                     self._rate_measured = True
-            sample_b = ap - self._rate * w
-            leaked = self._intercept - self._leak * self._rate * max(0.0, w - self._last_wall)
-            self._intercept = max(sample_b, leaked)
+            predicted = self._anchor_ap + self._rate * (1.0 - self._leak) * (w - self._anchor_wall)
+            if ap >= predicted:
+                self._anchor_ap, self._anchor_wall = ap, w
             self._last_ap, self._last_wall = ap, w
 
     # --- readers ---------------------------------------------------------------------------------------
@@ -106,7 +109,7 @@ class AutopilotClock:
         with self._lock:
             if not self._synced:
                 return w - self._wall0
-            est = self._intercept + self._rate * w
+            est = self._anchor_ap + self._rate * (w - self._anchor_wall)
             est = min(est, self._last_ap + self._max_extra)
             est = max(est, self._returned)
             self._returned = est

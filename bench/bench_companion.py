@@ -1,0 +1,178 @@
+"""Bench: the companion's setpoint stream against the bundled model over loopback UDP (issue 4).
+
+Starts the model (``python -m autopilot_model.sitl``, paced at ``--speedup``) behind a UDP wire tap
+and a :class:`~companion.node.QuadNode`, then measures
+
+* the streamed setpoint rate and interval jitter (p50 / p99 of |interval - period|) at 20 and 50 Hz,
+  from the tap's arrival times converted to autopilot time (wall x speedup: the model paces on the wall);
+* the latency from user_confirm to the first setpoint of the next command (autopilot time);
+* the tracking error of the measured position (LOCAL_POSITION_NED) against the setpoint streamed
+  for that instant on a three-waypoint flight (RMS and max, 3-D).
+"""
+
+from __future__ import annotations
+
+import argparse
+import bisect
+import itertools
+import math
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "tests"))
+
+from companion_support import WireTap, cmd, wait_for  # noqa: E402
+from test_mavlink_support import SitlProcess, free_port  # noqa: E402
+
+from bench.common import machine, table  # noqa: E402
+from companion.node import QuadNode  # noqa: E402
+
+
+def pct(values: list[float], q: float) -> float:
+    s = sorted(values)
+    return s[min(len(s) - 1, int(q * (len(s) - 1) + 0.5))] if s else float("nan")
+
+
+def sim_wait(node: QuadNode, seconds: float, speedup: float) -> None:
+    t = node.clock.now() + seconds
+    wait_for(lambda: node.clock.now() >= t, 10 + 3 * seconds / speedup, f"{seconds} s of autopilot time")
+
+
+def fly(rate: float, speedup: float, state: Path, sample_s: float) -> dict[str, Any]:
+    port = free_port()
+    sitl = SitlProcess([f"udpin:127.0.0.1:{port}"], state, speedup=speedup, extra=["--no-persist"])
+    tap = WireTap(port, record="SET_POSITION_TARGET_LOCAL_NED")
+    node = QuadNode(f"udpout:127.0.0.1:{tap.port}", rate_hz=rate)
+    streamed: list[tuple[float, Any]] = []  # (autopilot time, setpoint)
+    measured: list[tuple[float, tuple[float, float, float]]] = []
+    node.setpoint_listeners.append(lambda sp, f, t: streamed.append((t, sp)))
+    node.link.listeners.append(
+        lambda m: (
+            measured.append((m.time_boot_ms / 1000, (m.x, m.y, m.z)))
+            if m.get_type() == "LOCAL_POSITION_NED"
+            else None
+        )
+    )
+    out: dict[str, Any] = {}
+    try:
+        node.start()
+        w = 30 + 3 * 20 / speedup
+        wait_for(lambda: node.link.mirror.snapshot().position is not None, w, "telemetry")
+        node.add_command(
+            cmd({"vertical": {"mode": "POS", "altitude": 5, "take_off": True}, "end": {"e_v": True}})
+        )
+        node.run()
+        wait_for(lambda: node.queue.status().current_command_index >= 1, w, "take-off")
+        # rate and jitter while hovering
+        n0 = len(tap.times)
+        sim_wait(node, sample_s, speedup)
+        times = tap.times[n0:]
+        iv = [(b - a) * speedup for a, b in itertools.pairwise(times)]
+        out["rate"] = (len(times) - 1) / ((times[-1] - times[0]) * speedup)
+        out["jitter"] = [abs(x - 1 / rate) * 1000 for x in iv]
+        # user_confirm -> first setpoint of the next command
+        lat = []
+        for _ in range(8):
+            idx = node.queue.add_command(cmd({"end": {"e_user": True}}))
+            node.queue.add_command(cmd({"end": {"e_wait": 0.2}}))
+            wait_for(
+                lambda i=idx: (
+                    node.queue.status().confirmation_required_status
+                    and node.queue.status().current_command_index == i
+                ),
+                w,
+                "waiting for confirmation",
+            )
+            t0 = node.clock.now()
+            node.user_confirm()
+            first = wait_for(
+                lambda i=idx: next((t for t, sp in reversed(streamed) if sp.command_index == i + 1), None),
+                w,
+                "next command streamed",
+            )
+            lat.append((first - t0) * 1000)
+            wait_for(lambda i=idx: node.queue.status().current_command_index >= i + 2, w, "pause ended")
+        out["latency"] = lat
+        # tracking on the waypoint flight
+        s0 = len(streamed)
+        m0 = len(measured)
+        for n, e, alt in ((15.0, 0.0, 6.0), (15.0, 15.0, 8.0), (0.0, 0.0, 5.0)):
+            node.add_command(
+                cmd(
+                    {
+                        "horizontal": {"mode": "POS", "north": n, "east": e},
+                        "vertical": {"mode": "WITH_HOR", "altitude": alt},
+                        "end": {"e_h": True, "e_v": True},
+                    }
+                )
+            )
+        end = len(node.queue.commands)
+        wait_for(lambda: node.queue.status().current_command_index >= end, w + 60 / speedup * 3, "waypoints")
+        sim_wait(node, 2.0, speedup)
+        sp_t = [t for t, _ in streamed[s0:]]
+        errs = []
+        for t, p in measured[m0:]:
+            k = bisect.bisect_right(sp_t, t) - 1
+            if k >= 0:
+                errs.append(math.dist(p, streamed[s0 + k][1].p))
+        out["track"] = errs
+    finally:
+        node.close()
+        tap.close()
+        sitl.stop()
+    return out
+
+
+def main() -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--speedup", type=float, default=2.0, help="model speedup (1 = real time)")
+    p.add_argument("--sample", type=float, default=10.0, help="seconds of autopilot time per rate sample")
+    args = p.parse_args()
+    rows_rate, rows_other = [], []
+    with tempfile.TemporaryDirectory() as tmp:
+        for rate in (20.0, 50.0):
+            r = fly(rate, args.speedup, Path(tmp) / f"r{rate:g}", args.sample)
+            rows_rate.append(
+                (f"{rate:g}", r["rate"], pct(r["jitter"], 0.5), pct(r["jitter"], 0.99), max(r["jitter"]))
+            )
+            tr = r["track"]
+            rows_other.append(
+                (
+                    f"{rate:g}",
+                    statistics.median(r["latency"]),
+                    max(r["latency"]),
+                    math.sqrt(sum(e * e for e in tr) / len(tr)),
+                    max(tr),
+                    len(tr),
+                )
+            )
+    print(f"# bench_companion ({machine()}), model speedup {args.speedup:g}; times are autopilot time\n")
+    print(table(["stream Hz", "measured Hz", "jitter p50 ms", "jitter p99 ms", "jitter max ms"], rows_rate))
+    print()
+    print(
+        table(
+            [
+                "stream Hz",
+                "confirm->next p50 ms",
+                "confirm->next max ms",
+                "tracking RMS m",
+                "tracking max m",
+                "samples",
+            ],
+            rows_other,
+        )
+    )
+    return 0
+
+
+if __name__ == "__main__":
+    start = time.monotonic()
+    code = main()
+    print(f"\n(wall {time.monotonic() - start:.0f} s)")
+    sys.exit(code)

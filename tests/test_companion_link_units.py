@@ -1,0 +1,97 @@
+"""Unit tests of the companion's link pieces without an autopilot (issue 4 items 5-6)."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import pytest
+
+from companion.flight import Setpoint, SetpointKind
+from companion.link import AutopilotClock, CommandState, CommandTracker, SyncTracker, parse_url, target_fields
+from companion.link.mirror import PositionTargetEcho
+from companion.link.setpoints import IGNORE_ACC, IGNORE_POS, IGNORE_VEL, IGNORE_YAW, IGNORE_YAW_RATE
+
+
+class FakeWall:
+    def __init__(self) -> None:
+        self.t = 100.0
+
+    def __call__(self) -> float:
+        return self.t
+
+
+def test_clock_follows_a_sped_up_autopilot_and_never_runs_away() -> None:
+    wall = FakeWall()
+    clock = AutopilotClock(wall=wall)
+    assert not clock.synced
+    for i in range(200):  # autopilot at 10x, samples every 5 ms wall, some 3 ms late
+        wall.t = 100.0 + i * 0.005
+        clock.observe(int(1000 * (5.0 + i * 0.05)), wall.t + (0.003 if i % 3 == 0 else 0.0))
+    assert clock.synced and clock.rate == pytest.approx(10.0, rel=0.02)
+    wall.t += 0.002
+    assert clock.now() == pytest.approx(5.0 + 199 * 0.05 + 0.02, abs=0.005)
+    assert clock.wall_until(clock.now() + 1.0) == pytest.approx(0.1, rel=0.05)
+    wall.t += 10.0  # the autopilot went silent: time stops shortly after its last sample
+    assert clock.now() <= 5.0 + 199 * 0.05 + 0.25 + 1e-9
+    clock.observe(1000)  # it rebooted: the estimate restarts
+    assert clock.resets == 1 and clock.now() == pytest.approx(1.0)
+
+
+def test_command_retried_without_ack_then_error() -> None:
+    sent: list[tuple[int, int]] = []
+    tracker = CommandTracker(lambda c, conf, p: sent.append((c, conf)), timeout_s=1.0, attempts=3)
+    req = tracker.request(400, (1,), 0.0)
+    tracker.periodic(0.5)
+    assert sent == [(400, 0)]
+    tracker.periodic(1.0)
+    tracker.periodic(2.0)
+    assert sent == [(400, 0), (400, 1), (400, 2)]
+    tracker.periodic(3.0)
+    assert req.state is CommandState.TIMEOUT and "no COMMAND_ACK after 3 attempts" in tracker.errors[-1]
+    ok = tracker.request(176, (1, 4), 3.0)
+    tracker.on_ack(SimpleNamespace(command=176, result=0))
+    assert ok.accepted and not tracker.pending
+    denied = tracker.request(22, (), 3.0)
+    tracker.on_ack(SimpleNamespace(command=22, result=2))
+    assert denied.state is CommandState.REJECTED and "DENIED" in tracker.errors[-1]
+
+
+def test_type_masks_as_arducopter_reads_them() -> None:
+    sp = Setpoint(1.0, (1.0, 2.0, -3.0), (0.5, 0.0, 0.0), (0.1, 0.0, 0.0), 0.3, 0.1)
+    f = target_fields(sp)
+    assert f.type_mask == 0 and f.p == sp.p and f.v == sp.v and f.a == sp.a and f.yaw == 0.3
+    fv = target_fields(Setpoint(1.0, (1, 2, 3), (1.0, 0.0, 0.2), (0, 0, 0), 0.3, 0.2, SetpointKind.VELOCITY))
+    mask = fv.type_mask
+    assert mask & IGNORE_POS == IGNORE_POS and mask & IGNORE_ACC == IGNORE_ACC and mask & IGNORE_YAW
+    assert not mask & IGNORE_VEL and not mask & IGNORE_YAW_RATE and fv.v == (1.0, 0.0, 0.2)
+
+
+def test_is_synced_from_the_echo() -> None:
+    sync = SyncTracker()
+    f = target_fields(Setpoint(0.0, (1.0, 2.0, -3.0), (0, 0, 0), (0, 0, 0), 0.0, 0.0))
+    sync.sent(10.0, f)
+    assert not sync.synced(10.0)
+    sync.echo(PositionTargetEcho(10_050, 0, (5.0, 2.0, -3.0), (0, 0, 0)), 10.05)
+    assert not sync.synced(10.05)  # echoes someone else's target
+    sync.echo(PositionTargetEcho(10_100, 0, (1.0, 2.0, -3.0), (0, 0, 0)), 10.1)
+    assert sync.synced(10.1)
+    assert not sync.synced(12.0)  # stale
+
+
+@pytest.mark.parametrize(
+    ("url", "expected"),
+    [
+        ("udpout:127.0.0.1:14550", ("udpout:127.0.0.1:14550", 57600)),
+        ("udpin:0.0.0.0:14551", ("udpin:0.0.0.0:14551", 57600)),
+        ("tcp:127.0.0.1:5760", ("tcp:127.0.0.1:5760", 57600)),
+        ("serial:/dev/ttyACM0:921600", ("/dev/ttyACM0", 921600)),
+        ("/dev/ttyUSB0", ("/dev/ttyUSB0", 57600)),
+    ],
+)
+def test_urls(url: str, expected: tuple[str, int]) -> None:
+    assert parse_url(url, 57600) == expected
+
+
+def test_bad_url() -> None:
+    with pytest.raises(ValueError, match="expected udpin"):
+        parse_url("http://x", 57600)
