@@ -84,3 +84,15 @@ def test_goto_on_ground_is_refused() -> None:
     v.nav.arm()
     ok, reason = v.nav.goto((10.0, 0.0, -5.0))
     assert not ok and "take off first" in reason
+
+
+def test_takeoff_superseded_by_a_target_reports_in_air() -> None:
+    v = _vehicle(gusts=False)
+    v.wait_estimator()
+    v.nav.arm()
+    v.nav.takeoff(10.0)
+    v.run_for(2.0)
+    assert v.nav.landed_state == 3  # MAV_LANDED_STATE_TAKEOFF
+    ok, _ = v.nav.goto((5.0, 0.0, -4.0), 2.0)
+    assert ok
+    assert v.run_until(lambda: v.nav.landed_state == 2, 10.0)  # MAV_LANDED_STATE_IN_AIR

@@ -274,3 +274,21 @@ def test_signing_unsigned_refused_signed_accepted() -> None:
         assert ack.result == ACCEPTED and len(calls) == 1 and ack._signed
     finally:
         ep.close()
+
+
+def test_only_the_configured_gcs_system_counts_for_the_gcs_failsafe(setup: Any) -> None:
+    """ArduCopter counts heartbeats from MAV_GCS_SYSID only: a companion (the vehicle's own system,
+    component 191) or another system's ground station does not keep the GCS failsafe quiet."""
+    v, ep, gcs = setup
+    companion = mavlink2.MAVLink(None, 1, 191)
+    gcs.raw(companion.heartbeat_encode(mavlink2.MAV_TYPE_ONBOARD_CONTROLLER, mavlink2.MAV_AUTOPILOT_INVALID,
+                                       0, 0, 0).pack(companion))
+    other = mavlink2.MAVLink(None, 42, 190)
+    beat = other.heartbeat_encode(mavlink2.MAV_TYPE_GCS, mavlink2.MAV_AUTOPILOT_INVALID, 0, 0, 0)
+    gcs.raw(beat.pack(other))
+    v.step(20)
+    assert ep.last_gcs_heartbeat_s is None
+    v.params.set("MAV_GCS_SYSID", 42)
+    gcs.raw(beat.pack(other))
+    v.step(20)
+    assert ep.last_gcs_heartbeat_s is not None

@@ -205,7 +205,10 @@ class MavlinkEndpoint:
             log.exception("handler for %s failed", msg.get_type())
 
     def _on_heartbeat(self, msg: Any, peer: Peer) -> None:
-        if msg.type == MAV_TYPE_GCS:
+        """Like ArduCopter (GCS_MAVLINK::handle_heartbeat), only heartbeats from the system id
+        MAV_GCS_SYSID (SYSID_MYGCS) count as the ground station's: a companion's heartbeat (another
+        component of the vehicle's own system) never keeps the GCS failsafe quiet."""
+        if msg.get_srcSystem() == int(self.vehicle.params.get("MAV_GCS_SYSID")):
             self.last_gcs_heartbeat_s = self.clock.now()
             self.stats["gcs_heartbeats"] += 1
 

@@ -193,6 +193,11 @@ class Navigator:
             self.landed_state = LANDED_IN_AIR
             self.action = FLYING
             self._emit(f"Takeoff complete at {self.takeoff_alt:.1f} m")
+        elif self.landed_state == LANDED_TAKEOFF and self.action != TAKEOFF:
+            # the take-off was superseded by another target (a GUIDED command, a mode change): as
+            # ArduCopter's land detector, report IN_AIR once the vehicle has left the ground
+            if -v.state_alt_estimate() > 0.5:
+                self.landed_state = LANDED_IN_AIR
         elif self.action == LANDING:
             alt = -v.state_alt_estimate()
             g.set_velocity_target((0.0, 0.0, self._land_speed(alt)))
