@@ -18,7 +18,7 @@ def _cmd_autopilot(args: argparse.Namespace) -> int:
 
 
 def _cmd_demo(args: argparse.Namespace) -> int:
-    from autopilot_model.demo import run_demo
+    from taskflight.demo import run_demo
 
     return run_demo(args)
 
@@ -43,8 +43,8 @@ def build_parser() -> argparse.ArgumentParser:
     add_autopilot_arguments(ap)
     handlers["autopilot"] = _cmd_autopilot
 
-    dp = sub.add_parser("demo", help="fly a demonstration flight on embedded defaults and print a report")
-    from autopilot_model.demo import add_demo_arguments
+    dp = sub.add_parser("demo", help="a demonstration flight on embedded defaults (model + companion)")
+    from taskflight.demo import add_demo_arguments
 
     add_demo_arguments(dp)
     handlers["demo"] = _cmd_demo
