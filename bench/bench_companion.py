@@ -27,8 +27,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "tests"))
 
-from companion_support import WireTap, cmd, wait_for  # noqa: E402
-from test_mavlink_support import SitlProcess, free_port  # noqa: E402
+from companion_support import WireTap, cmd  # noqa: E402
+from mavlink_support import SitlProcess, free_port, wait_for  # noqa: E402
 
 from bench.common import machine, table  # noqa: E402
 from companion.node import QuadNode  # noqa: E402

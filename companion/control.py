@@ -125,10 +125,10 @@ def create_app(node: QuadNode) -> FastAPI:
         except (ConfigError, CommandError) as exc:
             raise RequestError(400, f"invalid command: {exc}") from None
         indices: list[int] = []
-        for c in cmds:  # the envelope check may refuse: nothing is added unless all pass
+        for c in cmds:  # the queue may refuse one (outside the envelope): nothing is added unless all pass
             try:
-                node.queue._check_envelope(c)
-            except CommandError as exc:
+                node.queue.check_command(c)
+            except (QueueError, CommandError) as exc:
                 raise RequestError(400, f"invalid command: {exc}") from None
         try:
             indices = [node.add_command(c) for c in cmds]

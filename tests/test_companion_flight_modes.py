@@ -6,6 +6,7 @@ import itertools
 import math
 
 import pytest
+from flight_support import LIMITS, takeoff
 
 from companion.flight import (
     CommandQueue,
@@ -15,30 +16,16 @@ from companion.flight import (
     HeadingMode,
     HorizontalChannel,
     HorizontalMode,
-    Limits,
     VerticalChannel,
     VerticalMode,
 )
 from companion.flight.reference import wrap_pi
 from companion.flight.simulate import FlightSim, step_violations
 
-LIMITS = Limits(
-    horizontal_speed=5,
-    horizontal_acceleration=2.5,
-    horizontal_jerk=5,
-    vertical_speed=2,
-    vertical_acceleration=1.5,
-    vertical_jerk=3,
-    yaw_rate=90,
-)
-TAKEOFF = FlightCommand(
-    vertical=VerticalChannel(VerticalMode.POS, altitude=5, take_off=True), end=EndCondition(e_v=True)
-)
-
 
 def fly(*commands: FlightCommand) -> FlightSim:
     q = CommandQueue(LIMITS)
-    for c in (TAKEOFF, *commands):
+    for c in (takeoff(), *commands):
         q.add_command(c)
     sim = FlightSim(q, dt=0.05)
     sim.tick()

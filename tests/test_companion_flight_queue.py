@@ -8,6 +8,7 @@ import math
 import threading
 
 import pytest
+from flight_support import LIMITS, takeoff
 
 from companion.flight import (
     CommandError,
@@ -21,7 +22,6 @@ from companion.flight import (
     HeadingMode,
     HorizontalChannel,
     HorizontalMode,
-    Limits,
     QueueError,
     QueueState,
     QueueStateError,
@@ -34,24 +34,8 @@ from companion.flight import (
 from companion.flight.reference import wrap_pi
 from companion.flight.simulate import FlightSim, step_violations
 
-LIMITS = Limits(
-    horizontal_speed=5,
-    horizontal_acceleration=2.5,
-    horizontal_jerk=5,
-    vertical_speed=2,
-    vertical_acceleration=1.5,
-    vertical_jerk=3,
-    yaw_rate=90,
-)
 
-
-# --- commands used by the tests (the executors of seed 000 Sec. VI) --------------------------------------
-def takeoff(alt: float = 5.0) -> FlightCommand:
-    return FlightCommand(
-        vertical=VerticalChannel(VerticalMode.POS, altitude=alt, take_off=True), end=EndCondition(e_v=True)
-    )
-
-
+# --- commands used by the tests (the executors of seed 000 Sec. VI; takeoff() from flight_support) ----
 def waypoint(n: float, e: float, alt: float, speed: float = 4.0) -> FlightCommand:
     return FlightCommand(
         HorizontalChannel(HorizontalMode.POS, north=n, east=e, speed=speed),
@@ -431,6 +415,28 @@ def test_invalid_commands_and_arguments_are_refused_without_change() -> None:
         q.add_command({"vertical": {"mode": "POS"}})  # type: ignore[arg-type]
     with pytest.raises(QueueError, match="unknown behaviour"):
         q.pause_direct("dance")
+    assert (q.status(), q.commands) == before
+
+
+def test_check_command_raises_what_add_command_would_and_changes_nothing() -> None:
+    env = Envelope.box(-10, 10, -10, 10, altitude_ceiling=20.0)
+    sim = make_sim(takeoff(), envelope=env)
+    q = sim.queue
+    before = (q.status(), q.commands)
+    outside = waypoint(50.0, 0.0, 5.0)
+    too_high = FlightCommand(
+        vertical=VerticalChannel(VerticalMode.POS, altitude=30), end=EndCondition(e_v=True)
+    )
+    for bad, field in ((outside, "horizontal.north"), (too_high, "vertical.altitude")):
+        with pytest.raises(CommandError) as checked:
+            q.check_command(bad)
+        with pytest.raises(CommandError) as added:
+            q.add_command(bad)
+        assert checked.value.field == added.value.field == field
+        assert str(checked.value) == str(added.value)
+    with pytest.raises(QueueError, match="expected a FlightCommand"):
+        q.check_command({"vertical": {"mode": "POS"}})  # type: ignore[arg-type]
+    assert q.check_command(waypoint(5.0, 5.0, 5.0)) is None  # valid: accepted, but not added
     assert (q.status(), q.commands) == before
 
 

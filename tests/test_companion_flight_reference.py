@@ -6,8 +6,9 @@ import math
 
 import numpy as np
 import pytest
+from flight_support import LIMITS
 
-from companion.flight import Envelope, Limits
+from companion.flight import Envelope
 from companion.flight.reference import (
     HOLD,
     AxisTarget,
@@ -22,15 +23,6 @@ from companion.flight.reference import (
     wrap_pi,
 )
 
-LIMITS = Limits(
-    horizontal_speed=5,
-    horizontal_acceleration=2.5,
-    horizontal_jerk=5,
-    vertical_speed=2,
-    vertical_acceleration=1.5,
-    vertical_jerk=3,
-    yaw_rate=90,
-)
 DT = 0.02
 
 

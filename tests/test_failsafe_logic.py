@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import pytest
-from test_mission_runner import IN_AIR, ON_GROUND, KinematicVehicle, Recorder, geo
+from kinematic_support import IN_AIR, ON_GROUND, KinematicVehicle, Recorder, geo
 
 from autopilot_model.modules.mission import FENCE, MissionItem, MissionStore
 from autopilot_model.modules.safety import BRAKE, LAND, RTL, Safety

@@ -11,21 +11,14 @@ import math
 from collections.abc import Iterator
 
 import pytest
-from pymavlink import mavutil
-from test_mission_udp import BRAKE, GUIDED, LAND, RTL, Gcs, start, wall
-
-M = mavutil.mavlink
-POS_ONLY = 0b110111111000
+from mavlink_support import BRAKE, GUIDED, LAND, POS_ONLY, RTL, Gcs, M, sitl_and_gcs, wall
 
 
 @pytest.fixture(scope="module")
 def gcs(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Gcs]:
-    sitl, g = start(tmp_path_factory.mktemp("sitl_failsafe"))
-    try:
+    # heartbeats at 2 Hz of simulated time: margin for the GCS failsafe (FS_GCS_ENABLE) when a wait lags
+    with sitl_and_gcs(tmp_path_factory.mktemp("sitl_failsafe"), heartbeat_hz=2.0) as g:
         yield g
-    finally:
-        g.conn.close()
-        sitl.stop()
 
 
 def text_seen(gcs: Gcs, fragment: str) -> bool:
@@ -33,20 +26,19 @@ def text_seen(gcs: Gcs, fragment: str) -> bool:
 
 
 def goto(gcs: Gcs, n: float, e: float, alt: float) -> None:
-    gcs.conn.mav.set_position_target_local_ned_send(0, 1, 1, M.MAV_FRAME_LOCAL_NED, POS_ONLY, n, e, -alt,
-                                                    0, 0, 0, 0, 0, 0, 0, 0)
+    gcs.local_target(M.MAV_FRAME_LOCAL_NED, POS_ONLY, n, e, -alt)
 
 
 def test_gcs_heartbeat_loss_rtl(gcs: Gcs) -> None:
     gcs.set_param("FS_GCS_ENABLE", 1)
     gcs.takeoff(8)
     gcs.texts.clear()
-    gcs.heartbeats = False  # the ground station goes silent but keeps listening
+    gcs.heartbeats.clear()  # the ground station goes silent but keeps listening
     try:
         gcs.wait_mode(RTL, 5 + 5)
         assert text_seen(gcs, "GCS Failsafe")
     finally:
-        gcs.heartbeats = True
+        gcs.heartbeats.set()
     gcs.wait(lambda: text_seen(gcs, "GCS Failsafe Cleared"), wall(3), "failsafe cleared")
     gcs.wait_disarmed(60)  # RTL lands at home
     n, e, _ = gcs.positions[-1]

@@ -8,124 +8,36 @@ simulated durations; nothing sleeps and hopes.
 from __future__ import annotations
 
 import math
-import os
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
 
 import pytest
+from mavlink_support import (
+    ALT_HOLD,
+    GUIDED,
+    LAND,
+    LOITER,
+    SPEEDUP,
+    STABILIZE,
+    Gcs,
+    M,
+    SitlProcess,
+    free_port,
+    sitl_and_gcs,
+    wall,
+)
 
-os.environ.setdefault("MAVLINK20", "1")
-from pymavlink import mavutil
-from test_mavlink_support import SitlProcess, free_port
-
-SPEEDUP = 10.0
-M = mavutil.mavlink
-STABILIZE, ALT_HOLD, GUIDED, LOITER, LAND = 0, 2, 4, 5, 9
 IGNORE_VEL_ACC_YAW = 0b110111111000
 IGNORE_POS_ACC_YAW = 0b110111000111
-
-
-def wall(sim_s: float) -> float:
-    """Wall deadline for ``sim_s`` simulated seconds (slack for a loaded 2-core machine)."""
-    return 5.0 + 3.0 * sim_s / SPEEDUP
-
-
-class Gcs:
-    """A pymavlink ground station: keeps the latest message of each type and the STATUSTEXTs."""
-
-    def __init__(self, port: int) -> None:
-        mavutil.set_dialect("ardupilotmega")
-        self.conn = mavutil.mavlink_connection(f"udpout:127.0.0.1:{port}", source_system=255,
-                                               source_component=190)
-        self.last: dict[str, Any] = {}
-        self.texts: list[str] = []
-        self.acks: list[Any] = []
-        self.params: dict[str, tuple[float, int]] = {}
-        self._hb_t = 0.0
-
-    def pump(self) -> None:
-        now = time.monotonic()
-        if now - self._hb_t > 0.1:  # 1 Hz in simulated time at 10x
-            self._hb_t = now
-            self.conn.mav.heartbeat_send(M.MAV_TYPE_GCS, M.MAV_AUTOPILOT_INVALID, 0, 0, 0)
-        while True:
-            m = self.conn.recv_match(blocking=False)
-            if m is None:
-                return
-            t = m.get_type()
-            self.last[t] = m
-            if t == "STATUSTEXT":
-                self.texts.append(m.text)
-            elif t == "COMMAND_ACK":
-                self.acks.append(m)
-            elif t == "PARAM_VALUE":
-                self.params[m.param_id] = (m.param_value, m.param_index)
-
-    def wait(self, pred: Callable[[], Any], timeout_s: float, what: str) -> Any:
-        end = time.monotonic() + timeout_s
-        while time.monotonic() < end:
-            self.pump()
-            r = pred()
-            if r:
-                return r
-            time.sleep(0.002)
-        raise AssertionError(f"timed out waiting for {what}; last texts {self.texts[-5:]}")
-
-    def msg(self, t: str) -> Any:
-        return self.wait(lambda: self.last.get(t), 10, t)
-
-    def fresh(self, t: str, timeout_s: float = 5.0) -> Any:
-        self.last.pop(t, None)
-        return self.wait(lambda: self.last.get(t), timeout_s, t)
-
-    def command(self, cmd: int, *p: float) -> int:
-        params = list(p) + [0.0] * (7 - len(p))
-        self.acks.clear()
-        self.conn.mav.command_long_send(1, 1, cmd, 0, *params)
-        ack = self.wait(lambda: next((a for a in self.acks if a.command == cmd), None), 10, f"ACK of {cmd}")
-        return ack.result
-
-    def set_mode(self, mode: int) -> int:
-        return self.command(M.MAV_CMD_DO_SET_MODE, M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, mode)
-
-    def mode(self) -> int:
-        return self.fresh("HEARTBEAT").custom_mode
-
-    def armed(self) -> bool:
-        return bool(self.fresh("HEARTBEAT").base_mode & M.MAV_MODE_FLAG_SAFETY_ARMED)
-
-    def ned(self) -> tuple[float, float, float]:
-        m = self.fresh("LOCAL_POSITION_NED")
-        return m.x, m.y, m.z
-
-    def at(self, target: tuple[float, float, float], tol: float, sim_s: float) -> None:
-        def close() -> bool:
-            m = self.last.get("LOCAL_POSITION_NED")
-            return m is not None and math.dist((m.x, m.y, m.z), target) < tol
-        self.last.pop("LOCAL_POSITION_NED", None)
-        self.wait(close, wall(sim_s), f"position {target}")
-
-    def local_target(self, frame: int, mask: int, x: float = 0, y: float = 0, z: float = 0,
-                     vx: float = 0, vy: float = 0, vz: float = 0) -> None:
-        self.conn.mav.set_position_target_local_ned_send(0, 1, 1, frame, mask, x, y, z, vx, vy, vz,
-                                                         0, 0, 0, 0, 0)
+IGNORE_ACC_YAW = 0b110111000000
 
 
 @pytest.fixture(scope="module")
 def gcs(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Gcs]:
-    port = free_port()
-    sitl = SitlProcess([f"udpin:127.0.0.1:{port}"], tmp_path_factory.mktemp("sitl"), speedup=SPEEDUP)
-    g = Gcs(port)
-    try:
-        g.wait(lambda: g.last.get("HEARTBEAT"), 20, "first heartbeat")
-        g.wait(lambda: g.last.get("SYS_STATUS") and g.last["SYS_STATUS"].onboard_control_sensors_health
-               & M.MAV_SYS_STATUS_PREARM_CHECK, wall(30), "pre-arm checks to pass")
+    with sitl_and_gcs(tmp_path_factory.mktemp("sitl")) as g:
+        g.wait_prearm(wall(30))
         yield g
-    finally:
-        g.conn.close()
-        sitl.stop()
 
 
 def test_heartbeat_identifies_an_arducopter(gcs: Gcs) -> None:
@@ -188,7 +100,7 @@ def test_guided_flight_in_every_frame(gcs: Gcs) -> None:
              "in air")
     home = gcs.msg("HOME_POSITION")
     # local frames
-    _go(gcs, M.MAV_FRAME_LOCAL_NED, 10, 0, -10, (10 + home.x, 0 + home.y, -10 + home.z))
+    _go(gcs, M.MAV_FRAME_LOCAL_NED, 10, 0, -10, (10, 0, -10))  # from the EKF origin (see below)
     tgt = gcs.fresh("POSITION_TARGET_LOCAL_NED")
     assert (tgt.x, tgt.y) == pytest.approx((10, 0), abs=0.01)
     n, e, d = gcs.ned()
@@ -258,6 +170,122 @@ def test_guided_velocity_and_the_timeout(gcs: Gcs) -> None:
 
     assert moved(0.0, 0.8 * guid_timeout) > 0.7 * 2.0 * 0.8 * guid_timeout, "stopped before GUID_TIMEOUT"
     assert moved(guid_timeout + 4, guid_timeout + 7) < 1.0, "still moving after GUID_TIMEOUT"
+
+
+def _set_interval(gcs: Gcs, msg_id: int, hz: float) -> None:
+    """SET_MESSAGE_INTERVAL on our link (0 Hz: back to the default rate)."""
+    interval_us = 1e6 / hz if hz > 0 else 0
+    assert gcs.command(M.MAV_CMD_SET_MESSAGE_INTERVAL, msg_id, interval_us) == M.MAV_RESULT_ACCEPTED
+
+
+def test_guided_posvel_stream_then_timeout_brakes_and_holds(gcs: Gcs) -> None:
+    """A companion streams position + velocity targets at 20 Hz (simulated), moving north at 3 m/s, then
+    stops sending. ArduCopter (``ModeGuided::posvelaccel_control_run``): the position target is advanced
+    with the velocity feed-forward between updates (``AC_PosControl::input_pos_vel_accel_NE_cm`` moves it
+    in place), so the vehicle keeps going smoothly; after GUID_TIMEOUT the velocity and acceleration are
+    zeroed and it brakes and holds, a braking distance beyond last target + v * GUID_TIMEOUT. It never
+    flies back to the last position sent, and does not oscillate."""
+    guid_timeout, speed, accel = 3.0, 3.0, 1.5
+    # ArduCopter's braking (shape_vel_accel: jerk 5 m/s^3, acceleration 2.5 m/s^2, then the sqrt
+    # controller's linear tail) from 3 m/s: about 3 m and 3 s
+    braking_m, braking_s = 3.5, 4.0
+    _set_interval(gcs, M.MAVLINK_MSG_ID_LOCAL_POSITION_NED, 50.0)  # simulated time at 20 ms resolution
+    try:
+        gcs.fresh("LOCAL_POSITION_NED")
+        n0, e0, d0 = gcs.ned()
+        t0 = gcs.last["LOCAL_POSITION_NED"].time_boot_ms / 1000.0
+        t_acc = speed / accel
+
+        def ref(t: float) -> tuple[float, float]:  # north position and speed of the companion's reference
+            if t < t_acc:
+                return n0 + 0.5 * accel * t * t, accel * t
+            return n0 + 0.5 * accel * t_acc * t_acc + speed * (t - t_acc), speed
+
+        t_stream = t_acc + 3.0
+        track: list[tuple[float, float, float, float]] = []  # (sim t, n, e, d)
+        last_sent = (n0, 0.0, t0)
+        next_send = t0
+        end = time.monotonic() + wall(t_stream + guid_timeout + 12)
+        streaming = True
+        while time.monotonic() < end:
+            gcs.pump()
+            m = gcs.last["LOCAL_POSITION_NED"]
+            t = m.time_boot_ms / 1000.0
+            if not track or t > track[-1][0]:
+                track.append((t, m.x, m.y, m.z))
+            if streaming and t >= next_send:
+                n, vn = ref(min(t - t0, t_stream))
+                gcs.local_target(M.MAV_FRAME_LOCAL_NED, IGNORE_ACC_YAW, n, e0, d0, vn, 0.0, 0.0)
+                last_sent = (n, vn, t)
+                next_send = max(next_send + 0.05, t)
+                streaming = t - t0 < t_stream
+            if t - last_sent[2] > guid_timeout + 8.0:
+                break
+            time.sleep(0.001)
+        else:
+            raise AssertionError("track not recorded in time")
+        gcs.fresh("LOCAL_POSITION_NED")
+        echo = gcs.fresh("POSITION_TARGET_LOCAL_NED")
+    finally:
+        _set_interval(gcs, M.MAVLINK_MSG_ID_LOCAL_POSITION_NED, 0)
+    n_last, v_last, t_last = last_sent
+    assert v_last == speed
+    # the estimate carries GPS noise (a few decimetres): judge 0.5 s averages
+    half = 0.25
+    avg = [tuple(sum(q[k] for q in w) / len(w) for k in range(4))
+           for w in ([q for q in track if abs(q[0] - p[0]) <= half] for p in track)
+           if w[0][0] >= track[0][0] + half - 0.03 and w[-1][0] <= track[-1][0] - half + 0.03]
+
+    # streaming: a smooth 3 m/s during the cruise (least-squares line through the last 2 s)
+    cruise = [p for p in avg if t_last - 2.0 <= p[0] <= t_last]
+    tm = sum(p[0] for p in cruise) / len(cruise)
+    nm = sum(p[1] for p in cruise) / len(cruise)
+    slope = (sum((p[0] - tm) * (p[1] - nm) for p in cruise) / sum((p[0] - tm) ** 2 for p in cruise))
+    resid = math.sqrt(sum((p[1] - nm - slope * (p[0] - tm)) ** 2 for p in cruise) / len(cruise))
+    assert slope == pytest.approx(speed, abs=0.4) and resid < 0.3, f"not a smooth 3 m/s: {slope}, {resid}"
+    # after the last target: on at v until GUID_TIMEOUT, then a stop within the braking distance
+    after = [p for p in avg if p[0] >= t_last]
+    t_stop = t_last + guid_timeout + braking_s  # braked by then
+    t_peak, peak = max(((p[0], p[1]) for p in after if p[0] <= t_stop), key=lambda q: q[1])
+    ahead = n_last + v_last * guid_timeout
+    assert ahead - 1.0 < peak < ahead + braking_m, (peak, ahead)
+    back = peak - min(p[1] for p in after if p[0] >= t_peak)
+    assert back < 0.8, f"flew back {back:.2f} m towards the last position sent"
+    held = [p for p in after if p[0] >= t_stop]
+    assert len(held) > 50
+    assert max(p[1] for p in held) - min(p[1] for p in held) < 0.8, "still moving (oscillating)"
+    assert all(abs(p[2] - e0) < 1.0 and abs(p[3] - d0) < 1.0 for p in after), "left the line"
+    # the echo is the target held: no feed-forward left
+    assert echo.type_mask & 0b111 == 0 and (echo.vx, echo.vy, echo.vz) == (0.0, 0.0, 0.0)
+
+
+def test_local_ned_is_relative_to_the_origin_not_home(gcs: Gcs) -> None:
+    """ArduCopter (``handle_message_set_position_target_local_ned``): MAV_FRAME_LOCAL_NED x, y, z are
+    metres from the EKF origin; moving home (MAV_CMD_DO_SET_HOME) changes nothing."""
+    home = gcs.fresh("HOME_POSITION")
+
+    def set_home(lat_e7: int, lon_e7: int, alt_m: float) -> None:
+        gcs.acks.clear()
+        gcs.conn.mav.command_int_send(1, 1, M.MAV_FRAME_GLOBAL, M.MAV_CMD_DO_SET_HOME, 0, 0, 0, 0, 0, 0,
+                                      lat_e7, lon_e7, alt_m)
+        ack = gcs.wait(lambda: next((a for a in gcs.acks if a.command == M.MAV_CMD_DO_SET_HOME), None), 10,
+                       "DO_SET_HOME ack")
+        assert ack.result == M.MAV_RESULT_ACCEPTED
+
+    # 30 m north of where it was, 7 m higher
+    set_home(home.latitude + int(30 / 111_320 * 1e7), home.longitude, home.altitude / 1000 + 7.0)
+    try:
+        moved = gcs.wait(lambda: abs(gcs.fresh("HOME_POSITION").z - (home.z - 7.0)) < 0.05, 10, "new home")
+        assert moved and gcs.last["HOME_POSITION"].x == pytest.approx(home.x + 30.0, abs=0.1)
+        _go(gcs, M.MAV_FRAME_LOCAL_NED, 5, -5, -12, (5, -5, -12))
+        tgt = gcs.fresh("POSITION_TARGET_LOCAL_NED")
+        assert (tgt.x, tgt.y, tgt.z) == pytest.approx((5, -5, -12), abs=0.01)
+        n, e, d = gcs.ned()
+        assert (n, e, d) == pytest.approx((5, -5, -12), abs=0.8)
+        # the offset frames stay relative to the vehicle
+        _go(gcs, M.MAV_FRAME_LOCAL_OFFSET_NED, 0, 0, 2, (n, e, d + 2))
+    finally:
+        set_home(home.latitude, home.longitude, home.altitude / 1000)
 
 
 def test_land_then_arm_and_disarm_on_the_ground(gcs: Gcs) -> None:

@@ -14,6 +14,7 @@ from collections.abc import Callable
 from typing import Any
 
 import pytest
+from mavlink_support import free_port
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from autopilot_model.mavlink.commands import ACCEPTED, DENIED, UNSUPPORTED, Command
@@ -45,14 +46,6 @@ class StandIn:
             if i % 10 == 0:
                 self.functions["mavlink.telemetry"]()
             self.clock.advance(2000)
-
-
-def free_port() -> int:
-    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    s.bind(("127.0.0.1", 0))
-    port = s.getsockname()[1]
-    s.close()
-    return port
 
 
 class Gcs:

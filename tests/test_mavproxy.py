@@ -18,10 +18,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from test_mavlink_gcs import Gcs
-from test_mavlink_support import ROOT, SitlProcess, free_port
-
-M = None  # set lazily from pymavlink
+from mavlink_support import ROOT, Gcs, M, SitlProcess, free_port
 
 
 def _mavproxy() -> list[str]:
@@ -74,7 +71,7 @@ def setup(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Lines, Gcs
     try:
         yield Lines(proc), gcs
     finally:
-        gcs.conn.close()
+        gcs.close()
         proc.terminate()
         try:
             proc.wait(10)
@@ -84,14 +81,12 @@ def setup(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Lines, Gcs
 
 
 def test_mavproxy_sees_vehicle_mode_and_arming(setup: tuple[Lines, Gcs]) -> None:
-    from pymavlink import mavutil
-    m = mavutil.mavlink
+    m = M
     out, gcs = setup
     out.wait("Detected vehicle 1:1", 30)
     out.wait("Mode STABILIZE", 20)
     out.wait("Received", 30)  # "Received N parameters": the paced parameter list went through
-    gcs.wait(lambda: gcs.last.get("SYS_STATUS") and gcs.last["SYS_STATUS"].onboard_control_sensors_health
-             & m.MAV_SYS_STATUS_PREARM_CHECK, 30, "pre-arm checks")
+    gcs.wait_prearm(30)
     assert gcs.set_mode(4) == m.MAV_RESULT_ACCEPTED
     out.wait("Mode GUIDED", 10)
     assert gcs.command(m.MAV_CMD_COMPONENT_ARM_DISARM, 1) == m.MAV_RESULT_ACCEPTED

@@ -7,6 +7,7 @@ velocity), land. One SITL process (lockstep at 10x) for the module; every wait h
 from __future__ import annotations
 
 import asyncio
+import functools
 import math
 from collections.abc import Awaitable, Callable, Iterator
 from typing import Any
@@ -14,19 +15,16 @@ from typing import Any
 import pytest
 
 mavsdk_asyncio = pytest.importorskip("mavsdk.asyncio")
+from mavlink_support import SPEEDUP, SitlProcess, free_port  # noqa: E402
+from mavlink_support import wall as sitl_wall  # noqa: E402
 from mavsdk.asyncio import Configuration, Mavsdk  # noqa: E402
 from mavsdk.asyncio.plugins.action import ActionAsync  # noqa: E402
 from mavsdk.asyncio.plugins.offboard import OffboardAsync  # noqa: E402
 from mavsdk.asyncio.plugins.telemetry import TelemetryAsync  # noqa: E402
 from mavsdk.component_type import ComponentType  # noqa: E402
 from mavsdk.plugins.offboard import PositionNedYaw, VelocityNedYaw  # noqa: E402
-from test_mavlink_support import SitlProcess, free_port  # noqa: E402
 
-SPEEDUP = 10.0
-
-
-def wall(sim_s: float) -> float:
-    return 10.0 + 3.0 * sim_s / SPEEDUP
+wall = functools.partial(sitl_wall, base_s=10.0)  # more slack: MAVSDK discovers and retries on its own
 
 
 async def until(pred: Callable[[], Awaitable[Any]], timeout_s: float, what: str) -> Any:

@@ -3,10 +3,9 @@
 from __future__ import annotations
 
 import math
-from typing import Any
 
 import pytest
-from pymavlink.dialects.v20 import ardupilotmega as mavlink
+from kinematic_support import HOME, IN_AIR, ON_GROUND, TAKEOFF, KinematicVehicle, Recorder, geo
 
 from autopilot_model.modules.mission import (
     COMPLETE,
@@ -17,111 +16,6 @@ from autopilot_model.modules.mission import (
     MissionStore,
     item_to_ned,
 )
-from autopilot_model.params import ParamStore
-from autopilot_model.physics.battery import Battery
-from taskflight.geo import ned_to_geodetic
-
-HOME = (-35.363261, 149.165230, 584.0)
-ON_GROUND, IN_AIR, TAKEOFF, LANDING = 1, 2, 3, 4
-
-
-class KinematicNav:
-    """Navigator stand-in: moves the position straight to the target at a fixed speed."""
-
-    def __init__(self, v: KinematicVehicle) -> None:
-        self.v = v
-        self.armed = False
-        self.landed_state = ON_GROUND
-        self.target: tuple[float, float, float] | None = None
-        self.speed = 5.0
-        self.landing = False
-        self.speeds: list[float | None] = []
-
-    def arm(self, force: bool = False) -> tuple[bool, str]:
-        self.armed = True
-        return True, ""
-
-    def disarm(self, force: bool = False) -> tuple[bool, str]:
-        self.armed = False
-        return True, ""
-
-    def takeoff(self, alt_m: float) -> tuple[bool, str]:
-        p = self.v.state.position_ned
-        self.target = (p[0], p[1], -alt_m)
-        self.landed_state = TAKEOFF
-        return True, ""
-
-    def goto(self, p: tuple[float, float, float], speed: float | None = None) -> tuple[bool, str]:
-        assert self.landed_state != ON_GROUND
-        self.target = tuple(p)
-        self.speeds.append(speed)
-        return True, ""
-
-    def hold(self) -> tuple[bool, str]:
-        self.target = self.v.state.position_ned
-        return True, ""
-
-    def land(self) -> tuple[bool, str]:
-        p = self.v.state.position_ned
-        self.target = (p[0], p[1], 0.0)
-        self.landing = True
-        self.landed_state = LANDING
-        return True, ""
-
-    def step(self, dt: float) -> None:
-        if self.target is None or not self.armed:
-            return
-        p = self.v.state.position_ned
-        d = math.dist(p, self.target)
-        k = min(1.0, self.speed * dt / d) if d > 0 else 1.0
-        self.v.state.position_ned = tuple(a + k * (b - a) for a, b in zip(p, self.target, strict=True))
-        if self.landed_state == TAKEOFF and k == 1.0:
-            self.landed_state = IN_AIR
-        if self.landing and k == 1.0:
-            self.landing, self.landed_state, self.armed = False, ON_GROUND, False
-
-
-class KinematicVehicle:
-    def __init__(self) -> None:
-        self.params = ParamStore()
-        self.home = HOME
-        self.state = type("S", (), {})()
-        self.state.origin = HOME
-        self.state.position_ned = (0.0, 0.0, 0.0)
-        self.clock = type("C", (), {})()
-        self.t = 0.0
-        self.clock.now = lambda: self.t
-        self.nav = KinematicNav(self)
-        self.battery = Battery()
-        self.battery_voltage = self.battery.voltage
-        self.guidance = type("G", (), {"at_target": False})()
-
-    def run(self, seconds: float, *callbacks: Any, dt: float = 0.02) -> None:
-        for _ in range(round(seconds / dt)):
-            self.t += dt
-            self.nav.step(dt)
-            self.guidance.at_target = self.nav.target is not None and \
-                math.dist(self.state.position_ned, self.nav.target) < 1e-6
-            for cb in callbacks:
-                cb()
-
-
-class Recorder:
-    def __init__(self) -> None:
-        self.mav = mavlink.MAVLink(None, 1, 1)
-        self.sent: list[Any] = []
-        self.texts: list[str] = []
-
-    def send(self, msg: Any, link: Any = None) -> None:
-        self.sent.append(msg)
-
-    def statustext(self, severity: int, text: str) -> None:
-        self.texts.append(text)
-
-
-def geo(n: float, e: float) -> tuple[int, int]:
-    lat, lon, _ = ned_to_geodetic(HOME, n, e, 0.0)
-    return round(lat * 1e7), round(lon * 1e7)
 
 
 def item(seq: int, cmd: int, n: float = 0, e: float = 0, z: float = 0, frame: int = 6, p1: float = 0,

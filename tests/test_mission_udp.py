@@ -6,160 +6,23 @@ and an AUTO flight that visits the waypoints. Deadlines are wall time derived fr
 from __future__ import annotations
 
 import math
-import os
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import pytest
+from mavlink_support import AUTO, GUIDED, Gcs, M, sitl_and_gcs, wall
 
 from taskflight.geo import ned_to_geodetic
 
-os.environ.setdefault("MAVLINK20", "1")
-from pymavlink import mavutil
-from test_mavlink_support import SitlProcess, free_port
-
-SPEEDUP = 10.0
-M = mavutil.mavlink
-GUIDED, AUTO, RTL, LAND, BRAKE = 4, 3, 6, 9, 17
 REL = M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT
-
-
-def wall(sim_s: float) -> float:
-    """Wall deadline for ``sim_s`` simulated seconds (generous: a loaded 2-core machine)."""
-    return 5.0 + 3.0 * sim_s / SPEEDUP
-
-
-class Gcs:
-    """A pymavlink ground station that records what it receives and sends heartbeats while pumping."""
-
-    def __init__(self, port: int) -> None:
-        mavutil.set_dialect("ardupilotmega")
-        self.conn = mavutil.mavlink_connection(f"udpout:127.0.0.1:{port}", source_system=255,
-                                               source_component=190)
-        self.heartbeats = True
-        self.last: dict[str, Any] = {}
-        self.texts: list[str] = []
-        self.acks: list[Any] = []
-        self.mission: list[Any] = []  # MISSION_* messages from the vehicle, in order
-        self.reached: list[int] = []
-        self.modes_seen: list[int] = []
-        self.positions: list[tuple[float, float, float]] = []
-        self._hb_t = 0.0
-
-    def pump(self) -> None:
-        now = time.monotonic()
-        if self.heartbeats and now - self._hb_t > 0.5 / SPEEDUP:
-            self._hb_t = now
-            self.conn.mav.heartbeat_send(M.MAV_TYPE_GCS, M.MAV_AUTOPILOT_INVALID, 0, 0, 0)
-        while True:
-            m = self.conn.recv_match(blocking=False)
-            if m is None:
-                return
-            t = m.get_type()
-            self.last[t] = m
-            if t == "STATUSTEXT":
-                self.texts.append(m.text)
-            elif t == "COMMAND_ACK":
-                self.acks.append(m)
-            elif t == "MISSION_ITEM_REACHED":
-                self.reached.append(m.seq)
-            elif t.startswith("MISSION_") and t != "MISSION_CURRENT":
-                self.mission.append(m)
-            elif t == "HEARTBEAT" and m.get_srcSystem() == 1:
-                if not self.modes_seen or self.modes_seen[-1] != m.custom_mode:
-                    self.modes_seen.append(m.custom_mode)
-            elif t == "LOCAL_POSITION_NED":
-                self.positions.append((m.x, m.y, m.z))
-
-    def wait(self, pred: Callable[[], Any], timeout_s: float, what: str) -> Any:
-        end = time.monotonic() + timeout_s
-        while time.monotonic() < end:
-            self.pump()
-            r = pred()
-            if r:
-                return r
-            time.sleep(0.002)
-        raise AssertionError(f"timed out waiting for {what}; last texts {self.texts[-6:]}")
-
-    def fresh(self, t: str, timeout_s: float = 5.0) -> Any:
-        self.last.pop(t, None)
-        return self.wait(lambda: self.last.get(t), timeout_s, t)
-
-    def next_mission(self, types: tuple[str, ...], timeout_s: float = 5.0) -> Any:
-        def first() -> Any:
-            for i, m in enumerate(self.mission):
-                if m.get_type() in types:
-                    del self.mission[: i + 1]
-                    return m
-            return None
-        return self.wait(first, timeout_s, "/".join(types))
-
-    def command(self, cmd: int, *p: float) -> int:
-        params = list(p) + [0.0] * (7 - len(p))
-        self.acks.clear()
-        self.conn.mav.command_long_send(1, 1, cmd, 0, *params)
-        ack = self.wait(lambda: next((a for a in self.acks if a.command == cmd), None), 10, f"ACK of {cmd}")
-        return ack.result
-
-    def set_param(self, name: str, value: float) -> None:
-        self.last.pop("PARAM_VALUE", None)
-        self.conn.mav.param_set_send(1, 1, name.encode(), value, M.MAV_PARAM_TYPE_REAL32)
-        self.wait(lambda: (m := self.last.get("PARAM_VALUE")) is not None and m.param_id == name
-                  and abs(m.param_value - value) < 1e-4, 5, f"PARAM_VALUE {name}={value}")
-
-    def set_mode(self, mode: int) -> int:
-        return self.command(M.MAV_CMD_DO_SET_MODE, M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, mode)
-
-    def heartbeat(self) -> Any:
-        return self.wait(lambda: (m := self.fresh("HEARTBEAT")) and m.get_srcSystem() == 1 and m, 5, "HB")
-
-    def wait_mode(self, mode: int, sim_s: float) -> None:
-        self.wait(lambda: mode in self.modes_seen[-1:], wall(sim_s), f"mode {mode}")
-
-    def wait_disarmed(self, sim_s: float) -> None:
-        self.wait(lambda: self.last.get("HEARTBEAT") is not None
-                  and not self.last["HEARTBEAT"].base_mode & M.MAV_MODE_FLAG_SAFETY_ARMED, wall(sim_s),
-                  "disarmed")
-
-    def home(self) -> tuple[float, float, float]:
-        h = self.fresh("HOME_POSITION", 10)
-        return h.latitude * 1e-7, h.longitude * 1e-7, h.altitude * 1e-3
-
-    def wait_alt(self, alt: float, sim_s: float, tol: float = 0.5) -> None:
-        self.wait(lambda: (m := self.last.get("LOCAL_POSITION_NED")) is not None and abs(-m.z - alt) < tol,
-                  wall(sim_s), f"altitude {alt}")
-
-    def takeoff(self, alt: float) -> None:
-        """GUIDED, arm, take off; returns when at altitude."""
-        assert self.set_mode(GUIDED) == M.MAV_RESULT_ACCEPTED
-        self.wait(lambda: self.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1) == M.MAV_RESULT_ACCEPTED,
-                  wall(20), "arming")
-        assert self.command(M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, alt) == M.MAV_RESULT_ACCEPTED
-        self.wait_alt(alt, 30)
-
-    def land_and_disarm(self) -> None:
-        assert self.set_mode(LAND) == M.MAV_RESULT_ACCEPTED
-        self.wait_disarmed(90)
-
-
-def start(tmp: Path) -> tuple[SitlProcess, Gcs]:
-    port = free_port()
-    sitl = SitlProcess([f"udpin:127.0.0.1:{port}"], tmp, speedup=SPEEDUP)
-    gcs = Gcs(port)
-    gcs.heartbeat()
-    return sitl, gcs
 
 
 @pytest.fixture(scope="module")
 def gcs(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Gcs]:
-    sitl, g = start(tmp_path_factory.mktemp("sitl_mission"))
-    try:
+    with sitl_and_gcs(tmp_path_factory.mktemp("sitl_mission")) as g:
         yield g
-    finally:
-        g.conn.close()
-        sitl.stop()
 
 
 # --- the mission protocol as a ground station uses it ---------------------------------------------
@@ -278,21 +141,13 @@ def test_upload_abandoned_is_cancelled_after_retries(gcs: Gcs) -> None:
 
 
 def test_mission_persists_across_restart(tmp_path: Path) -> None:
-    sitl, g = start(tmp_path)
-    try:
+    with sitl_and_gcs(tmp_path) as g:
         items = plan(g.home())
         assert upload(g, items) == M.MAV_MISSION_ACCEPTED
-    finally:
-        g.conn.close()
-        sitl.stop()
-    sitl, g = start(tmp_path)
-    try:
+    with sitl_and_gcs(tmp_path) as g:
         got = download(g)
         assert [(m.command, m.x, m.y, m.z) for m in got[1:]] == \
             [(i.command, i.x, i.y, i.z) for i in items[1:]]
-    finally:
-        g.conn.close()
-        sitl.stop()
 
 
 def test_auto_flight_visits_waypoints(gcs: Gcs) -> None:

@@ -5,15 +5,18 @@ This mirrors ``GCS_MAVLINK_Copter::handle_message`` for the two messages:
 * only acted on in GUIDED (otherwise ignored, counted ``target_not_guided``);
 * ``force_set`` with acceleration not ignored: ignored (force is not supported);
 * each ``*_ignore`` flag is true if *any* of its bits is set (ArduCopter tests ``type_mask & mask``);
-* local frames: LOCAL_NED (x, y from the EKF origin, z from *home* altitude), LOCAL_OFFSET_NED
-  (offset from the current position), BODY_NED and BODY_OFFSET_NED (offset, rotated by the heading;
+* local frames (``handle_message_set_position_target_local_ned``): LOCAL_NED (x, y and z in metres
+  from the EKF origin, the state interface's ``origin``, whatever home is: ArduCopter uses the packet's
+  x, y, -z directly as its NEU target from the origin), LOCAL_OFFSET_NED (offset from the current
+  position), BODY_NED and BODY_OFFSET_NED (offset from the current position, rotated by the heading;
   velocity and acceleration rotated too; yaw relative to the heading); any other frame: stop and hold;
 * global frames: GLOBAL / GLOBAL_INT (altitude AMSL), GLOBAL_RELATIVE_ALT(_INT) (above home),
   GLOBAL_TERRAIN_ALT(_INT) (above the terrain, which is flat at home altitude here); a bad latitude or
   longitude or unknown frame: stop and hold;
-* the combination decides the GUIDED sub-mode: position + velocity (+ acceleration) -> position with
-  feed-forward; velocity (+ acceleration) -> velocity; acceleration alone -> acceleration; position
-  alone -> position; anything else (e.g. position with acceleration only) -> stop and hold;
+* the combination decides the GUIDED sub-mode: position + velocity (+ acceleration) -> a moving
+  position target with feed-forward (advanced between messages, see ``GuidedTargets``); velocity
+  (+ acceleration) -> velocity; acceleration alone -> acceleration; position alone -> position;
+  anything else (e.g. position with acceleration only) -> stop and hold;
 * yaw (absolute, or relative in body frames) or yaw rate, else the current yaw is kept.
 
 A non-finite number in a field that is not ignored makes the message invalid: nothing happens and it
@@ -29,7 +32,7 @@ from typing import TYPE_CHECKING, Any
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-from autopilot_model.modules.flight_modes import GUIDED, FlightModes, GuidedTarget, home_ned
+from autopilot_model.modules.flight_modes import GUIDED, FlightModes, GuidedTarget
 from taskflight.geo import geodetic_to_ned
 
 from .endpoint import InvalidFieldError, require_finite
@@ -141,8 +144,8 @@ class GuidedTargetsProtocol:
             if frame in OFFSET_FRAMES:
                 n, e, d = self.v.state.position_ned
                 pos = (n + x, e + y, d + z)
-            else:  # z is relative to home's altitude, x/y to the origin
-                pos = (x, y, z + home_ned(self.v)[2])
+            else:  # LOCAL_NED: from the EKF origin (not home), as ArduCopter
+                pos = (x, y, z)
         if not vel_i:
             vx, vy = _rot(msg.vx, msg.vy, heading) if body else (msg.vx, msg.vy)
             vel = (vx, vy, msg.vz)
@@ -184,22 +187,24 @@ class GuidedTargetsProtocol:
 
     # --- telemetry -----------------------------------------------------------------------------
     def position_target_message(self) -> Any:
-        """POSITION_TARGET_LOCAL_NED of the active GUIDED target (None outside GUIDED)."""
+        """POSITION_TARGET_LOCAL_NED of the active GUIDED target (None outside GUIDED), in LOCAL_NED from
+        the EKF origin (``GCS_MAVLINK_Copter::send_position_target_local_ned``)."""
         g = self.modes.guided
         if self.modes.mode != GUIDED or g.kind == "none":
             return None
         t = g.target
         mask = 0
-        p = t.pos
-        v = t.vel if not g.timed_out else (0.0, 0.0, 0.0)
-        a = t.acc if not g.timed_out else (0.0, 0.0, 0.0)
+        p, v, a = g.echo()  # PosVelAccel: the target as advanced with its feed-forward
+        if g.timed_out:
+            v = None if v is None else (0.0, 0.0, 0.0)
+            a = None if a is None else (0.0, 0.0, 0.0)
         if p is None:
             mask |= POS_IGNORE
             p = (0.0, 0.0, 0.0)
-        if t.vel is None:
+        if v is None:
             mask |= VEL_IGNORE
             v = (0.0, 0.0, 0.0)
-        if t.acc is None:
+        if a is None:
             mask |= ACC_IGNORE
             a = (0.0, 0.0, 0.0)
         if t.yaw is None:

@@ -219,12 +219,18 @@ class Estimator:
         self.abias = np.zeros(3)
         self.on_ground = True
         mocap = pos.noise.pos_source == "mocap"
-        self.pos_bw = 6.0 if mocap else 1.2     # rad/s, position observer poles
+        # rad/s, position observer poles: GPS position has a metre-level correlated error, so velocity
+        # comes mostly from GPS velocity (vel_bw) and the position corrects slowly, like an EKF's weights
+        self.pos_bw = 6.0 if mocap else 0.6
+        self.vel_bw = 2.0
         self.k_tilt = 0.25 if mocap else 0.08   # rad per (m/s) of velocity correction
         self.k_gbias = 0.05
         self.k_yaw = 1.5                        # 1/s
         self.k_grav = 2.0                       # 1/s, only on the ground
-        self.baro_weight = 0.0 if mocap else 0.3
+        # height: the barometer is the primary source outdoors (ArduPilot's EK3_ALT_SOURCE default);
+        # GPS height is weighted (1 - baro_weight) in the position correction
+        self.baro_weight = 0.0 if mocap else 0.9
+        self.baro_bw = 1.0  # rad/s, height observer poles on the barometer
         self.hist = np.zeros((HIST, 7))
         self.hidx = np.zeros(1, dtype=np.int64)
         self._sample = np.zeros(6)
@@ -302,7 +308,7 @@ class Estimator:
         g[0] = min(3.0 * w * T, 0.9)
         g[1] = 3.0 * w * w * T
         g[2] = w * w * w * T
-        g[3] = min(2.0 * w * T, 0.8) if (self.pos.is_gps and self.pos.noise.vel > 0) else 0.0
+        g[3] = min(self.vel_bw * T, 0.8) if (self.pos.is_gps and self.pos.noise.vel > 0) else 0.0
         g[4] = self.baro_weight
         g[5] = self.k_tilt
         g[6] = self.k_gbias
@@ -324,10 +330,12 @@ class Estimator:
     def _correct_baro(self) -> None:
         if self.baro_weight <= 0:
             return
-        innov = -self.baro.alt - self.est[2]
+        innov = (-self.baro.alt - self.est[2]) * self.baro_weight
         T = 1.0 / self.baro.noise.baro_rate_hz
-        self.est[2] += min(2.0 * T, 0.5) * self.baro_weight * innov
-        self.est[5] += 1.0 * T * self.baro_weight * innov
+        w = self.baro_bw
+        self.est[2] += min(3.0 * w * T, 0.5) * innov
+        self.est[5] += 3.0 * w * w * T * innov
+        self.abias[2] -= w * w * w * T * innov
 
     def _align_gravity(self) -> None:
         """On the ground the accelerometer measures gravity alone: pull roll and pitch to it."""

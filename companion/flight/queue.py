@@ -9,6 +9,7 @@ own methods change it (one writer).
 Verbs (Sec. V) and the decisions where the paper is silent
     ``add_command(c) -> index``  append (validated; an absolute target outside the envelope is
         refused). If the queue is running and idle, the command starts at the next tick.
+    ``check_command(c)``  raise what ``add_command(c)`` would, change nothing (all-or-none batches).
     ``run()``  start or continue; also before anything is queued (execution starts with the first
         command added). A stopped command is resumed (see below). Called during a pause behaviour,
         it abandons the behaviour and continues at once ("pause_direct, then run again").
@@ -163,11 +164,18 @@ class CommandQueue:
         self._unreachable = False
 
     # --- QAPI verbs ----------------------------------------------------------------------------------
-    def add_command(self, command: FlightCommand) -> int:
-        """Append a command; returns its index."""
+    def check_command(self, command: FlightCommand) -> None:
+        """Raise what :meth:`add_command` would raise for ``command`` (QueueError, CommandError); no change.
+
+        For an all-or-none batch: check every command first, then add them.
+        """
         if not isinstance(command, FlightCommand):
             raise QueueError(f"expected a FlightCommand, got {type(command).__name__}")
         self._check_envelope(command)
+
+    def add_command(self, command: FlightCommand) -> int:
+        """Append a command; returns its index."""
+        self.check_command(command)
         with self._lock:
             self._commands.append(command)
             index = len(self._commands) - 1

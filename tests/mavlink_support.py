@@ -1,0 +1,344 @@
+"""Helpers shared by the MAVLink integration tests and benches (no tests here).
+
+* :class:`SitlProcess`: the model in its own process (``python -m autopilot_model.sitl``), lockstep at
+  a fixed speedup, so the clients under test talk to it over real loopback sockets exactly as they
+  would to ArduPilot; :func:`free_port`;
+* :class:`Gcs`: a pymavlink ground station (system 255 unless told otherwise, optionally signing)
+  that sends GCS heartbeats while it pumps and records what the vehicle sends;
+* :func:`sitl_and_gcs`: both, the station having heard the vehicle;
+* :func:`wait_for` and :func:`wall`: deadlines in wall time, derived from simulated durations.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import socket
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+os.environ.setdefault("MAVLINK20", "1")
+from pymavlink import mavutil
+
+mavutil.set_dialect("ardupilotmega")
+
+ROOT = Path(__file__).resolve().parents[1]
+M = mavutil.mavlink
+#: the speedup the SITL tests run the model at
+SPEEDUP = 10.0
+#: ArduCopter flight modes (HEARTBEAT custom_mode)
+STABILIZE, ALT_HOLD, AUTO, GUIDED, LOITER, RTL, LAND, BRAKE = 0, 2, 3, 4, 5, 6, 9, 17
+#: SET_POSITION_TARGET_* type masks: position only, velocity only
+POS_ONLY = 0b110111111000
+VEL_ONLY = 0b110111000111
+
+
+def free_port(kind: int = socket.SOCK_DGRAM) -> int:
+    s = socket.socket(socket.AF_INET, kind)
+    s.bind(("127.0.0.1", 0))
+    port = s.getsockname()[1]
+    s.close()
+    return port
+
+
+def wall(sim_s: float, speedup: float = SPEEDUP, base_s: float = 5.0) -> float:
+    """Wall deadline for ``sim_s`` simulated seconds (generous: a loaded 2-core machine)."""
+    return base_s + 3.0 * sim_s / speedup
+
+
+def wait_for(pred: Callable[[], Any], timeout_s: float, what: str, poll_s: float = 0.005) -> Any:
+    """Test ``pred`` until truthy or the wall deadline passes (then AssertionError naming ``what``)."""
+    end = time.monotonic() + timeout_s
+    while True:
+        r = pred()
+        if r:
+            return r
+        if time.monotonic() > end:
+            raise AssertionError(f"timed out after {timeout_s:.1f} s waiting for {what}")
+        time.sleep(poll_s)
+
+
+class SitlProcess:
+    """``python -m autopilot_model.sitl`` in a subprocess; waits for its READY line."""
+
+    def __init__(self, urls: Sequence[str], state_dir: Path, speedup: float = SPEEDUP,
+                 extra: Sequence[str] = (), timeout_s: float = 60.0) -> None:
+        args = [sys.executable, "-m", "autopilot_model.sitl", "--state-dir", str(state_dir),
+                "--speedup", str(speedup)]
+        for u in urls:
+            args += ["--mavlink", u]
+        args += list(extra)
+        env = dict(os.environ)
+        env["PYTHONPATH"] = str(ROOT) + os.pathsep + env.get("PYTHONPATH", "")
+        self.proc = subprocess.Popen(args, cwd=ROOT, env=env, stdout=subprocess.PIPE,
+                                     stderr=subprocess.STDOUT,
+                                     text=True)
+        end = time.monotonic() + timeout_s
+        self.ready = ""
+        assert self.proc.stdout is not None
+        while time.monotonic() < end:
+            line = self.proc.stdout.readline()
+            if not line:
+                break
+            if line.startswith("READY"):
+                self.ready = line.strip()
+                return
+        self.stop()
+        raise RuntimeError(f"SITL did not start: {self.ready or 'no READY line'}")
+
+    def stop(self) -> None:
+        if self.proc.poll() is None:
+            self.proc.terminate()
+            try:
+                self.proc.wait(10)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait(5)
+
+
+class Gcs:
+    """A pymavlink ground station on ``udpout:127.0.0.1:port``.
+
+    It sends MAV_TYPE_GCS heartbeats at ``heartbeat_hz`` of simulated time while ``heartbeats`` is set
+    and records what it receives: the last message of each type (``last``), STATUSTEXTs (``texts``),
+    COMMAND_ACKs (``acks``), PARAM_VALUEs (``params``: value, index by name), the MISSION_* protocol
+    messages in order (``mission``), MISSION_ITEM_REACHED seqs (``reached``), the vehicle's mode changes
+    (``modes_seen``) and LOCAL_POSITION_NED positions (``positions``).
+
+    By default it pumps only inside :meth:`wait` (and the helpers built on it) or :meth:`pump`; with
+    ``background=True`` a thread pumps all the time (for tests that wait on something else) and
+    :meth:`pump` does nothing. ``key`` signs what it sends (MAVLink 2 signing).
+    """
+
+    def __init__(self, port: int, speedup: float = SPEEDUP, *, sysid: int = 255, key: bytes | None = None,
+                 heartbeat_hz: float = 1.0, background: bool = False) -> None:
+        mavutil.set_dialect("ardupilotmega")
+        self.conn = mavutil.mavlink_connection(f"udpout:127.0.0.1:{port}", source_system=sysid,
+                                               source_component=190)
+        if key is not None:
+            self.conn.setup_signing(key, sign_outgoing=True)
+        self.speedup = speedup
+        self.heartbeats = threading.Event()
+        self.heartbeats.set()
+        self.last: dict[str, Any] = {}
+        self.texts: list[str] = []
+        self.acks: list[Any] = []
+        self.params: dict[str, tuple[float, int]] = {}
+        self.mission: list[Any] = []  # MISSION_* messages from the vehicle, in order
+        self.reached: list[int] = []
+        self.modes_seen: list[int] = []
+        self.positions: list[tuple[float, float, float]] = []
+        self._hb_period = 1.0 / (heartbeat_hz * speedup)
+        self._hb_t = 0.0
+        self._lock = threading.RLock()
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        if background:
+            self._thread = threading.Thread(target=self._run, name="gcs", daemon=True)
+            self._thread.start()
+
+    # --- receiving -----------------------------------------------------------------------------------
+    def _heartbeat_if_due(self) -> None:
+        now = time.monotonic()
+        if now - self._hb_t > self._hb_period:
+            self._hb_t = now
+            if self.heartbeats.is_set():
+                self.conn.mav.heartbeat_send(M.MAV_TYPE_GCS, M.MAV_AUTOPILOT_INVALID, 0, 0, 0)
+
+    def _record(self, m: Any) -> None:
+        t = m.get_type()
+        with self._lock:
+            self.last[t] = m
+            if t == "STATUSTEXT":
+                self.texts.append(m.text)
+            elif t == "COMMAND_ACK":
+                self.acks.append(m)
+            elif t == "PARAM_VALUE":
+                self.params[m.param_id] = (m.param_value, m.param_index)
+            elif t == "MISSION_ITEM_REACHED":
+                self.reached.append(m.seq)
+            elif t.startswith("MISSION_") and t != "MISSION_CURRENT":
+                self.mission.append(m)
+            elif t == "HEARTBEAT" and m.get_srcSystem() == 1:
+                if not self.modes_seen or self.modes_seen[-1] != m.custom_mode:
+                    self.modes_seen.append(m.custom_mode)
+            elif t == "LOCAL_POSITION_NED":
+                self.positions.append((m.x, m.y, m.z))
+
+    def _run(self) -> None:
+        while not self._stop.is_set():
+            self._heartbeat_if_due()
+            m = self.conn.recv_match(blocking=True, timeout=0.02)
+            while m is not None:
+                self._record(m)
+                m = self.conn.recv_match(blocking=False)
+
+    def pump(self) -> None:
+        """Heartbeat if due, then record everything received (a no-op with ``background``)."""
+        if self._thread is not None:
+            return
+        self._heartbeat_if_due()
+        while (m := self.conn.recv_match(blocking=False)) is not None:
+            self._record(m)
+
+    def wait(self, pred: Callable[[], Any], timeout_s: float, what: str) -> Any:
+        """Pump and test ``pred`` until truthy; AssertionError with the last STATUSTEXTs at the deadline."""
+        def pumped() -> Any:
+            self.pump()
+            return pred()
+
+        try:
+            return wait_for(pumped, timeout_s, what, poll_s=0.002)
+        except AssertionError as exc:
+            raise AssertionError(f"{exc}; last texts {self.texts[-6:]}") from None
+
+    def msg(self, t: str, timeout_s: float = 10.0) -> Any:
+        """The last message of type ``t`` (waiting for the first one)."""
+        return self.wait(lambda: self.last.get(t), timeout_s, t)
+
+    def fresh(self, t: str, timeout_s: float = 5.0) -> Any:
+        """The next message of type ``t``."""
+        with self._lock:
+            self.last.pop(t, None)
+        return self.wait(lambda: self.last.get(t), timeout_s, t)
+
+    def next_mission(self, types: tuple[str, ...], timeout_s: float = 5.0) -> Any:
+        """The first recorded MISSION_* message of one of ``types``; it and those before it are consumed."""
+        def first() -> Any:
+            with self._lock:
+                for i, m in enumerate(self.mission):
+                    if m.get_type() in types:
+                        del self.mission[: i + 1]
+                        return m
+            return None
+        return self.wait(first, timeout_s, "/".join(types))
+
+    # --- commands and parameters ---------------------------------------------------------------------
+    def command_ack(self, cmd: int, *p: float, timeout_s: float = 10.0) -> Any:
+        """COMMAND_LONG to the vehicle; returns its COMMAND_ACK."""
+        params = list(p) + [0.0] * (7 - len(p))
+        with self._lock:
+            self.acks.clear()
+        self.conn.mav.command_long_send(1, 1, cmd, 0, *params)
+
+        def ack() -> Any:
+            with self._lock:
+                return next((a for a in self.acks if a.command == cmd), None)
+
+        return self.wait(ack, timeout_s, f"ACK of {cmd}")
+
+    def command(self, cmd: int, *p: float, timeout_s: float = 10.0) -> int:
+        """COMMAND_LONG to the vehicle; returns the ACK's result."""
+        return self.command_ack(cmd, *p, timeout_s=timeout_s).result
+
+    def set_mode(self, mode: int) -> int:
+        return self.command(M.MAV_CMD_DO_SET_MODE, M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, mode)
+
+    def set_param(self, name: str, value: float, timeout_s: float = 10.0) -> None:
+        """PARAM_SET; returns when the vehicle echoes the new value."""
+        with self._lock:
+            self.last.pop("PARAM_VALUE", None)
+        self.conn.mav.param_set_send(1, 1, name.encode(), value, M.MAV_PARAM_TYPE_REAL32)
+
+        def echoed() -> bool:
+            m = self.last.get("PARAM_VALUE")
+            return m is not None and m.param_id == name and math.isclose(m.param_value, value, rel_tol=1e-6,
+                                                                         abs_tol=1e-4)
+
+        self.wait(echoed, timeout_s, f"PARAM_VALUE {name}={value}")
+
+    def local_target(self, frame: int, mask: int, x: float = 0, y: float = 0, z: float = 0,
+                     vx: float = 0, vy: float = 0, vz: float = 0) -> None:
+        self.conn.mav.set_position_target_local_ned_send(0, 1, 1, frame, mask, x, y, z, vx, vy, vz,
+                                                         0, 0, 0, 0, 0)
+
+    # --- the vehicle's state -------------------------------------------------------------------------
+    def heartbeat(self) -> Any:
+        """The vehicle's next HEARTBEAT."""
+        return self.wait(lambda: (m := self.fresh("HEARTBEAT")) and m.get_srcSystem() == 1 and m, 5, "HB")
+
+    def mode(self) -> int:
+        return self.heartbeat().custom_mode
+
+    def armed(self) -> bool:
+        return bool(self.heartbeat().base_mode & M.MAV_MODE_FLAG_SAFETY_ARMED)
+
+    def ned(self) -> tuple[float, float, float]:
+        m = self.fresh("LOCAL_POSITION_NED")
+        return m.x, m.y, m.z
+
+    def home(self) -> tuple[float, float, float]:
+        """Home as latitude, longitude (degrees), altitude AMSL (m)."""
+        h = self.fresh("HOME_POSITION", 10)
+        return h.latitude * 1e-7, h.longitude * 1e-7, h.altitude * 1e-3
+
+    def wall(self, sim_s: float) -> float:
+        return wall(sim_s, self.speedup)
+
+    def wait_prearm(self, timeout_s: float) -> None:
+        self.wait(lambda: (m := self.last.get("SYS_STATUS")) is not None
+                  and m.onboard_control_sensors_health & M.MAV_SYS_STATUS_PREARM_CHECK,
+                  timeout_s, "pre-arm checks to pass")
+
+    def at(self, target: tuple[float, float, float], tol: float, sim_s: float) -> None:
+        """Wait until within ``tol`` m of the local NED ``target``."""
+        def close() -> bool:
+            m = self.last.get("LOCAL_POSITION_NED")
+            return m is not None and math.dist((m.x, m.y, m.z), target) < tol
+        with self._lock:
+            self.last.pop("LOCAL_POSITION_NED", None)
+        self.wait(close, self.wall(sim_s), f"position {target}")
+
+    def wait_alt(self, alt: float, sim_s: float, tol: float = 0.5) -> None:
+        self.wait(lambda: (m := self.last.get("LOCAL_POSITION_NED")) is not None and abs(-m.z - alt) < tol,
+                  self.wall(sim_s), f"altitude {alt}")
+
+    def wait_mode(self, mode: int, sim_s: float) -> None:
+        self.wait(lambda: mode in self.modes_seen[-1:], self.wall(sim_s), f"mode {mode}")
+
+    def wait_disarmed(self, sim_s: float) -> None:
+        self.wait(lambda: (m := self.last.get("HEARTBEAT")) is not None
+                  and not m.base_mode & M.MAV_MODE_FLAG_SAFETY_ARMED, self.wall(sim_s), "disarmed")
+
+    # --- flying --------------------------------------------------------------------------------------
+    def takeoff(self, alt: float) -> None:
+        """GUIDED, arm, take off; returns when at altitude."""
+        assert self.set_mode(GUIDED) == M.MAV_RESULT_ACCEPTED
+        self.wait(lambda: self.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1) == M.MAV_RESULT_ACCEPTED,
+                  self.wall(20), "arming")
+        assert self.command(M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, alt) == M.MAV_RESULT_ACCEPTED
+        self.wait_alt(alt, 30)
+
+    def land_and_disarm(self) -> None:
+        assert self.set_mode(LAND) == M.MAV_RESULT_ACCEPTED
+        self.wait_disarmed(90)
+
+    def close(self) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(2.0)
+        self.conn.close()
+
+
+@contextmanager
+def sitl_and_gcs(state_dir: Path, speedup: float = SPEEDUP, extra: Sequence[str] = (),
+                 **gcs_options: Any) -> Iterator[Gcs]:
+    """A SITL process on a free UDP port and a :class:`Gcs` that has heard the vehicle; both closed after."""
+    port = free_port()
+    sitl = SitlProcess([f"udpin:127.0.0.1:{port}"], state_dir, speedup=speedup, extra=extra)
+    try:
+        gcs = Gcs(port, speedup, **gcs_options)
+        try:
+            gcs.wait(lambda: (m := gcs.last.get("HEARTBEAT")) is not None and m.get_srcSystem() == 1, 20,
+                     "the vehicle's first heartbeat")
+            yield gcs
+        finally:
+            gcs.close()
+    finally:
+        sitl.stop()
