@@ -164,7 +164,6 @@ class _UdpBase(Transport):
 
     def on_readable(self, fd: int, on_data: OnData, budget_end: float) -> None:
         recv = self.sock.recvfrom
-        count = 0
         while True:
             try:
                 data, addr = recv(MAX_DATAGRAM)
@@ -175,8 +174,9 @@ class _UdpBase(Transport):
             peer = self._peer_for(addr)
             peer.last_rx_wall = time.monotonic()
             on_data(peer, data)
-            count += 1
-            if count & 15 == 0 and time.perf_counter() > budget_end:
+            # checked after every datagram (~0.1 us against ~50 us to handle one), so a flood can
+            # overrun the budget by one datagram at most
+            if time.perf_counter() > budget_end:
                 return
 
     def close(self) -> None:
