@@ -25,13 +25,14 @@ from __future__ import annotations
 import argparse
 import logging
 import os
-import signal
 import sys
 import threading
 import time
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
+
+from taskflight.runtime import stop_on_signals
 
 log = logging.getLogger(__name__)
 
@@ -164,14 +165,7 @@ def run_autopilot(args: argparse.Namespace) -> int:
     except (ConfigError, ValueError, OSError) as exc:
         log.error("%s", exc)
         return 2
-    stop = threading.Event()
-
-    def _stop(*_: Any) -> None:
-        stop.set()
-
-    signal.signal(signal.SIGTERM, _stop)
-    if threading.current_thread() is threading.main_thread():
-        signal.signal(signal.SIGINT, _stop)
+    stop = stop_on_signals()
     urls = ", ".join(str(t.url) for t in sitl.endpoint.transports)
     log.info("autopilot instance %d (sysid %d) on %s, speedup %s", args.instance, sitl.endpoint.sysid,
              urls, speedup or "max")

@@ -34,6 +34,7 @@ from collections.abc import Sequence
 from typing import Any
 
 from taskflight.geo import geodetic_to_ned, ned_to_geodetic
+from taskflight.validate import finite3 as _vec3
 
 __all__ = [
     "StateInterface",
@@ -139,19 +140,6 @@ def matrix_to_euler(m: Mat3) -> Vec3:
 # --------------------------------------------------------------------------------------------------
 # Input validation: ValueError (never TypeError) and nothing written on failure.
 # --------------------------------------------------------------------------------------------------
-def _vec3(v: Any, what: str) -> Vec3:
-    try:
-        x, y, z = v
-        x = float(x)
-        y = float(y)
-        z = float(z)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{what}: expected 3 numbers, got {v!r}") from exc
-    if x * 0.0 + y * 0.0 + z * 0.0 != 0.0:  # NaN or +-inf in any component
-        raise ValueError(f"{what}: non-finite value {v!r}")
-    return (x, y, z)
-
-
 class StateInterface:
     """The vehicle-state blackboard of seed 002 Sec. 3.1: write in one format, read in any.
 

@@ -11,9 +11,8 @@ from __future__ import annotations
 
 import argparse
 import logging
-import signal
-import threading
-from typing import Any
+
+from taskflight.runtime import stop_on_signals
 
 log = logging.getLogger(__name__)
 
@@ -52,14 +51,7 @@ def run_companion(args: argparse.Namespace) -> int:
     except (ConfigError, ValueError, OSError) as exc:
         log.error("%s", exc)
         return 2
-    stop = threading.Event()
-
-    def _stop(*_: Any) -> None:
-        stop.set()
-
-    if threading.current_thread() is threading.main_thread():
-        signal.signal(signal.SIGTERM, _stop)
-        signal.signal(signal.SIGINT, _stop)
+    stop = stop_on_signals()
     server = None
     try:
         node.start()

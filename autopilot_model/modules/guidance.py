@@ -48,6 +48,9 @@ from shapely.geometry import box as shapely_box
 from shapely.geometry.polygon import orient
 from shapely.ops import nearest_points
 
+from taskflight.validate import finite as _finite
+from taskflight.validate import finite3 as _finite3
+
 __all__ = ["Envelope", "SetpointGenerator"]
 
 log = logging.getLogger(__name__)
@@ -69,29 +72,6 @@ _YAW_ANGLE, _YAW_RATE = 0, 1
 def _wrap(a: float) -> float:
     """Wrap an angle to [-pi, pi)."""
     return (a + math.pi) % _TWO_PI - math.pi
-
-
-def _finite3(v: Any, what: str) -> Vec3:
-    try:
-        x, y, z = v
-        x = float(x)
-        y = float(y)
-        z = float(z)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{what}: expected 3 numbers, got {v!r}") from exc
-    if x * 0.0 + y * 0.0 + z * 0.0 != 0.0:
-        raise ValueError(f"{what}: non-finite value {v!r}")
-    return (x, y, z)
-
-
-def _finite(x: Any, what: str) -> float:
-    try:
-        f = float(x)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{what}: expected a number, got {x!r}") from exc
-    if not math.isfinite(f):
-        raise ValueError(f"{what}: non-finite value {x!r}")
-    return f
 
 
 def _stop_bound(d: float, s: float, acc: float, dt: float, v_end2: float = 0.0) -> float:
