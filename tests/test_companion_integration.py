@@ -158,7 +158,8 @@ def test_wait(f: Flight) -> None:
     t0 = f.sim_time()
     f.node.add_command(cmd({"end": {"e_wait": 3.0}}))
     f.wait_index(6, 10)
-    assert f.sim_time() - t0 >= 3.0 - 0.05  # one tick of slack: the test reads the clock between ticks
+    # two ticks of slack: the test reads its estimate of the autopilot clock between the node's ticks
+    assert f.sim_time() - t0 >= 3.0 - 0.1
     assert math.dist(f.pos(), (0.0, 10.0, -6.0)) < 1.0
 
 
@@ -242,7 +243,8 @@ def test_pause_after_current(f: Flight) -> None:
     held = f.pos()
     t = f.sim_time() + 2.0
     wait_for(lambda: f.sim_time() >= t, wall(2), "2 s hovering")
-    assert math.dist(f.pos(), held) < 0.5 and f.status()["current_command_index"] == 9
+    # held on the (GPS-grade) estimate: decimetres of jitter, no drift
+    assert math.dist(f.pos(), held) < 0.8 and f.status()["current_command_index"] == 9
     assert f.post("/user_confirm").status_code == 200  # ends the hover behaviour: on to B
     f.wait_index(10, 20)
     f.wait_near(b, 1.0, 5)
@@ -276,7 +278,7 @@ def test_stop_then_reset_mid_flight(f: Flight) -> None:
     hover = f.pos()
     t = f.sim_time() + 2.0
     wait_for(lambda: f.sim_time() >= t, wall(2), "2 s")
-    assert math.dist(f.pos(), hover) < 0.5, "hovers where it is after reset"
+    assert math.dist(f.pos(), hover) < 0.8, "hovers where it is after reset"
     assert math.dist(hover, far) > 10.0
     assert f.node.supervisor.phase.value == "ENGAGED"
 
