@@ -172,3 +172,18 @@ def test_auto_flight_visits_waypoints(gcs: Gcs) -> None:
     assert gcs.fresh("EXTENDED_SYS_STATE").landed_state == M.MAV_LANDED_STATE_ON_GROUND
     cur = gcs.fresh("MISSION_CURRENT")
     assert cur.seq == 6 and cur.total == 6
+
+
+def test_mission_start_while_disarmed_switches_to_auto(gcs: Gcs) -> None:
+    """ArduCopter accepts MISSION_START on the ground while disarmed and switches to AUTO; with the default
+    AUTO_OPTIONS it then refuses to arm in AUTO (ModeAuto::allows_arming), so the usual order stays: arm
+    in GUIDED, switch to AUTO, MISSION_START."""
+    assert gcs.set_mode(GUIDED) == M.MAV_RESULT_ACCEPTED
+    gcs.wait_disarmed(10)
+    assert upload(gcs, plan(gcs.home())) == M.MAV_MISSION_ACCEPTED
+    assert gcs.command(M.MAV_CMD_MISSION_START, 0, 0) == M.MAV_RESULT_ACCEPTED, gcs.texts[-3:]
+    gcs.wait_mode(AUTO, 5)
+    assert not (gcs.fresh("HEARTBEAT").base_mode & M.MAV_MODE_FLAG_SAFETY_ARMED)
+    assert gcs.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1) == M.MAV_RESULT_DENIED
+    assert any("not armable" in t for t in gcs.texts[-3:]), gcs.texts[-3:]
+    assert gcs.set_mode(GUIDED) == M.MAV_RESULT_ACCEPTED

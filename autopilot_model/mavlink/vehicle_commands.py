@@ -7,7 +7,7 @@ COMPONENT_ARM_DISARM (param1 1/0; param2 21196 forces: skips pre-arm checks / di
 NAV_TAKEOFF (param7 altitude above home; GUIDED or LOITER, armed, on the ground), NAV_LAND,
 NAV_RETURN_TO_LAUNCH, DO_SET_MODE (and the SET_MODE message, acknowledged with command id 11 as
 ArduPilot does), DO_REPOSITION (GUIDED; param2 bit 0 lets it switch to GUIDED), DO_CHANGE_SPEED,
-MISSION_START (armed; AUTO), DO_PAUSE_CONTINUE, GET_HOME_POSITION, DO_SET_HOME.
+MISSION_START (AUTO; accepted while disarmed), DO_PAUSE_CONTINUE, GET_HOME_POSITION, DO_SET_HOME.
 """
 
 from __future__ import annotations
@@ -169,12 +169,15 @@ class VehicleCommands:
 
     # --- missions ------------------------------------------------------------------------------
     def mission_start(self, cmd: Command, peer: Peer) -> CommandResult:
-        if not self.v.nav.armed:
-            return DENIED, "Mission start: not armed"
+        """As ArduCopter: switch to AUTO and start (or resume) the mission. Disarmed, it is accepted and
+        the vehicle waits in AUTO (arming in AUTO is then refused unless forced, as ArduCopter with the
+        default AUTO_OPTIONS). param1 (MAVLink: first item) > 0 starts at that item."""
+        first = cmd.p(1)
+        first_item = int(first) if math.isfinite(first) and first >= 1 else 0
         result = self._mode(fm.AUTO, "mission start")
         runner = self.modes.mission_runner
         if result[0] == ACCEPTED and runner is not None and hasattr(runner, "mission_start"):
-            started = runner.mission_start()
+            started = runner.mission_start(first_item)
             if isinstance(started, tuple) and not started[0]:
                 return DENIED, started[1]
         return result
