@@ -24,6 +24,7 @@ import logging
 import select
 import socket
 import time
+from abc import ABC, abstractmethod
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -90,22 +91,26 @@ class Peer:
 OnData = Callable[[Peer, bytes], None]
 
 
-class Transport:
+class Transport(ABC):
     """Base: a socket registered with the endpoint's poller, producing data for peers."""
 
     url: EndpointUrl
 
+    @abstractmethod
     def peers(self) -> list[Peer]:
-        raise NotImplementedError
+        """The peers this transport currently talks to."""
 
+    @abstractmethod
     def on_readable(self, fd: int, on_data: OnData, budget_end: float) -> None:
-        raise NotImplementedError
+        """Read what ``fd`` has (until empty or the wall-clock ``budget_end``), handing it to ``on_data``."""
 
+    @abstractmethod
     def fds(self) -> list[int]:
-        raise NotImplementedError
+        """File descriptors to register with the poller."""
 
+    @abstractmethod
     def close(self) -> None:
-        raise NotImplementedError
+        """Close the sockets."""
 
 
 def _udp_socket() -> socket.socket:
