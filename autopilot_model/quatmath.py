@@ -41,3 +41,23 @@ def ned_to_body(qw, qx, qy, qz, x, y, z):  # pragma: no cover - numba
         2.0 * (qx * qy - qw * qz) * x + (1.0 - 2.0 * (qx * qx + qz * qz)) * y + 2.0 * (qy * qz + qw * qx) * z,
         2.0 * (qx * qz + qw * qy) * x + 2.0 * (qy * qz - qw * qx) * y + (1.0 - 2.0 * (qx * qx + qy * qy)) * z,
     )
+
+
+@njit(cache=True, fastmath=True, inline="always")
+def rotate_world(qw, qx, qy, qz, cx, cy, cz):  # pragma: no cover - numba
+    """dq(c) (x) q, normalised: q rotated by the small NED-frame rotation vector c (rad)."""
+    hx = 0.5 * cx
+    hy = 0.5 * cy
+    hz = 0.5 * cz
+    nw = qw - hx * qx - hy * qy - hz * qz
+    nx = qx + hx * qw + hy * qz - hz * qy
+    ny = qy - hx * qz + hy * qw + hz * qx
+    nz = qz + hx * qy - hy * qx + hz * qw
+    n = 1.0 / math.sqrt(nw * nw + nx * nx + ny * ny + nz * nz)
+    return nw * n, nx * n, ny * n, nz * n
+
+
+@njit(cache=True, fastmath=True)
+def quat_yaw(qw, qx, qy, qz):  # pragma: no cover - numba
+    """Heading (rad, from north, ZYX yaw) of a body-to-NED quaternion."""
+    return math.atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))

@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import logging
 import math
-import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
@@ -29,6 +28,7 @@ from autopilot_model.params import ParamStore
 from autopilot_model.physics.battery import Battery
 from autopilot_model.physics.quadrotor import Quadrotor
 from autopilot_model.physics.wind import Wind
+from autopilot_model.quatmath import quat_yaw
 from autopilot_model.scheduler.mainloop import MainLoop
 from autopilot_model.scheduler.schedule import build_schedule
 from autopilot_model.scheduler.spec import load_modules
@@ -208,7 +208,7 @@ class Vehicle:
     def guidance_reset_here(self) -> None:
         """Re-initialise P_d at the estimated state (on arming, take-off and after landing)."""
         e = self.estimator.est
-        yaw = math.atan2(2.0 * (e[6] * e[9] + e[7] * e[8]), 1.0 - 2.0 * (e[8] ** 2 + e[9] ** 2))
+        yaw = float(quat_yaw(e[6], e[7], e[8], e[9]))
         on_ground = self.nav.landed_state == 1 if hasattr(self, "nav") else True
         vel = (0.0, 0.0, 0.0) if on_ground else (float(e[3]), float(e[4]), float(e[5]))
         self.guidance.reset((float(e[0]), float(e[1]), min(float(e[2]), 0.0) if on_ground else float(e[2])),
@@ -249,16 +249,5 @@ class Vehicle:
         loop.run(duration_s, stop)  # type: ignore[arg-type]
 
     # --- truth read-outs (tests and the bench) --------------------------------------------------------
-    @property
-    def truth(self) -> Quadrotor:
-        return self.world
-
     def wait_estimator(self, timeout_s: float = 5.0) -> bool:
         return self.run_until(lambda: self.estimator.healthy, timeout_s)
-
-
-def wall_speed(vehicle: Vehicle, sim_seconds: float) -> float:
-    """Simulated seconds per wall second over ``sim_seconds`` of lockstep running."""
-    t0 = time.perf_counter()
-    vehicle.run_for(sim_seconds)
-    return sim_seconds / (time.perf_counter() - t0)

@@ -66,15 +66,12 @@ class Mixer:
         self.alloc_inv = np.linalg.inv(alloc)
         self.t_max = float(thrust_max_per_motor)
         self.spin_armed = spin_armed
-        self.saturated = False
 
     def step(self, commands: np.ndarray, armed: bool, spooled: bool, motor_cmd: np.ndarray) -> None:
         if not armed:
             motor_cmd[:] = 0.0
-            self.saturated = False
             return
         if not spooled:
             motor_cmd[:] = self.spin_armed
-            self.saturated = False
             return
-        self.saturated = bool(mix(commands, self.alloc_inv, self.t_max, self.spin_armed * 0.5, motor_cmd))
+        mix(commands, self.alloc_inv, self.t_max, self.spin_armed * 0.5, motor_cmd)

@@ -268,10 +268,6 @@ class CascadedController:
         if entry is not None:
             self.g[entry[0]] = value * entry[1]
 
-    @property
-    def max_tilt(self) -> float:
-        return float(self.g[G_MAX_TILT])
-
     def reset(self) -> None:
         """Clear integrators and outputs (cheap when already clear: called every iteration disarmed)."""
         if self._clear:

@@ -29,7 +29,7 @@ from numba import njit
 
 from autopilot_model.modules.sensors import Barometer, Compass, Imu, PositionSensor
 from autopilot_model.physics.quadrotor import Quadrotor
-from autopilot_model.quatmath import body_to_ned, ned_to_body, quat_integrate
+from autopilot_model.quatmath import body_to_ned, ned_to_body, quat_integrate, quat_yaw, rotate_world
 
 GRAVITY = 9.80665
 log = logging.getLogger(__name__)
@@ -118,29 +118,7 @@ def ins_correct_position(est, abias, gbias, hist, hidx, sample, sample_time, gai
         # velocity-aided tilt: rotate by c = k_tilt (dv x z) in the world frame, gyro bias integrates it
         cx = gains[5] * dv[1]
         cy = -gains[5] * dv[0]
-        qw = est[6]
-        qx = est[7]
-        qy = est[8]
-        qz = est[9]
-        hx = 0.5 * cx
-        hy = 0.5 * cy
-        nw = qw - hx * qx - hy * qy
-        nx = qx + hx * qw + hy * qz
-        ny = qy - hx * qz + hy * qw
-        nz = qz + hx * qy - hy * qx
-        m = 1.0 / math.sqrt(nw * nw + nx * nx + ny * ny + nz * nz)
-        qw = nw * m
-        qx = nx * m
-        qy = ny * m
-        qz = nz * m
-        est[6] = qw
-        est[7] = qx
-        est[8] = qy
-        est[9] = qz
-        bx, by, bz = ned_to_body(qw, qx, qy, qz, cx, cy, 0.0)
-        gbias[0] -= gains[6] * bx
-        gbias[1] -= gains[6] * by
-        gbias[2] -= gains[6] * bz
+        ins_rotate_world(est, gbias, cx, cy, 0.0, gains[6])
 
 
 @njit(cache=True, fastmath=True)
@@ -173,31 +151,18 @@ def ins_align_gravity(est, accel, k):  # pragma: no cover - numba
     est[9] = nz * m
 
 
-def _rotate_world(est: np.ndarray, cx: float, cy: float, cz: float) -> None:
-    """Rotate the attitude estimate by the small world-frame rotation vector c: q <- dq(c) (x) q."""
-    qw, qx, qy, qz = est[6], est[7], est[8], est[9]
-    hx, hy, hz = 0.5 * cx, 0.5 * cy, 0.5 * cz
-    nw = qw - hx * qx - hy * qy - hz * qz
-    nx = qx + hx * qw + hy * qz - hz * qy
-    ny = qy - hx * qz + hy * qw + hz * qx
-    nz = qz + hx * qy - hy * qx + hz * qw
-    n = 1.0 / math.sqrt(nw * nw + nx * nx + ny * ny + nz * nz)
-    est[6], est[7], est[8], est[9] = nw * n, nx * n, ny * n, nz * n
-
-
-def _world_to_body(est: np.ndarray, v: tuple[float, float, float]) -> tuple[float, float, float]:
-    qw, qx, qy, qz = est[6], est[7], est[8], est[9]
-    x, y, z = v
-    return (
-        (1 - 2 * (qy * qy + qz * qz)) * x + 2 * (qx * qy + qw * qz) * y + 2 * (qx * qz - qw * qy) * z,
-        2 * (qx * qy - qw * qz) * x + (1 - 2 * (qx * qx + qz * qz)) * y + 2 * (qy * qz + qw * qx) * z,
-        2 * (qx * qz + qw * qy) * x + 2 * (qy * qz - qw * qx) * y + (1 - 2 * (qx * qx + qy * qy)) * z,
-    )
-
-
-def _yaw_of(est: np.ndarray) -> float:
-    qw, qx, qy, qz = est[6], est[7], est[8], est[9]
-    return math.atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
+@njit(cache=True, fastmath=True)
+def ins_rotate_world(est, gbias, cx, cy, cz, k_gbias):  # pragma: no cover - numba
+    """Correct the attitude by the small NED-frame rotation c; the gyro bias integrates it (body frame)."""
+    qw, qx, qy, qz = rotate_world(est[6], est[7], est[8], est[9], cx, cy, cz)
+    est[6] = qw
+    est[7] = qx
+    est[8] = qy
+    est[9] = qz
+    bx, by, bz = ned_to_body(qw, qx, qy, qz, cx, cy, cz)
+    gbias[0] -= k_gbias * bx
+    gbias[1] -= k_gbias * by
+    gbias[2] -= k_gbias * bz
 
 
 class Estimator:
@@ -318,14 +283,11 @@ class Estimator:
                              self.pos.sample_time, g, self._dv)
 
     def _correct_heading(self) -> None:
-        err = self.compass.heading - _yaw_of(self.est)
+        e = self.est
+        err = self.compass.heading - quat_yaw(e[6], e[7], e[8], e[9])
         err = (err + math.pi) % (2.0 * math.pi) - math.pi
         rate = 1.0 / self.compass.noise.heading_rate_hz
-        cz = self.k_yaw * err * rate
-        _rotate_world(self.est, 0.0, 0.0, cz)
-        cb = _world_to_body(self.est, (0.0, 0.0, cz))
-        for k in range(3):
-            self.gbias[k] -= self.k_gbias * cb[k] * 0.2
+        ins_rotate_world(e, self.gbias, 0.0, 0.0, self.k_yaw * err * rate, self.k_gbias * 0.2)
 
     def _correct_baro(self) -> None:
         if self.baro_weight <= 0:

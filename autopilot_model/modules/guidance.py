@@ -334,7 +334,6 @@ class SetpointGenerator:
                         kappa)
         self._edges = tuple(edges)
         self._ae = self._ah * kappa
-        self._kappa = kappa
         self._pref = (math.inf, math.inf)  # where the constraint distance _dref was measured
         self._dref = -math.inf
         self._dtrue = -math.inf  # distance to the boundary at _pref

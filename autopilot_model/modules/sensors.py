@@ -16,6 +16,7 @@ import numpy as np
 from numba import njit
 
 from autopilot_model.physics.quadrotor import PX, PY, PZ, QW, QX, QY, QZ, VX, VY, VZ, Quadrotor
+from autopilot_model.quatmath import quat_yaw
 
 
 class NoiseSource:
@@ -175,9 +176,7 @@ class Compass:
 
     def periodic(self) -> None:
         x = self.world.x
-        qw, qx, qy, qz = x[QW], x[QX], x[QY], x[QZ]
-        yaw = math.atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
-        self.heading = yaw + self.noise.heading * self.src.next()[0]
+        self.heading = quat_yaw(x[QW], x[QX], x[QY], x[QZ]) + self.noise.heading * self.src.next()[0]
         self.fresh = True
 
 
