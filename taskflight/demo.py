@@ -17,6 +17,14 @@ import tempfile
 import threading
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
+
+    from autopilot_model.sitl import Sitl
+    from companion.flight.commands import FlightCommand
+    from companion.node import QuadNode
 
 log = logging.getLogger(__name__)
 
@@ -109,21 +117,22 @@ def _run_stack_demo(args: argparse.Namespace) -> int:
     return 0 if ok else 1
 
 
-def _fly(sitl: object, node: object, commands: list, timeout_s: float, speedup: float) -> bool:
+def _fly(sitl: Sitl, node: QuadNode, commands: list[FlightCommand], timeout_s: float,
+         speedup: float) -> bool:
     """Wait for the vehicle to be ready, run the commands, log progress; True once landed and done."""
-    v = sitl.vehicle  # type: ignore[attr-defined]
+    v = sitl.vehicle
     wall_deadline = time.monotonic() + timeout_s / speedup + 30.0
 
-    def wait(pred: object, what: str) -> bool:
+    def wait(pred: Callable[[], bool], what: str) -> bool:
         while time.monotonic() < wall_deadline:
-            if pred():  # type: ignore[operator]
+            if pred():
                 return True
             time.sleep(0.05)
         log.error("demo: timed out waiting for %s", what)
         return False
 
     log.info("demo: waiting for the companion's link and the vehicle's pre-arm checks")
-    mirror = node.link.mirror  # type: ignore[attr-defined]
+    mirror = node.link.mirror
 
     def ready() -> bool:
         snap = mirror.snapshot()
@@ -131,11 +140,11 @@ def _fly(sitl: object, node: object, commands: list, timeout_s: float, speedup: 
 
     if not wait(ready, "link and pre-arm checks"):
         return False
-    node.add_commands(commands)  # type: ignore[attr-defined]
-    node.run()  # type: ignore[attr-defined]
+    node.add_commands(commands)
+    node.run()
     last = -1
     while time.monotonic() < wall_deadline:
-        st = node.qapi_status()  # type: ignore[attr-defined]
+        st = node.qapi_status()
         if st.current_command_index != last:
             last = st.current_command_index
             n, e, d = (float(x) for x in v.world.x[:3])
