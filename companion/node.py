@@ -35,9 +35,11 @@ from companion.flight import (
     FlightCommand,
     Limits,
     QueueStatus,
+    Retarget,
     Setpoint,
 )
-from companion.link import AutopilotClock, GuidedSupervisor, MavlinkLink
+from companion.flight.external import DEFAULT_MAX_VALIDITY_S
+from companion.link import AutopilotClock, GuidedSupervisor, MavlinkLink, Phase
 from companion.link.setpoints import TargetFields
 
 log = logging.getLogger(__name__)
@@ -88,7 +90,7 @@ class QuadNode:
 
     def __init__(self, autopilot_url: str, *, rate_hz: float = 20.0, limits: Limits | None = None,
                  envelope: Envelope | None = None, catalog: BehaviourCatalog | None = None, baud: int = 57600,
-                 source_system: int | None = None) -> None:
+                 source_system: int | None = None, max_validity_s: float = DEFAULT_MAX_VALIDITY_S) -> None:
         if not MIN_RATE_HZ <= rate_hz <= MAX_RATE_HZ:
             raise ValueError(f"rate: {rate_hz:g} Hz is outside {MIN_RATE_HZ:g}..{MAX_RATE_HZ:g} Hz")
         self.rate_hz = float(rate_hz)
@@ -97,7 +99,8 @@ class QuadNode:
         self.link = MavlinkLink(autopilot_url, baud=baud, rate_hz=rate_hz, source_system=source_system,
                                 clock=self.clock)
         self.queue_time = QueueTime(self.clock)
-        self.queue = CommandQueue(limits, envelope, catalog, clock=self.queue_time)
+        self.queue = CommandQueue(limits, envelope, catalog, clock=self.queue_time,
+                                  max_validity_s=max_validity_s)
         self.supervisor = GuidedSupervisor(self.link)
         self.setpoint_listeners: list[SetpointListener] = []
         self.ticks = 0
@@ -129,10 +132,16 @@ class QuadNode:
 
     # --- QAPI (Sec. V) -----------------------------------------------------------------------------------
     def add_command(self, command: FlightCommand) -> int:
+        """Append one command; its id (unique for the life of the process)."""
         return self.queue.add_command(command)
 
     def add_commands(self, commands: Iterable[FlightCommand]) -> list[int]:
-        return [self.queue.add_command(c) for c in commands]
+        """Append commands atomically (all checked first; all or none); their ids."""
+        return self.queue.add_commands(list(commands))
+
+    def retarget(self, command_id: int, change: Retarget) -> FlightCommand:
+        """Change the running command's target in flight (seed 000 Sec. IV-D)."""
+        return self.queue.retarget(command_id, change)
 
     def run(self) -> None:
         self.queue.run()
@@ -209,18 +218,22 @@ class QuadNode:
         sup.observe(s)
         if sup.overridden != (queue.status().queue_system_status.name == "OVERRIDDEN"):
             queue.set_overridden(sup.overridden)
-        if sup.abandoned:
-            sup.abandoned = False
-            queue.stop()
+        if sup.abandoned is not None:
+            reason, sup.abandoned = sup.abandoned, None
+            queue.fail_current(reason)
             self.queue_time.release(t_ap)
         if sup.holds_queue:
-            if not sup.step(self.last_setpoint, s, t_ap):
+            if not sup.step_takeoff(queue.executing_take_off(), s, t_ap):
+                if not sup.holds_queue:  # cancelled: the queue's time runs again
+                    self.queue_time.release(t_ap)
                 return
             self.queue_time.release(t_ap)  # airborne: the queue runs on from where it was held
         vs = s.vehicle_state()
         if self.last_setpoint is None and vs is None:
             return
-        sp = queue.tick(self.queue_time.of(t_ap), vs)
+        # not streaming: an idle reference stays on the vehicle, so the next command starts from it
+        follow = sup.phase in (Phase.IDLE, Phase.CANCELLING)
+        sp = queue.tick(self.queue_time.of(t_ap), vs, follow_vehicle=follow)
         if sp is None:
             queue.set_synced(False)
             return

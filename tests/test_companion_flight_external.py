@@ -39,14 +39,27 @@ def test_older_sample_is_ignored() -> None:
         ("ext_heading", "90", 1.0, 0.0, "expected 1 values"),
         ("ext_heading", None, 1.0, 0.0, "expected 1 numbers"),
         ("ext_point", (True, 2), 1.0, 0.0, "booleans"),
+        ("ext_vel", (1, 0, 0, 0), 1e9, 0.0, "exceeds the maximum"),
+        ("ext_vel", (1, 0, 0, 0), 5.01, 0.0, "exceeds the maximum of 5 s"),
     ],
 )
 def test_malformed_sample_raises_and_changes_nothing(stream, values, validity, t, message) -> None:
     ext = ExternalData()
     for name, n in STREAMS.items():
-        ext.push(name, [0.5] * n, 10.0, 0.0)
+        ext.push(name, [0.5] * n, 5.0, 0.0)
     before = {name: ext.sample(name) for name in STREAMS}
     with pytest.raises(ExternalDataError) as info:
         ext.push(stream, values, validity, t)
     assert message in str(info.value)
     assert {name: ext.sample(name) for name in STREAMS} == before
+
+
+def test_the_maximum_validity_is_configurable() -> None:
+    ext = ExternalData(max_validity_s=30.0)
+    assert ext.push("ext_vel", (1, 0, 0, 0), 30.0, 0.0)
+    assert ext.latest("ext_vel", 29.9) is not None and ext.latest("ext_vel", 30.1) is None
+    with pytest.raises(ExternalDataError, match="maximum of 30 s"):
+        ext.push("ext_vel", (1, 0, 0, 0), 31.0, 1.0)
+    for bad in (0.0, -1.0, math.inf, math.nan):
+        with pytest.raises(ValueError, match="max_validity_s"):
+            ExternalData(max_validity_s=bad)

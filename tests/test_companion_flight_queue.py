@@ -8,7 +8,7 @@ import math
 import threading
 
 import pytest
-from flight_support import LIMITS, takeoff
+from flight_support import LIMITS, airborne, index_is, make_sim, takeoff, waypoint
 
 from companion.flight import (
     CommandError,
@@ -36,14 +36,6 @@ from companion.flight.simulate import FlightSim, step_violations
 
 
 # --- commands used by the tests (the executors of seed 000 Sec. VI; takeoff() from flight_support) ----
-def waypoint(n: float, e: float, alt: float, speed: float = 4.0) -> FlightCommand:
-    return FlightCommand(
-        HorizontalChannel(HorizontalMode.POS, north=n, east=e, speed=speed),
-        VerticalChannel(VerticalMode.WITH_HOR, altitude=alt),
-        end=EndCondition(e_h=True, e_v=True),
-    )
-
-
 def land() -> FlightCommand:
     return FlightCommand(
         vertical=VerticalChannel(
@@ -70,24 +62,6 @@ def point(n: float, e: float) -> FlightCommand:
 
 def wait(seconds: float) -> FlightCommand:
     return FlightCommand(end=EndCondition(e_wait=seconds))
-
-
-def make_sim(*commands: FlightCommand, envelope: Envelope | None = None, dt: float = 0.05) -> FlightSim:
-    queue = CommandQueue(LIMITS, envelope)
-    for c in commands:
-        queue.add_command(c)
-    sim = FlightSim(queue, dt=dt)
-    sim.tick()  # the first tick starts the reference at the vehicle
-    return sim
-
-
-def index_is(i: int):
-    return lambda sim: sim.queue.status().current_command_index >= i
-
-
-def airborne(sim: FlightSim, alt: float = 5.0) -> None:
-    sim.queue.run()
-    sim.run_until(lambda s: s.queue.status().current_command_index >= 1 and s.last.p[2] == -alt, 30)
 
 
 class JoystickFeed:
@@ -280,7 +254,12 @@ def test_reset_in_mid_flight_hovers_where_it_is() -> None:
     braking = v * v / (2 * a) + v * a / j
     assert 0.0 < sim.last.p[0] - at_reset[0] <= braking + 0.01
     hover = sim.last.p
-    assert sim.queue.add_command(waypoint(0, 0, 5)) == 0
+    old_ids = [e.command_id for e in sim.queue.events.since(0) if e.command_id is not None]
+    new_id = sim.queue.add_command(waypoint(0, 0, 5))
+    st = sim.queue.status()
+    # the index restarts at 0, the id never repeats and the generation says a reset happened
+    assert (st.current_command_index, st.current_command_id, st.generation) == (0, new_id, 1)
+    assert new_id not in old_ids and new_id > max(old_ids)
     sim.run_for(1.0)
     assert sim.last.p == hover  # reset leaves the queue stopped
     sim.queue.run()
@@ -452,6 +431,7 @@ def test_malformed_external_sample_is_an_error_and_changes_nothing() -> None:
         ((1.0, math.nan, 0.0, 0.0), 0.3),
         ((1.0, 0.0, 0.0), 0.3),
         ((9.0, 0, 0, 0), -1.0),
+        ((9.0, 0, 0, 0), 1e9),  # a validity beyond the maximum would defeat the stop-on-loss
     ):
         with pytest.raises(ExternalDataError):
             sim.queue.push_external("ext_vel", values, validity, sim.t)
@@ -461,7 +441,7 @@ def test_malformed_external_sample_is_an_error_and_changes_nothing() -> None:
     assert sim.queue.status() == status
 
 
-def test_status_snapshot_to_dict_has_exactly_the_qapi_fields() -> None:
+def test_status_snapshot_to_dict_has_the_qapi_fields_then_ours() -> None:
     q = CommandQueue(LIMITS)
     q.set_synced(True)
     assert q.status().to_dict() == {
@@ -473,37 +453,55 @@ def test_status_snapshot_to_dict_has_exactly_the_qapi_fields() -> None:
         "limit_reached": False,
         "target_position_unreachable": False,
         "is_synced": True,
+        "current_command_id": None,
+        "generation": 0,
+        "failure": None,
+        "deferred": None,
     }
 
 
 def test_verbs_from_another_thread_while_ticking() -> None:
+    """Verbs and samples from another thread interleave with the ticks without corrupting the queue.
+
+    The ticking thread waits (wall deadline) at each confirmation point for the control thread to
+    confirm, so the outcome does not depend on how the two threads are scheduled (a loaded machine
+    once let the simulated flight time out before the control thread ran)."""
     sim = make_sim(takeoff(), joystick(), waypoint(5.0, 5.0, 5.0))
     q = sim.queue
     errors: list[BaseException] = []
     done = threading.Event()
+    confirmed = threading.Event()
+    pushes = [0]
 
     def control() -> None:
         try:
-            n = 0
-            while not done.is_set():  # until the flight is over: never give up before the joystick
-                n += 1
+            while not done.is_set():
                 q.status()
                 q.push_external("ext_vel", (0.5, 0.0, 0.0, 0.0), 0.3)
-                if q.status().confirmation_required_status and n % 50 == 0:
+                pushes[0] += 1
+                if q.status().confirmation_required_status and pushes[0] >= 50:
                     with contextlib.suppress(QueueStateError):  # the tick may have moved on meanwhile
                         q.user_confirm()
+                        confirmed.set()
         except BaseException as exc:  # pragma: no cover - reported below
             errors.append(exc)
+
+    def wait_for_confirmation(s: FlightSim) -> None:
+        if q.status().confirmation_required_status and not confirmed.is_set():
+            assert confirmed.wait(30.0), "the control thread never confirmed"
 
     q.run()
     worker = threading.Thread(target=control)
     worker.start()
     try:
+        sim.run_until(lambda s: s.queue.status().confirmation_required_status, 60)
+        sim.on_tick.append(wait_for_confirmation)
         sim.run_until(index_is(3), 60)
     finally:
         done.set()
         worker.join()
     assert not errors
+    assert confirmed.is_set() and pushes[0] >= 50
     assert sim.last.p == (5.0, 5.0, -5.0)
     assert step_violations(sim.setpoints, LIMITS) == []
 

@@ -29,8 +29,10 @@ from .commands import (
     VerticalChannel,
     VerticalMode,
 )
+from .events import EventKind, EventLog, QueueEvent
 from .external import STREAMS, ExternalData, ExternalDataError
 from .limits import Envelope, Limits, load_flight_config
+from .qapi import QueuedCommand
 from .queue import (
     CommandQueue,
     CommandStatus,
@@ -41,16 +43,56 @@ from .queue import (
     QueueSystemStatus,
 )
 from .reference import Reference, ReferenceGenerator
+from .retarget import Retarget
 from .setpoint import Setpoint, SetpointKind, VehicleState
 
 __all__ = [
-    "STREAMS", "BehaviourCatalog", "CommandError", "CommandQueue", "CommandStatus", "EndCondition",
-    "Envelope", "ExternalData", "ExternalDataError", "FlightCommand", "Frame", "HeadingChannel",
+    "STREAMS",
+    "BehaviourCatalog",
+    "CommandError",
+    "CommandQueue",
+    "CommandStatus",
+    "EndCondition",
+    "Envelope",
+    "EventKind",
+    "EventLog",
+    "ExternalData",
+    "ExternalDataError",
+    "FlightCommand",
+    "Frame",
+    "HeadingChannel",
     "HeadingMode",
-    "HorizontalChannel", "HorizontalMode", "Limits", "PauseBehaviour", "QueueError", "QueueState",
-    "QueueStateError", "QueueStatus", "QueueSystemStatus", "Reference", "ReferenceGenerator", "Setpoint",
-    "SetpointKind", "SpeedModifier", "VehicleState", "VerticalChannel", "VerticalMode", "command_from_dict",
-    "command_from_json", "command_from_yaml", "command_to_dict", "command_to_json", "commands_from_json",
-    "commands_from_yaml", "commands_to_json", "commands_to_yaml", "default_catalog", "load_catalog",
-    "load_commands", "load_flight_config",
+    "HorizontalChannel",
+    "HorizontalMode",
+    "Limits",
+    "PauseBehaviour",
+    "QueueError",
+    "QueueEvent",
+    "QueueState",
+    "QueueStateError",
+    "QueueStatus",
+    "QueueSystemStatus",
+    "QueuedCommand",
+    "Reference",
+    "ReferenceGenerator",
+    "Retarget",
+    "Setpoint",
+    "SetpointKind",
+    "SpeedModifier",
+    "VehicleState",
+    "VerticalChannel",
+    "VerticalMode",
+    "command_from_dict",
+    "command_from_json",
+    "command_from_yaml",
+    "command_to_dict",
+    "command_to_json",
+    "commands_from_json",
+    "commands_from_yaml",
+    "commands_to_json",
+    "commands_to_yaml",
+    "default_catalog",
+    "load_catalog",
+    "load_commands",
+    "load_flight_config",
 ]

@@ -89,8 +89,26 @@ class CommandExecution:
         self.land_now = False
         self._h_latched = self._v_latched = self._hd_latched = False
         self._hd_passed = False
+        #: the altitude the command started from (a take-off's ground)
+        self.start_altitude = start.altitude
         self._resolve(start)
         self.resume(start)
+
+    def retarget(self, command: FlightCommand, ref: Reference, changed: frozenset[str]) -> None:
+        """Fly ``command`` from now on (Sec. IV-D): re-resolve the ``changed`` channels ("h", "v", "hd"),
+        keep the other channels' resolved targets, the waited time and a given confirmation; replan."""
+        kept = {"h": self.h_target, "v": self.v_target_down, "hd": self.hd_target_abs}
+        self.command = command
+        self._resolve(ref)
+        if "h" not in changed:
+            self.h_target = kept["h"]
+        if "v" not in changed:
+            self.v_target_down = kept["v"]
+        if "hd" not in changed:
+            self.hd_target_abs = kept["hd"]
+        self.ended = False
+        self.land_now = False
+        self.resume(ref)
 
     # --- resolution ------------------------------------------------------------------------------------
     def _resolve(self, ref: Reference) -> None:

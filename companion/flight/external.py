@@ -16,8 +16,9 @@ stream         values                                  used by
 =============  ======================================  =============================================
 
 A malformed sample (unknown stream, wrong number of values, NaN / infinite values, a validity that
-is not > 0, a time that is not finite) raises :class:`ExternalDataError` and changes nothing. A
-sample older than the stream's newest one is ignored (``push`` returns False): UDP may reorder.
+is not > 0 or above the configured maximum, a time that is not finite) raises
+:class:`ExternalDataError` and changes nothing. A sample older than the stream's newest one is
+ignored (``push`` returns False): UDP may reorder.
 
 Thread safety: not locked itself; the :class:`~companion.flight.queue.CommandQueue` owns one and
 mutates it only under its own lock (``CommandQueue.push_external``).
@@ -29,6 +30,9 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+#: The longest validity a sample may claim (s) unless configured otherwise: a sample valid for an hour
+#: would defeat the stop-on-loss of Sec. IV-C (a dead joystick must stop the vehicle promptly).
+DEFAULT_MAX_VALIDITY_S = 5.0
 #: Stream name -> number of values.
 STREAMS: dict[str, int] = {"ext_pos": 3, "ext_vel": 4, "ext_heading": 1, "ext_point": 2, "rc_vel": 4}
 
@@ -50,13 +54,16 @@ class Sample:
 
 
 class ExternalData:
-    """The newest sample of each stream."""
+    """The newest sample of each stream; validities above ``max_validity_s`` are refused."""
 
-    def __init__(self) -> None:
+    def __init__(self, max_validity_s: float = DEFAULT_MAX_VALIDITY_S) -> None:
+        if isinstance(max_validity_s, bool) or not isinstance(max_validity_s, int | float) \
+                or not math.isfinite(max_validity_s) or max_validity_s <= 0:
+            raise ValueError(f"max_validity_s must be a finite number of seconds > 0, got {max_validity_s!r}")
+        self.max_validity_s = float(max_validity_s)
         self._latest: dict[str, Sample] = {}
 
-    @staticmethod
-    def validate(stream: str, values: Sequence[float], validity_s: float, t_s: float) -> Sample:
+    def validate(self, stream: str, values: Sequence[float], validity_s: float, t_s: float) -> Sample:
         """Check a sample without storing it; raise :class:`ExternalDataError` when malformed."""
         if not isinstance(stream, str) or stream not in STREAMS:
             raise ExternalDataError(f"unknown stream {stream!r} (known: {', '.join(sorted(STREAMS))})")
@@ -75,6 +82,9 @@ class ExternalData:
                 or not math.isfinite(validity_s) or validity_s <= 0:
             raise ExternalDataError(f"{stream}: validity must be a finite number of seconds > 0, "
                                     f"got {validity_s!r}")
+        if validity_s > self.max_validity_s:
+            raise ExternalDataError(f"{stream}: validity {validity_s:g} s exceeds the maximum of "
+                                    f"{self.max_validity_s:g} s (a stale stream must stop the vehicle)")
         if isinstance(t_s, bool) or not isinstance(t_s, int | float) or not math.isfinite(t_s):
             raise ExternalDataError(f"{stream}: sample time must be finite, got {t_s!r}")
         return Sample(vals, float(t_s), float(validity_s))

@@ -27,6 +27,8 @@ from shapely.ops import nearest_points
 
 from taskflight.yamlio import ConfigError, Fields, load_yaml
 
+from .commands import CommandError, FlightCommand, Frame, HorizontalMode, VerticalMode
+
 
 @dataclass(frozen=True)
 class Limits:
@@ -167,6 +169,21 @@ class Envelope:
             return np.asarray(ne, dtype=float), False
         near = nearest_points(self._poly, Point(float(ne[0]), float(ne[1])))[0]
         return np.array([near.x, near.y]), True
+
+    def check_command(self, command: FlightCommand) -> None:
+        """Raise :class:`CommandError` if an absolute target of ``command`` lies outside the envelope."""
+        h, v = command.horizontal, command.vertical
+        if h.mode is HorizontalMode.POS and h.resolved_frame is Frame.ABSOLUTE \
+                and not self.contains_ne((h.north, h.east)):  # type: ignore[arg-type]
+            raise CommandError("horizontal.north", f"target ({h.north:g}, {h.east:g}) lies outside the "
+                                                   "operational envelope")
+        absolute_alt = v.mode is VerticalMode.WITH_HOR or (v.mode is VerticalMode.POS
+                                                            and v.resolved_frame is Frame.ABSOLUTE)
+        if absolute_alt and v.altitude is not None:
+            _, moved = self.clamp_altitude(v.altitude, floor_exempt=v.take_off or v.allow_landing)
+            if moved:
+                raise CommandError("vertical.altitude",
+                                   f"altitude {v.altitude:g} m lies outside the operational envelope")
 
     def clamp_altitude(self, alt: float, *, floor_exempt: bool = False) -> tuple[float, bool]:
         lo = None if floor_exempt else self.altitude_floor

@@ -4,18 +4,22 @@
 MAVLink link) calls :meth:`CommandQueue.tick` at the streaming rate with the time and the measured
 vehicle state and streams the returned :class:`~companion.flight.setpoint.Setpoint`. Other threads
 (the HTTP control surface, behaviours) call the verbs. One lock guards all state; only the queue's
-own methods change it (one writer).
+own methods change it (one writer). Every change of a command's life is published as a
+:class:`~companion.flight.events.QueueEvent` on :attr:`CommandQueue.events` (wait on it or subscribe).
 
 Verbs (Sec. V) and the decisions where the paper is silent
-    ``add_command(c) -> index``  append (validated; an absolute target outside the envelope is
-        refused). If the queue is running and idle, the command starts at the next tick.
-    ``check_command(c)``  raise what ``add_command(c)`` would, change nothing (all-or-none batches).
+    ``add_command(c) -> id``  append (validated; an absolute target outside the envelope is
+        refused). If the queue is running and idle, the command starts at the next tick. Ids are
+        unique for the life of the process (never reused after ``reset()``).
+    ``add_commands([c, ...]) -> [id, ...]``  all validated first, then appended at once (atomic:
+        all or none, no tick in between).
+    ``check_command(c)``  raise what ``add_command(c)`` would, change nothing.
     ``run()``  start or continue; also before anything is queued (execution starts with the first
         command added). A stopped command is resumed (see below). Called during a pause behaviour,
         it abandons the behaviour and continues at once ("pause_direct, then run again").
-        Idempotent when already running.
-    ``stop()``  do not advance; the current command (or pause behaviour) stops at once and the
-        reference comes to rest where it is, smoothly. ``run()`` resumes the stopped command.
+        Idempotent when already running. Clears a failure (the failed command is tried again).
+    ``stop()``  do not advance; the current command (or pause behaviour) stops at once **if
+        allowed** and the reference comes to rest where it is, smoothly. ``run()`` resumes it.
     ``pause_direct(behaviour_id=None)``  interrupt now and run a pause behaviour (default
         ``hover``). When it finishes the interrupted command is **resumed** from the current
         reference: resolved targets kept (a relative waypoint stays where it was), time already
@@ -26,12 +30,24 @@ Verbs (Sec. V) and the decisions where the paper is silent
         then continue with the next command. With nothing executing it acts as ``pause_direct``.
         Refused while a behaviour runs or another pause is pending.
     ``reset()``  clear the list, drop any behaviour, hold where the reference is; the queue is
-        STOPPED afterwards (commands added later wait for ``run()``), the index restarts at 0.
+        STOPPED afterwards (commands added later wait for ``run()``), the index restarts at 0 and
+        the ``generation`` goes up by one. Unfinished commands get a CANCELLED event.
     ``user_confirm()``  the E_User confirmation of the executing command (or behaviour command);
         :class:`QueueStateError` when nothing is waiting for one (nothing changes).
+    ``retarget(id, north=, east=, altitude=, speed=, heading=)``  change the running command's
+        target in flight (Sec. IV-D, :mod:`.retarget`); the stream stays continuous.
     A verb in the wrong state raises :class:`QueueStateError`, an unknown behaviour
     :class:`QueueError`, and changes nothing. While OVERRIDDEN only ``add_command``, ``stop``,
     ``reset`` are accepted.
+
+"Stopped if allowed" during a take-off (Sec. V)
+    A take-off that has not yet left the ground (its execution has not advanced: the link holds the
+    queue's time while the autopilot arms and lifts off) stops at once; the link then cancels the
+    take-off (nothing arms, or it disarms). Once climbing, it may not be stopped until its reference
+    is ``takeoff_min_hold_m`` above where it started: ``stop``, ``pause_direct`` and ``reset``
+    given in that window are *deferred* (status ``deferred``, a DEFERRED event) and carried out
+    there, so the vehicle never hovers armed a few centimetres above the ground. ``run()`` cancels
+    a deferred stop or pause.
 
 Status (Sec. V, :class:`QueueStatus`)
     ``queue_system_status`` RUNNING / OVERRIDDEN (someone else took the vehicle: ``set_overridden``,
@@ -41,90 +57,56 @@ Status (Sec. V, :class:`QueueStatus`)
     WAITING_FOR_BEHAVIOR_AND_CONTINUING (what the queue does once the behaviour finishes).
     ``current_command_index`` the command executing, or the one that starts on run(); equals the
     number of commands when all are done. ``current_command_status`` UNKNOWN (no command at the
-    index) / STOPPED / RUNNING / PAUSED (a pause behaviour runs before it resumes or starts).
+    index) / STOPPED / RUNNING / PAUSED (a pause behaviour runs before it resumes or starts) /
+    FAILED (the link gave it up, e.g. a refused take-off; ``failure`` says why).
     ``confirmation_required_status``, ``limit_reached``, ``target_position_unreachable`` (of the
     last tick), ``is_synced`` (set by the link from the autopilot's POSITION_TARGET_LOCAL_NED echo).
+    Beyond the paper: ``current_command_id``, ``generation``, ``failure``, ``deferred``.
 
 Tick contract
-    ``tick(now_s, vehicle_state) -> Setpoint | None``. ``now_s`` is the companion's clock (the
-    autopilot's time); ``vehicle_state`` is required on the first tick (the reference starts at the
-    measured state) and after an override. The setpoint is the reference one tick ahead. A tick
-    with ``now_s`` not after the previous one returns the previous setpoint. Intervals above
-    ``max_step_s`` advance the reference by ``max_step_s`` only (a stalled loop never makes the
-    reference leap). Returns None while OVERRIDDEN.
+    ``tick(now_s, vehicle_state, follow_vehicle=False) -> Setpoint | None``. ``now_s`` is the
+    companion's clock (the autopilot's time); ``vehicle_state`` is required on the first tick (the
+    reference starts at the measured state) and after an override. With ``follow_vehicle`` (the
+    link is not streaming) and nothing executing, the reference is re-anchored on the measured
+    state, so the next command starts where the vehicle is. The setpoint is the reference one tick
+    ahead. A tick with ``now_s`` not after the previous one returns the previous setpoint. Intervals
+    above ``max_step_s`` advance the reference by ``max_step_s`` only (a stalled loop never makes
+    the reference leap). Returns None while OVERRIDDEN.
 """
 
 from __future__ import annotations
 
 import logging
 import threading
-from collections.abc import Sequence
-from dataclasses import asdict, dataclass, replace
-from enum import Enum
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass, replace
 
 from taskflight.clock import Clock
 
 from .behaviours import DEFAULT_BEHAVIOUR, BehaviourCatalog, PauseBehaviour, default_catalog
-from .commands import CommandError, FlightCommand, Frame, HorizontalMode, VerticalMode
+from .commands import CommandError, FlightCommand
+from .events import EventKind, EventLog, QueueEvent, new_command_id
 from .execution import CommandExecution
-from .external import ExternalData, Sample
+from .external import DEFAULT_MAX_VALIDITY_S, ExternalData, Sample
 from .limits import Envelope, Limits
+from .qapi import (
+    CommandStatus,
+    QueuedCommand,
+    QueueError,
+    QueueState,
+    QueueStateError,
+    QueueStatus,
+    QueueSystemStatus,
+)
 from .reference import HOLD, Reference, ReferenceGenerator, wrap_pi
+from .retarget import Retarget, RetargetError, retargeted
 from .setpoint import Setpoint, SetpointKind, VehicleState
 
 log = logging.getLogger(__name__)
 
-
-class QueueError(ValueError):
-    """A verb's argument is wrong (unknown behaviour, not a flight command); nothing changed."""
-
-
-class QueueStateError(QueueError):
-    """A verb is not allowed in the queue's current state; nothing changed."""
-
-
-class QueueSystemStatus(Enum):
-    RUNNING = "RUNNING"
-    OVERRIDDEN = "OVERRIDDEN"
-
-
-class QueueState(Enum):
-    """Values of ``queue_status`` (Sec. V)."""
-
-    STOPPED = "STOPPED"
-    RUNNING = "RUNNING"
-    WAITING_FOR_BEHAVIOR_AND_STOPPING = "WAITING_FOR_BEHAVIOR_AND_STOPPING"
-    WAITING_FOR_BEHAVIOR_AND_CONTINUING = "WAITING_FOR_BEHAVIOR_AND_CONTINUING"
-
-
-class CommandStatus(Enum):
-    """Values of ``current_command_status`` (Sec. V)."""
-
-    UNKNOWN = "UNKNOWN"
-    STOPPED = "STOPPED"
-    RUNNING = "RUNNING"
-    PAUSED = "PAUSED"
-
-
-@dataclass(frozen=True)
-class QueueStatus:
-    """A snapshot of the QAPI status (Sec. V), exactly its fields."""
-
-    queue_system_status: QueueSystemStatus
-    queue_status: QueueState
-    current_command_index: int
-    current_command_status: CommandStatus
-    confirmation_required_status: bool
-    limit_reached: bool
-    target_position_unreachable: bool
-    is_synced: bool
-
-    def to_dict(self) -> dict[str, object]:
-        out = asdict(self)
-        for key, value in out.items():
-            if isinstance(value, Enum):
-                out[key] = value.name
-        return out
+#: A climbing take-off may not be stopped below this height above where it started (m).
+TAKEOFF_MIN_HOLD_M = 1.0
 
 
 @dataclass
@@ -140,21 +122,30 @@ class CommandQueue:
 
     def __init__(self, limits: Limits | None = None, envelope: Envelope | None = None,
                  catalog: BehaviourCatalog | None = None, clock: Clock | None = None,
-                 max_step_s: float = 0.25) -> None:
+                 max_step_s: float = 0.25, max_validity_s: float = DEFAULT_MAX_VALIDITY_S,
+                 takeoff_min_hold_m: float = TAKEOFF_MIN_HOLD_M) -> None:
         self.limits = limits or Limits()
         self.envelope = envelope or Envelope()
         self.catalog = catalog or default_catalog()
+        self.events = EventLog()
+        self.takeoff_min_hold_m = float(takeoff_min_hold_m)
         self._clock = clock
         self._max_step_s = max_step_s
         self._lock = threading.RLock()
+        self._depth = 0
+        self._outbox: list[QueueEvent] = []
         self._gen = ReferenceGenerator(self.limits, self.envelope)
-        self._ext = ExternalData()
-        self._commands: list[FlightCommand] = []
+        self._ext = ExternalData(max_validity_s)
+        self._commands: list[QueuedCommand] = []
+        self._generation = 0
         self._index = 0
         self._exec: CommandExecution | None = None
+        self._started_ids: set[int] = set()
         self._state = QueueState.STOPPED
         self._behaviour: _ActiveBehaviour | None = None
         self._pending_pause: PauseBehaviour | None = None
+        self._deferred: tuple[str, PauseBehaviour | None] | None = None
+        self._failure: str | None = None
         self._overridden = False
         self._synced = False
         self._ref: Reference | None = None
@@ -163,56 +154,106 @@ class CommandQueue:
         self._limit_reached = False
         self._unreachable = False
 
+    # --- locking and events ----------------------------------------------------------------------------
+    @contextmanager
+    def _locked(self) -> Iterator[None]:
+        """The queue's lock; events recorded inside are dispatched to subscribers after it is released."""
+        events: list[QueueEvent] = []
+        with self._lock:
+            self._depth += 1
+            try:
+                yield
+            finally:
+                self._depth -= 1
+                if self._depth == 0 and self._outbox:
+                    events, self._outbox = self._outbox, []
+        if events:
+            self.events.dispatch(events)
+
+    def _emit(self, kind: EventKind, entry: QueuedCommand | None = None, index: int | None = None,
+              detail: str = "") -> None:
+        event = self.events.record(kind, entry.id if entry else None, index, self._generation, self._last_t,
+                                   detail)
+        self._outbox.append(event)
+
+    def _current_entry(self) -> QueuedCommand | None:
+        return self._commands[self._index] if self._index < len(self._commands) else None
+
     # --- QAPI verbs ----------------------------------------------------------------------------------
     def check_command(self, command: FlightCommand) -> None:
-        """Raise what :meth:`add_command` would raise for ``command`` (QueueError, CommandError); no change.
-
-        For an all-or-none batch: check every command first, then add them.
-        """
+        """Raise what :meth:`add_command` would (QueueError, CommandError); change nothing."""
         if not isinstance(command, FlightCommand):
             raise QueueError(f"expected a FlightCommand, got {type(command).__name__}")
-        self._check_envelope(command)
+        self.envelope.check_command(command)
 
     def add_command(self, command: FlightCommand) -> int:
-        """Append a command; returns its index."""
-        self.check_command(command)
-        with self._lock:
-            self._commands.append(command)
-            index = len(self._commands) - 1
-            log.info("command %d added", index)
+        """Append a command; returns its id (unique for the life of the process)."""
+        return self.add_commands([command])[0]
+
+    def add_commands(self, commands: Sequence[FlightCommand]) -> list[int]:
+        """Append ``commands`` at once after checking them all (all or none); returns their ids."""
+        commands = list(commands)
+        if not commands:
+            return []
+        for i, c in enumerate(commands):
+            try:
+                self.check_command(c)
+            except CommandError as exc:
+                if len(commands) == 1:
+                    raise
+                raise CommandError(f"commands[{i}].{exc.field}", exc.reason) from None
+            except QueueError as exc:
+                if len(commands) == 1:
+                    raise
+                raise QueueError(f"commands[{i}]: {exc}") from None
+        with self._locked():
+            ids = []
+            for c in commands:
+                entry = QueuedCommand(new_command_id(), c)
+                self._commands.append(entry)
+                ids.append(entry.id)
+                self._emit(EventKind.ADDED, entry, len(self._commands) - 1)
+            log.info("commands %s added", ids)
             self._maybe_start()
-            return index
+            return ids
 
     def run(self) -> None:
-        with self._lock:
+        with self._locked():
             self._refuse_if_overridden("run")
             was_running = self._state is QueueState.RUNNING and self._behaviour is None
+            if self._deferred is not None and self._deferred[0] in ("stop", "pause_direct"):
+                log.info("run(): deferred %s cancelled", self._deferred[0])
+                self._deferred = None
             if self._behaviour is not None:
                 log.info("run(): abandoning pause behaviour %s", self._behaviour.behaviour.id)
                 self._behaviour = None
+                was_running = False
             self._state = QueueState.RUNNING
+            self._failure = None
             if not was_running and self._exec is not None and self._ref is not None:
                 self._exec.resume(self._ref)
+                self._emit(EventKind.RESUMED, self._current_entry(), self._index)
             self._maybe_start()
 
     def stop(self) -> None:
-        with self._lock:
-            self._state = QueueState.STOPPED
-            self._behaviour = None
-            self._pending_pause = None
-            log.info("stopped at command %d", self._index)
+        with self._locked():
+            if self._defer_if_taking_off("stop", None):
+                return
+            self._do_stop()
 
     def pause_direct(self, behaviour_id: str | None = None) -> None:
-        with self._lock:
+        with self._locked():
             self._refuse_if_overridden("pause_direct")
             behaviour = self._behaviour_of(behaviour_id)
             if self._behaviour is not None:
                 raise QueueStateError(f"pause_direct: already in pause behaviour "
                                       f"{self._behaviour.behaviour.id!r} (user_confirm or run() ends it)")
+            if self._defer_if_taking_off("pause_direct", behaviour):
+                return
             self._start_behaviour(behaviour, continuing=self._state is QueueState.RUNNING)
 
     def pause_after_current(self, behaviour_id: str | None = None) -> None:
-        with self._lock:
+        with self._locked():
             self._refuse_if_overridden("pause_after_current")
             behaviour = self._behaviour_of(behaviour_id)
             if self._behaviour is not None:
@@ -228,17 +269,13 @@ class CommandQueue:
                 self._start_behaviour(behaviour, continuing=self._state is QueueState.RUNNING)
 
     def reset(self) -> None:
-        with self._lock:
-            self._commands.clear()
-            self._index = 0
-            self._exec = None
-            self._behaviour = None
-            self._pending_pause = None
-            self._state = QueueState.STOPPED
-            log.info("queue reset")
+        with self._locked():
+            if self._defer_if_taking_off("reset", None):
+                return
+            self._do_reset()
 
     def user_confirm(self) -> None:
-        with self._lock:
+        with self._locked():
             self._refuse_if_overridden("user_confirm")
             execution = self._active_execution()
             if execution is None or not execution.waiting_for_confirmation:
@@ -249,23 +286,68 @@ class CommandQueue:
             if execution.ended:
                 self._finish_active()
 
+    def retarget(self, command_id: int, change: Retarget) -> FlightCommand:
+        """Change the executing command's target in flight (Sec. IV-D); returns the command as it now reads.
+
+        :class:`QueueStateError` if ``command_id`` is not the command executing (started and unfinished);
+        :class:`QueueError` / :class:`CommandError` if the change does not fit it. Nothing changes then.
+        """
+        with self._locked():
+            self._refuse_if_overridden("retarget")
+            entry = self._current_entry()
+            if entry is None or entry.id != command_id or self._exec is None or self._ref is None:
+                raise QueueStateError(f"retarget: command {command_id} is not executing")
+            try:
+                new, changed = retargeted(entry.command, self._exec, change)
+            except RetargetError as exc:
+                raise QueueError(str(exc)) from None
+            self.envelope.check_command(new)
+            self._exec.retarget(new, self._ref, changed)
+            entry.command = new
+            self._emit(EventKind.RETARGETED, entry, self._index, change.describe())
+            log.info("command %d retargeted: %s", entry.id, change.describe())
+            return new
+
     # --- link side ------------------------------------------------------------------------------------
     def set_overridden(self, overridden: bool) -> None:
         """Called by the link: someone else took the vehicle (mode change, disarm) or gave it back."""
-        with self._lock:
+        with self._locked():
             if overridden and not self._overridden:
                 log.warning("queue overridden: stopping, no more setpoints")
                 self._state = QueueState.STOPPED
                 self._behaviour = None
                 self._pending_pause = None
+                self._deferred = None
                 self._ref = None
                 self._last_setpoint = None
+                self._emit(EventKind.OVERRIDDEN, self._current_entry(), self._index)
             self._overridden = bool(overridden)
 
     def set_synced(self, synced: bool) -> None:
         """Called by the link: the autopilot's POSITION_TARGET_LOCAL_NED echoes what we stream."""
         with self._lock:
             self._synced = bool(synced)
+
+    def fail_current(self, reason: str) -> None:
+        """Called by the link: it gave up the executing command (a take-off the autopilot refused).
+
+        The queue stops; the command stays current with status FAILED and ``failure`` = ``reason``;
+        ``run()`` tries it again.
+        """
+        with self._locked():
+            entry = self._current_entry()
+            self._failure = reason
+            self._state = QueueState.STOPPED
+            self._behaviour = None
+            self._pending_pause = None
+            self._deferred = None
+            if self._exec is not None:
+                # the command starts afresh from wherever the vehicle is when it is tried again
+                self._exec = None
+                if entry is not None:
+                    self._started_ids.discard(entry.id)
+            self._emit(EventKind.FAILED, entry, self._index, reason)
+            log.error("command %s failed: %s", entry.id if entry else None, reason)
 
     def push_external(self, stream: str, values: Sequence[float], validity_s: float,
                       t_s: float | None = None) -> bool:
@@ -283,10 +365,21 @@ class CommandQueue:
         with self._lock:
             return self._ext.sample(stream)
 
+    def executing_take_off(self) -> bool:
+        """True while the command executing now is a take-off (the link keeps its take-off going)."""
+        with self._lock:
+            ex = self._active_execution()
+            return ex is not None and ex.command.vertical.take_off and not ex.ended
+
+    @property
+    def max_validity_s(self) -> float:
+        return self._ext.max_validity_s
+
     # --- status ------------------------------------------------------------------------------------------
     def status(self) -> QueueStatus:
         with self._lock:
             execution = self._active_execution()
+            entry = self._current_entry()
             return QueueStatus(
                 queue_system_status=(QueueSystemStatus.OVERRIDDEN if self._overridden
                                      else QueueSystemStatus.RUNNING),
@@ -296,12 +389,22 @@ class CommandQueue:
                 confirmation_required_status=execution is not None and execution.waiting_for_confirmation,
                 limit_reached=self._limit_reached,
                 target_position_unreachable=self._unreachable,
-                is_synced=self._synced)
+                is_synced=self._synced,
+                current_command_id=entry.id if entry else None,
+                generation=self._generation,
+                failure=self._failure,
+                deferred=self._deferred[0] if self._deferred else None)
 
     @property
     def commands(self) -> tuple[FlightCommand, ...]:
         with self._lock:
-            return tuple(self._commands)
+            return tuple(e.command for e in self._commands)
+
+    @property
+    def entries(self) -> tuple[QueuedCommand, ...]:
+        """(id, command) of each command in the list (copies)."""
+        with self._lock:
+            return tuple(QueuedCommand(e.id, e.command) for e in self._commands)
 
     @property
     def behaviour_id(self) -> str | None:
@@ -319,18 +422,21 @@ class CommandQueue:
         return self._gen.guard_interventions
 
     # --- the tick ----------------------------------------------------------------------------------------
-    def tick(self, now_s: float, vehicle_state: VehicleState | None = None) -> Setpoint | None:
+    def tick(self, now_s: float, vehicle_state: VehicleState | None = None, *,
+             follow_vehicle: bool = False) -> Setpoint | None:
         """Advance to ``now_s`` and return the setpoint to stream (see module docstring)."""
-        with self._lock:
+        with self._locked():
             if self._overridden:
                 return None
-            if self._ref is None:
+            follow = follow_vehicle and vehicle_state is not None and self._active_execution() is None
+            if self._ref is None or follow:
                 if vehicle_state is None:
                     raise ValueError("tick: the first tick (and the first after an override) needs "
                                      "the vehicle state")
                 self._ref = self._gen.initial(now_s, vehicle_state.p, vehicle_state.v, vehicle_state.yaw)
                 self._last_t = now_s
-                self._last_setpoint = self._setpoint(None, False)
+                self._maybe_start()
+                self._last_setpoint = self._setpoint(self._active_execution(), False)
                 return self._last_setpoint
             assert self._last_t is not None
             elapsed = now_s - self._last_t
@@ -353,6 +459,7 @@ class CommandQueue:
             setpoint = self._setpoint(execution, land_now)
             if execution is not None and execution.ended:
                 self._finish_active()
+            self._apply_deferred()
             self._last_setpoint = setpoint
             return setpoint
 
@@ -368,19 +475,61 @@ class CommandQueue:
         except KeyError as exc:
             raise QueueError(str(exc.args[0])) from None
 
-    def _check_envelope(self, command: FlightCommand) -> None:
-        h, v = command.horizontal, command.vertical
-        if h.mode is HorizontalMode.POS and h.resolved_frame is Frame.ABSOLUTE \
-                and not self.envelope.contains_ne((h.north, h.east)):  # type: ignore[arg-type]
-                raise CommandError("horizontal.north", f"target ({h.north:g}, {h.east:g}) lies outside the "
-                                                       "operational envelope")
-        absolute_alt = v.mode is VerticalMode.WITH_HOR or (v.mode is VerticalMode.POS
-                                                            and v.resolved_frame is Frame.ABSOLUTE)
-        if absolute_alt and v.altitude is not None:
-            _, moved = self.envelope.clamp_altitude(v.altitude, floor_exempt=v.take_off or v.allow_landing)
-            if moved:
-                raise CommandError("vertical.altitude",
-                                   f"altitude {v.altitude:g} m lies outside the operational envelope")
+    def _takeoff_unstoppable(self) -> bool:
+        """A climbing take-off still below its minimum hold height (module docstring)."""
+        ex = self._exec
+        if ex is None or self._behaviour is not None or self._state is not QueueState.RUNNING \
+                or not ex.command.vertical.take_off or ex.ended or ex.elapsed_s <= 0 or self._ref is None:
+            return False
+        return self._ref.altitude < ex.start_altitude + self.takeoff_min_hold_m
+
+    def _defer_if_taking_off(self, verb: str, behaviour: PauseBehaviour | None) -> bool:
+        if not self._takeoff_unstoppable():
+            return False
+        if self._deferred is not None and self._deferred[0] == "reset" and verb != "reset":
+            raise QueueStateError(f"{verb}: a reset is already deferred until the take-off may be stopped")
+        self._deferred = (verb, behaviour)
+        text = f"{verb} deferred until the take-off is {self.takeoff_min_hold_m:g} m up"
+        log.info("%s", text)
+        self._emit(EventKind.DEFERRED, self._current_entry(), self._index, text)
+        return True
+
+    def _apply_deferred(self) -> None:
+        if self._deferred is None or self._takeoff_unstoppable():
+            return
+        verb, behaviour = self._deferred
+        self._deferred = None
+        log.info("carrying out the deferred %s", verb)
+        if verb == "stop":
+            self._do_stop()
+        elif verb == "reset":
+            self._do_reset()
+        elif verb == "pause_direct" and behaviour is not None and self._behaviour is None:
+            self._start_behaviour(behaviour, continuing=self._state is QueueState.RUNNING)
+
+    def _do_stop(self) -> None:
+        running = self._state is QueueState.RUNNING or self._behaviour is not None
+        self._state = QueueState.STOPPED
+        self._behaviour = None
+        self._pending_pause = None
+        if running and self._exec is not None:
+            self._emit(EventKind.STOPPED, self._current_entry(), self._index)
+        log.info("stopped at command %d", self._index)
+
+    def _do_reset(self) -> None:
+        for i in range(self._index, len(self._commands)):
+            self._emit(EventKind.CANCELLED, self._commands[i], i, "reset")
+        self._commands.clear()
+        self._index = 0
+        self._exec = None
+        self._behaviour = None
+        self._pending_pause = None
+        self._deferred = None
+        self._failure = None
+        self._state = QueueState.STOPPED
+        self._generation += 1
+        self._emit(EventKind.RESET, None, None, f"generation {self._generation}")
+        log.info("queue reset (generation %d)", self._generation)
 
     def _active_execution(self) -> CommandExecution | None:
         if self._behaviour is not None:
@@ -399,12 +548,19 @@ class CommandQueue:
                 self._behaviour.execution = CommandExecution(cmd, self._ref, self.limits)
             return
         if self._state is QueueState.RUNNING and self._exec is None and self._index < len(self._commands):
-            self._exec = CommandExecution(self._commands[self._index], self._ref, self.limits)
-            log.info("command %d started", self._index)
+            entry = self._commands[self._index]
+            self._exec = CommandExecution(entry.command, self._ref, self.limits)
+            if entry.id not in self._started_ids:
+                self._started_ids.add(entry.id)
+                self._emit(EventKind.STARTED, entry, self._index)
+            log.info("command %d (id %d) started", self._index, entry.id)
 
     def _start_behaviour(self, behaviour: PauseBehaviour, *, continuing: bool) -> None:
         self._pending_pause = None
         self._behaviour = _ActiveBehaviour(behaviour, 0, None, continuing)
+        entry = self._current_entry()
+        if entry is not None:
+            self._emit(EventKind.PAUSED, entry, self._index, behaviour.id)
         self._maybe_start()
         log.info("pause behaviour %s started (%s afterwards)", behaviour.id,
                  "continue" if continuing else "stop")
@@ -421,11 +577,17 @@ class CommandQueue:
             log.info("pause behaviour %s finished", b.behaviour.id)
             self._behaviour = None
             self._state = QueueState.RUNNING if b.continuing else QueueState.STOPPED
-            if b.continuing and self._exec is not None and self._ref is not None:
-                self._exec.resume(self._ref)
+            if b.continuing and self._current_entry() is not None:
+                if self._exec is not None and self._ref is not None:
+                    self._exec.resume(self._ref)
+                self._emit(EventKind.RESUMED, self._current_entry(), self._index, b.behaviour.id)
             self._maybe_start()
             return
+        entry = self._current_entry()
         log.info("command %d finished", self._index)
+        if entry is not None:
+            self._emit(EventKind.FINISHED, entry, self._index)
+            self._started_ids.discard(entry.id)
         self._exec = None
         self._index += 1
         if self._pending_pause is not None:
@@ -444,6 +606,8 @@ class CommandQueue:
             return CommandStatus.UNKNOWN
         if self._behaviour is not None:
             return CommandStatus.PAUSED
+        if self._failure is not None:
+            return CommandStatus.FAILED
         return CommandStatus.RUNNING if self._state is QueueState.RUNNING else CommandStatus.STOPPED
 
     def _setpoint(self, execution: CommandExecution | None, land_now: bool) -> Setpoint:
@@ -453,6 +617,7 @@ class CommandQueue:
         take_off = allow_landing = False
         takeoff_alt = None
         index: int | None = None
+        command_id: int | None = None
         behaviour_id = self._behaviour.behaviour.id if self._behaviour is not None else None
         if execution is not None:
             cmd = execution.command
@@ -464,5 +629,7 @@ class CommandQueue:
                 takeoff_alt = -execution.v_target_down
             if behaviour_id is None:
                 index = self._index
+                entry = self._current_entry()
+                command_id = entry.id if entry else None
         return Setpoint(ref.t_s, ref.p, ref.v, ref.a, wrap_pi(ref.yaw), ref.yaw_rate, kind, take_off,
-                        takeoff_alt, allow_landing, land_now, index, behaviour_id)
+                        takeoff_alt, allow_landing, land_now, index, behaviour_id, command_id)

@@ -33,8 +33,8 @@ class Setpoint:
     ``takeoff_altitude``, metres up relative to the origin). ``allow_landing``: the running command
     may touch down. ``land_now``: that landing command's reference has reached its altitude or the
     vehicle reports it is on the ground; the link sends LAND. ``command_index`` is the queue index
-    of the producing command (None while holding or inside a pause behaviour, then
-    ``behaviour_id`` names the behaviour).
+    of the producing command and ``command_id`` its id (None while holding or inside a pause
+    behaviour, then ``behaviour_id`` names the behaviour).
     """
 
     t_s: float
@@ -50,13 +50,14 @@ class Setpoint:
     land_now: bool = False
     command_index: int | None = None
     behaviour_id: str | None = None
+    command_id: int | None = None
 
     def to_dict(self) -> dict[str, object]:
         return {"t_s": self.t_s, "p": list(self.p), "v": list(self.v), "a": list(self.a), "yaw": self.yaw,
                 "yaw_rate": self.yaw_rate, "kind": self.kind.name, "take_off": self.take_off,
                 "takeoff_altitude": self.takeoff_altitude, "allow_landing": self.allow_landing,
                 "land_now": self.land_now, "command_index": self.command_index,
-                "behaviour_id": self.behaviour_id}
+                "behaviour_id": self.behaviour_id, "command_id": self.command_id}
 
 
 @dataclass(frozen=True)

@@ -278,6 +278,10 @@ class MavlinkLink:
     def arm(self, now_s: float) -> CommandRequest:
         return self.commands.request(M.MAV_CMD_COMPONENT_ARM_DISARM, (1,), now_s)
 
+    def disarm(self, now_s: float) -> CommandRequest:
+        """Disarm (ArduCopter refuses it in the air unless forced; we never force)."""
+        return self.commands.request(M.MAV_CMD_COMPONENT_ARM_DISARM, (0,), now_s)
+
     def takeoff(self, altitude_above_home_m: float, now_s: float) -> CommandRequest:
         """MAV_CMD_NAV_TAKEOFF: ArduCopter (GUIDED, armed, on the ground) climbs to param7 m above home."""
         return self.commands.request(M.MAV_CMD_NAV_TAKEOFF, (0, 0, 0, 0, 0, 0,
