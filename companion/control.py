@@ -1,56 +1,321 @@
-"""The local control surface: the QAPI over HTTP on 127.0.0.1 (issue 4 item 7; seed 000 Sec. V).
+"""The control surface: the QAPI over HTTP (issue 4 item 7; seed 000 Sec. V).
 
 The paper's QuadNode offers the QAPI as ROS service calls; here they are HTTP endpoints (FastAPI,
-served by uvicorn on the loopback interface only) for the ground service and operators' tools. Every
-body and answer is JSON. Commands use the flight codec's format (:mod:`companion.flight.codec`).
+served by uvicorn) for the ground service and operators' tools. Every body and answer is JSON and
+has a pydantic model, so ``GET /openapi.json`` (and ``/docs``) describe every request and answer.
+Commands use the flight codec's format (:mod:`companion.flight.codec`); ids are the queue's
+process-unique command ids (:mod:`companion.flight.events`).
 
-==============================  ===============================================================
-``GET  /status``                QAPI status (Sec. V) + flight phase, link, vehicle, node
-``GET  /commands``              the queued commands (codec form) and the current index
-``POST /commands``              one command ``{horizontal, vertical, heading, end}``, or
-                                ``{"commands": [...]}`` (all validated first; all or none added)
-                                -> ``{"indices": [...]}``
-``POST /run``                   run()
-``POST /stop``                  stop()
-``POST /pause_direct``          pause_direct; optional body ``{"behaviour_id": "joystick"}``
-``POST /pause_after_current``   pause_after_current; optional body as above
-``POST /reset``                 reset()
-``POST /user_confirm``          user_confirm()
-``GET  /behaviours``            the pause behaviours' ids
-``POST /external/{stream}``     an external-data sample ``{"values": [...], "validity_s": 0.5}``
-                                (streams: ext_pos, ext_vel, ext_heading, ext_point, rc_vel)
-==============================  ===============================================================
+=========================================  ===========================================================
+``GET  /status``                           QAPI status (Sec. V) + flight phase, link, vehicle, node
+``GET  /commands``                         the queued commands ``[{id, index, command}]``, the current
+                                           index and id, the queue's generation
+``POST /commands``                         one command ``{horizontal, vertical, heading, end}``, or
+                                           ``{"commands": [...]}``; atomic (all checked first, then all
+                                           added, or none) -> ``{"ids": [...], "indices": [...]}``
+``POST /commands/{command_id}/retarget``   change the executing command's target in flight (Sec. IV-D)
+                                           ``{north, east, altitude, speed, heading}`` (all optional)
+                                           -> the command as it now reads
+``GET  /events?since=SEQ``                 the queue's events after SEQ -> ``{"events", "last_seq"}``
+``GET  /events/wait?command_id=ID``        the first event of ``kinds`` (comma separated; default
+                                           ``FINISHED,FAILED,CANCELLED``) for the command, waiting up
+                                           to ``timeout_s`` (default 10, at most 60) ->
+                                           ``{"event": {...}}``, or ``{"event": null}`` at the deadline
+``POST /run``, ``/stop``, ``/reset``,      the verbs -> ``{"ok": true, "status": {...}}``
+``/user_confirm``
+``POST /pause_direct``,                    pause behaviours; optional body ``{"behaviour_id": "hover"}``
+``/pause_after_current``
+``GET  /behaviours``                       the pause behaviours' ids
+``POST /external/{stream}``                an external-data sample ``{"values": [...], "validity_s": 0.5}``
+                                           (streams: ext_pos, ext_vel, ext_heading, ext_point, rc_vel)
+=========================================  ===========================================================
 
-Errors: ``{"error": "<what and why>"}`` with 400 (malformed JSON, invalid command, malformed
-sample, unknown behaviour) or 409 (the verb is not allowed in the queue's state, e.g. user_confirm
-with nothing waiting). A refused request changes nothing.
+Errors
+    Every refused request answers ``{"error": "<what and why>"}`` and changes nothing:
+
+    * 400: malformed JSON, a body or parameter of the wrong shape or type (the message names the
+      field, e.g. ``commands[1].end.e_v``), an invalid command, an unknown behaviour or stream, a
+      malformed sample, a retarget that does not fit the command;
+    * 401: a missing or wrong bearer token (see below);
+    * 404: an unknown path; 405: a method the path does not offer;
+    * 409: the verb is not allowed in the queue's state (user_confirm with nothing waiting, retarget
+      of a command that is not executing, a pause during a pause);
+    * 429: too many ``/events/wait`` requests waiting at once (the verbs keep their threads).
+
+    Bodies must be sent as ``Content-Type: application/json`` (a browser cannot send that to another
+    origin without a CORS preflight, which this surface never grants).
+
+Authentication
+    The surface binds to ``127.0.0.1`` unless told otherwise (``taskflight companion --control-host``).
+    With a token (``create_app(node, token=...)``, ``ControlServer(..., token=...)``,
+    ``--control-token`` or the environment variable ``TASKFLIGHT_CONTROL_TOKEN``) every endpoint
+    requires ``Authorization: Bearer <token>``; without it, or with another token, the answer is 401.
+    ``/openapi.json`` and ``/docs`` stay open. Serving on a non-loopback address without a token logs
+    a warning: anyone who reaches the port can then fly the vehicle. Prefer the environment variable
+    to the command-line option (other users can read a process's arguments).
 """
 
 from __future__ import annotations
 
+import hmac
+import ipaddress
 import json
 import logging
 import threading
-from typing import Any
+import time
+from collections.abc import Awaitable, Callable, MutableMapping
+from typing import Annotated, Any
 
 import uvicorn
-from fastapi import FastAPI, Request
+from fastapi import Body, FastAPI, Path, Query, Request
+from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
+from pydantic import AllowInfNan, BaseModel, ConfigDict, Discriminator, Field, Strict, Tag
+from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from companion.flight import (
+    STREAMS,
     CommandError,
+    CommandStatus,
+    EventKind,
     ExternalDataError,
+    FlightCommand,
     QueueError,
+    QueueEvent,
+    QueueState,
     QueueStateError,
+    QueueSystemStatus,
+    Retarget,
     command_from_dict,
     command_to_dict,
 )
+from companion.flight.events import TERMINAL
 from companion.node import QuadNode
 from taskflight.yamlio import ConfigError
 
 log = logging.getLogger(__name__)
 
+#: the environment variable ``taskflight companion`` reads the token from
+TOKEN_ENV = "TASKFLIGHT_CONTROL_TOKEN"
+#: longest wait of ``GET /events/wait`` (s)
+MAX_WAIT_S = 60.0
+#: how many ``GET /events/wait`` may block a worker thread at once (the default pool has 40)
+MAX_WAITERS = 16
+#: paths served without a token
+OPEN_PATHS = frozenset({"/openapi.json", "/docs", "/docs/oauth2-redirect", "/redoc"})
 
+Scope = MutableMapping[str, Any]
+Message = MutableMapping[str, Any]
+Receive = Callable[[], Awaitable[Message]]
+Send = Callable[[Message], Awaitable[None]]
+ASGIApp = Callable[[Scope, Receive, Send], Awaitable[None]]
+
+#: a JSON number (an integer is accepted; booleans and strings are not), finite
+Number = Annotated[float, Strict(), AllowInfNan(False)]
+
+
+# --- models: requests ------------------------------------------------------------------------------
+_CHANNEL_DOC = ("A channel in the flight codec's form: ``mode`` and that mode's parameters "
+                "(:mod:`companion.flight.commands`). Missing or null: DNU.")
+
+_COMMAND_EXAMPLES = [
+    {"vertical": {"mode": "POS", "altitude": 5, "take_off": True}, "end": {"e_v": True}},
+    {"horizontal": {"mode": "POS", "north": 10, "east": 5, "speed": 3, "speed_modified_by": ["vertical"]},
+     "vertical": {"mode": "POS", "altitude": 10, "frame": "relative"},
+     "heading": {"mode": "POINT", "north": 0, "east": 0},
+     "end": {"e_h": True, "e_v": True}},
+]
+
+
+class FlightCommandModel(BaseModel):
+    """A flight command (seed 000 Sec. IV-A) in the flight codec's form (:mod:`companion.flight.codec`).
+
+    The channels and the end condition are validated by the codec (modes, parameters, frames, an end
+    condition that can be reached); an error names the offending field.
+    """
+
+    model_config = ConfigDict(extra="forbid", json_schema_extra={"examples": _COMMAND_EXAMPLES})
+
+    horizontal: dict[str, Any] | None = Field(
+        None, description=_CHANNEL_DOC + " Modes: POS, EXT_POS, KEEP_DISTANCE, EXT_VEL, RC_VEL, DNU.",
+        examples=[{"mode": "POS", "north": 10, "east": 5, "frame": "absolute", "speed": 3}])
+    vertical: dict[str, Any] | None = Field(
+        None, description=_CHANNEL_DOC + " Modes: POS, WITH_HOR, EXT_POS, EXT_VEL, RC_VEL, DNU.",
+        examples=[{"mode": "POS", "altitude": 5, "take_off": True}])
+    heading: dict[str, Any] | None = Field(
+        None, description=_CHANNEL_DOC + " Modes: POS, FLIGHT_DIR, EXT_POS, EXT_VEL, RC_VEL, POINT, "
+        "EXT_POINT, DNU.", examples=[{"mode": "POS", "heading": 90, "rate": 30}])
+    end: dict[str, Any] = Field(
+        description="The end condition (Fig. 8): flags ``e_h``, ``e_v``, ``e_hd``, ``e_any``, ``e_user`` "
+        "and ``e_wait`` (s).", examples=[{"e_h": True, "e_v": True}])
+
+    def to_command(self, prefix: str = "") -> FlightCommand:
+        """The validated command; :class:`ConfigError` naming the field (``prefix.field``) otherwise."""
+        return command_from_dict(self.model_dump(exclude_none=True), file="<request>", prefix=prefix)
+
+
+class CommandBatch(BaseModel):
+    """Several flight commands, added atomically (all checked first; all or none)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    commands: list[FlightCommandModel] = Field(min_length=1)
+
+
+def _command_or_batch(value: Any) -> str:
+    return "batch" if isinstance(value, dict) and "commands" in value else "command"
+
+
+#: the union tags pydantic puts into an error's location (left out of the messages)
+_UNION_TAGS = frozenset({"batch", "command"})
+
+CommandsBody = Annotated[
+    Annotated[CommandBatch, Tag("batch")] | Annotated[FlightCommandModel, Tag("command")],
+    Discriminator(_command_or_batch),
+]
+
+
+class PauseRequest(BaseModel):
+    """The pause behaviour to run (default ``hover``)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    behaviour_id: str | None = Field(None, description="an id of ``GET /behaviours``", examples=["hover"])
+
+
+class ExternalSample(BaseModel):
+    """An external-data sample (Sec. IV-C), stamped on arrival with the queue's clock."""
+
+    model_config = ConfigDict(extra="forbid", json_schema_extra={"examples": [
+        {"values": [1.0, 0.0, 0.0, 0.0], "validity_s": 0.5}]})
+
+    values: list[Number] = Field(description="the stream's values: ext_pos 3 (north, east, down), ext_vel 4 "
+                                 "(vn, ve, vd, yaw rate), ext_heading 1, ext_point 2, rc_vel 4")
+    validity_s: Number = Field(0.5, gt=0, description="how long the sample stays fresh (s; at most the "
+                               "node's maximum, ``--max-validity``)")
+
+
+class RetargetRequest(BaseModel):
+    """New targets of the executing command (Sec. IV-D); left out: unchanged."""
+
+    model_config = ConfigDict(extra="forbid", json_schema_extra={"examples": [{"north": 12.0, "east": 4.0},
+                                                                              {"speed": 2.0}]})
+
+    north: Number | None = Field(None, description="m, local NED, absolute (horizontal POS)")
+    east: Number | None = Field(None, description="m, local NED, absolute (horizontal POS)")
+    altitude: Number | None = Field(None, description="m up, absolute (vertical POS or WITH_HOR)")
+    speed: Number | None = Field(None, description="m/s (horizontal POS, EXT_POS, KEEP_DISTANCE)")
+    heading: Number | None = Field(None, description="degrees, absolute (heading POS)")
+
+
+# --- models: answers -------------------------------------------------------------------------------
+class ErrorResponse(BaseModel):
+    """Every refused request (any 4xx)."""
+
+    error: str = Field(examples=["commands[1].end: expected a mapping"])
+
+
+class QueueStatusModel(BaseModel):
+    """The QAPI status (Sec. V): the paper's fields, then ours."""
+
+    queue_system_status: QueueSystemStatus
+    queue_status: QueueState
+    current_command_index: int
+    current_command_status: CommandStatus
+    confirmation_required_status: bool
+    limit_reached: bool
+    target_position_unreachable: bool
+    is_synced: bool
+    current_command_id: int | None = None
+    generation: int = 0
+    failure: str | None = None
+    deferred: str | None = None
+
+
+class NodeInfo(BaseModel):
+    """What the node's tick thread does."""
+
+    rate_hz: float
+    ticks: int
+    streamed: int
+    resyncs: int
+    queue_time_s: float
+    last_setpoint: dict[str, Any] | None
+
+
+class StatusResponse(BaseModel):
+    """``GET /status``."""
+
+    queue: QueueStatusModel
+    commands: int = Field(description="how many commands the list holds")
+    behaviour_id: str | None = Field(description="the pause behaviour running, if any")
+    flight: dict[str, Any] = Field(description="the GUIDED supervisor: phase, take-off, override")
+    link: dict[str, Any] = Field(description="the MAVLink link: connection, clock, statistics")
+    vehicle: dict[str, Any] = Field(description="the mirrored vehicle state")
+    node: NodeInfo
+
+
+class CommandEntry(BaseModel):
+    id: int = Field(description="the process-unique command id")
+    index: int = Field(description="its position in the list")
+    command: FlightCommandModel
+
+
+class CommandListResponse(BaseModel):
+    """``GET /commands``."""
+
+    commands: list[CommandEntry]
+    current_command_index: int
+    current_command_id: int | None
+    generation: int
+
+
+class AddedResponse(BaseModel):
+    """``POST /commands``: the new commands' ids and positions (null: a reset has dropped it already)."""
+
+    ids: list[int]
+    indices: list[int | None]
+
+
+class VerbResponse(BaseModel):
+    ok: bool = True
+    status: QueueStatusModel
+
+
+class BehavioursResponse(BaseModel):
+    behaviours: list[str]
+
+
+class AcceptedResponse(BaseModel):
+    accepted: bool = Field(description="false: older than the stream's newest sample (ignored)")
+
+
+class EventModel(BaseModel):
+    """One queue event (:class:`companion.flight.events.QueueEvent`)."""
+
+    seq: int
+    kind: EventKind
+    command_id: int | None
+    index: int | None
+    generation: int
+    t_s: float | None
+    detail: str = ""
+
+
+class EventsResponse(BaseModel):
+    """``GET /events``: poll again with ``since=last_seq``."""
+
+    events: list[EventModel]
+    last_seq: int
+
+
+class EventWaitResponse(BaseModel):
+    """``GET /events/wait``: the event, or null when the deadline passed."""
+
+    event: EventModel | None
+
+
+# --- errors ----------------------------------------------------------------------------------------
 class RequestError(Exception):
     """A request the surface refuses (status code and message)."""
 
@@ -60,158 +325,324 @@ class RequestError(Exception):
         self.message = message
 
 
-async def _json_body(request: Request, *, optional: bool = False) -> Any:
-    raw = await request.body()
-    if not raw.strip():
-        if optional:
-            return None
-        raise RequestError(400, "expected a JSON body")
-    try:
-        return json.loads(raw)
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise RequestError(400, f"malformed JSON: {exc}") from None
+def _error(status: int, message: str, headers: dict[str, str] | None = None) -> JSONResponse:
+    return JSONResponse({"error": message}, status_code=status, headers=headers)
 
 
-def _behaviour_id(body: Any) -> str | None:
-    if body is None:
+def _where(loc: Any) -> str:
+    """``commands[1].end`` from pydantic's ``("body", "batch", "commands", 1, "end")``."""
+    parts = list(loc) if isinstance(loc, list | tuple) else [loc]
+    source = parts.pop(0) if parts and parts[0] in ("body", "query", "path", "header", "cookie") else "body"
+    text = ""
+    for p in parts:
+        if isinstance(p, int):
+            text += f"[{p}]"
+        elif p not in _UNION_TAGS:
+            text += f".{p}" if text else str(p)
+    if source == "body":
+        return text or "body"
+    return f"{source} parameter {text}"
+
+
+def _validation_message(exc: RequestValidationError) -> str:
+    errors = list(exc.errors())
+    for e in errors:
+        if e.get("type") == "json_invalid":
+            why = e.get("ctx", {}).get("error", "syntax error")
+            return f"malformed JSON: {why} at character {e['loc'][-1]}"
+    if isinstance(exc.body, bytes | bytearray):  # a body FastAPI did not read as JSON
+        try:
+            json.loads(exc.body)
+        except (json.JSONDecodeError, UnicodeDecodeError) as err:
+            return f"malformed JSON: {err}"
+        return "expected Content-Type: application/json"
+    out = []
+    for e in errors:
+        where = _where(e.get("loc", ()))
+        msg = str(e.get("msg", "invalid"))
+        if e.get("type") == "missing" and where == "body":
+            msg = "expected a JSON body"
+        out.append(f"{where}: {msg}")
+    return "; ".join(out)
+
+
+def _http_message(request: Request, exc: StarletteHTTPException) -> str:
+    detail = exc.detail
+    if exc.status_code == 404 and detail == "Not Found":
+        return f"not found: no endpoint {request.url.path}"
+    if exc.status_code == 405 and detail == "Method Not Allowed":
+        allowed = (exc.headers or {}).get("Allow") or (exc.headers or {}).get("allow")
+        return f"method {request.method} not allowed on {request.url.path}" + (
+            f" (allowed: {allowed})" if allowed else "")
+    return detail if isinstance(detail, str) else json.dumps(detail)
+
+
+# --- authentication --------------------------------------------------------------------------------
+class BearerAuth:
+    """ASGI middleware: every HTTP request but :data:`OPEN_PATHS` needs ``Authorization: Bearer <token>``.
+
+    Checked before routing and before the body is read, so an unauthenticated request learns nothing
+    (not even whether its path or body would be valid).
+    """
+
+    def __init__(self, app: ASGIApp, token: str) -> None:
+        self.app = app
+        self._token = token.encode("utf-8")
+
+    def _check(self, scope: Scope) -> str | None:
+        """None if authorised, else why not."""
+        values = [v for k, v in scope.get("headers", ()) if k.lower() == b"authorization"]
+        if not values:
+            return "authentication required: send 'Authorization: Bearer <token>'"
+        scheme, _, credentials = values[0].strip().partition(b" ")
+        if scheme.lower() != b"bearer":
+            return "authentication required: expected the Bearer scheme"
+        if not hmac.compare_digest(credentials.strip(), self._token):
+            return "invalid token"
         return None
-    if not isinstance(body, dict) or set(body) - {"behaviour_id"}:
-        raise RequestError(400, 'expected {"behaviour_id": "<id>"} or no body')
-    bid = body.get("behaviour_id")
-    if bid is not None and not isinstance(bid, str):
-        raise RequestError(400, "behaviour_id: expected a string")
-    return bid
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] == "http" and scope.get("path") not in OPEN_PATHS:
+            why = self._check(scope)
+            if why is not None:
+                response = _error(401, why, {"WWW-Authenticate": 'Bearer realm="taskflight"'})
+                await response(scope, receive, send)
+                return
+        await self.app(scope, receive, send)
 
 
-def create_app(node: QuadNode) -> FastAPI:
-    """The FastAPI application serving ``node``'s QAPI (see module docstring)."""
-    app = FastAPI(title="Taskflight companion", description=__doc__)
+# --- the application -------------------------------------------------------------------------------
+def _status_model(node: QuadNode) -> QueueStatusModel:
+    return QueueStatusModel.model_validate(node.queue.status().to_dict())
+
+
+def _event_model(event: QueueEvent) -> EventModel:
+    return EventModel.model_validate(event.to_dict())
+
+
+def _kinds(text: str | None) -> frozenset[EventKind]:
+    if text is None or not text.strip():
+        return TERMINAL
+    out = set()
+    for name in text.split(","):
+        name = name.strip().upper()
+        try:
+            out.add(EventKind[name])
+        except KeyError:
+            known = ", ".join(k.name for k in EventKind)
+            raise RequestError(400, f"query parameter kinds: unknown event kind {name!r} "
+                                    f"(known: {known})") from None
+    return frozenset(out)
+
+
+def create_app(node: QuadNode, token: str | None = None) -> FastAPI:
+    """The FastAPI application serving ``node``'s QAPI (see module docstring).
+
+    ``token``: require ``Authorization: Bearer <token>`` on every endpoint (None: no authentication).
+    ``app.state.closing`` (a :class:`threading.Event`) ends pending ``/events/wait`` requests when set.
+    """
+    if token is not None and (not isinstance(token, str) or not token.strip()):
+        raise ValueError("the control token must be a non-empty string")
+    app = FastAPI(title="Taskflight companion", description=__doc__ or "",
+                  responses={"4XX": {"model": ErrorResponse, "description": "refused; nothing changed"}})
+    closing = threading.Event()
+    waiters = threading.BoundedSemaphore(MAX_WAITERS)
+    app.state.closing = closing
+
+    if token is not None:
+        app.add_middleware(BearerAuth, token=token)
+        plain_openapi = app.openapi
+
+        def openapi_with_bearer() -> dict[str, Any]:
+            if app.openapi_schema is None:
+                schema = plain_openapi()
+                schema.setdefault("components", {}).setdefault("securitySchemes", {})["bearer"] = {
+                    "type": "http", "scheme": "bearer"}
+                schema["security"] = [{"bearer": []}]
+                app.openapi_schema = schema
+            return app.openapi_schema
+
+        app.openapi = openapi_with_bearer  # type: ignore[method-assign]
 
     @app.exception_handler(RequestError)
-    async def _bad(request: Request, exc: RequestError) -> JSONResponse:
-        return JSONResponse({"error": exc.message}, status_code=exc.status)
+    async def _refused(request: Request, exc: RequestError) -> JSONResponse:
+        return _error(exc.status, exc.message)
 
-    def _verb(fn: Any, *args: Any) -> dict[str, Any]:
+    @app.exception_handler(StarletteHTTPException)
+    async def _http(request: Request, exc: StarletteHTTPException) -> JSONResponse:
+        return _error(exc.status_code, _http_message(request, exc), dict(exc.headers or {}) or None)
+
+    @app.exception_handler(RequestValidationError)
+    async def _invalid(request: Request, exc: RequestValidationError) -> JSONResponse:
+        return _error(400, _validation_message(exc))
+
+    def _verb(fn: Callable[..., None], *args: Any) -> VerbResponse:
         try:
             fn(*args)
         except QueueStateError as exc:
             raise RequestError(409, str(exc)) from None
         except QueueError as exc:
             raise RequestError(400, str(exc)) from None
-        return {"ok": True, "status": node.queue.status().to_dict()}
+        return VerbResponse(ok=True, status=_status_model(node))
 
-    @app.get("/status")
-    def status() -> dict[str, Any]:
-        return node.status()
+    @app.get("/status", response_model=StatusResponse)
+    def status() -> StatusResponse:
+        return StatusResponse.model_validate(node.status())
 
-    @app.get("/commands")
-    def commands() -> dict[str, Any]:
-        return {"commands": [command_to_dict(c) for c in node.queue.commands],
-                "current_command_index": node.queue.status().current_command_index}
+    @app.get("/commands", response_model=CommandListResponse)
+    def commands() -> CommandListResponse:
+        st = node.queue.status()
+        entries = node.queue.entries
+        return CommandListResponse(
+            commands=[CommandEntry(id=e.id, index=i, command=FlightCommandModel.model_validate(
+                command_to_dict(e.command))) for i, e in enumerate(entries)],
+            current_command_index=st.current_command_index, current_command_id=st.current_command_id,
+            generation=st.generation)
 
-    @app.post("/commands")
-    async def add_commands(request: Request) -> dict[str, Any]:
-        body = await _json_body(request)
-        if isinstance(body, dict) and "commands" in body:
-            items = body["commands"]
-            if set(body) != {"commands"} or not isinstance(items, list) or not items:
-                raise RequestError(400, 'expected {"commands": [<command>, ...]} with at least one command')
-            prefixes = [f"commands[{i}]" for i in range(len(items))]
+    @app.post("/commands", response_model=AddedResponse)
+    def add_commands(body: Annotated[CommandsBody, Body(description="one command, or {\"commands\": [...]}")]
+                     ) -> AddedResponse:
+        if isinstance(body, CommandBatch):
+            items = [(c, f"commands[{i}]") for i, c in enumerate(body.commands)]
         else:
-            items, prefixes = [body], [""]
+            items = [(body, "")]
         try:
-            cmds = [command_from_dict(item, file="<request>", prefix=p) for item, p in zip(items, prefixes,
-                                                                                         strict=True)]
-        except (ConfigError, CommandError) as exc:
+            cmds = [c.to_command(prefix) for c, prefix in items]
+            ids = node.add_commands(cmds)  # the queue checks them all, then adds them all at once
+        except (ConfigError, CommandError, QueueError) as exc:
             raise RequestError(400, f"invalid command: {exc}") from None
-        indices: list[int] = []
-        for c in cmds:  # the queue may refuse one (outside the envelope): nothing is added unless all pass
-            try:
-                node.queue.check_command(c)
-            except (QueueError, CommandError) as exc:
-                raise RequestError(400, f"invalid command: {exc}") from None
-        try:
-            indices = [node.add_command(c) for c in cmds]
-        except (QueueError, CommandError) as exc:
-            raise RequestError(400, f"invalid command: {exc}") from None
-        return {"indices": indices}
+        position = {e.id: i for i, e in enumerate(node.queue.entries)}
+        return AddedResponse(ids=ids, indices=[position.get(i) for i in ids])
 
-    @app.post("/run")
-    def run() -> dict[str, Any]:
+    @app.post("/commands/{command_id}/retarget", response_model=FlightCommandModel)
+    def retarget(command_id: Annotated[int, Path(description="the executing command's id")],
+                 body: RetargetRequest) -> FlightCommandModel:
+        try:
+            new = node.retarget(command_id, Retarget(**body.model_dump()))
+        except QueueStateError as exc:
+            raise RequestError(409, str(exc)) from None
+        except (QueueError, CommandError) as exc:
+            raise RequestError(400, str(exc)) from None
+        return FlightCommandModel.model_validate(command_to_dict(new))
+
+    @app.get("/events", response_model=EventsResponse)
+    def events(since: Annotated[int, Query(ge=0, description="the last sequence number seen")] = 0
+               ) -> EventsResponse:
+        log_ = node.queue.events
+        last = log_.last_seq  # read first: every event up to it is in the answer
+        found = log_.since(since)
+        return EventsResponse(events=[_event_model(e) for e in found],
+                              last_seq=max([last] + [e.seq for e in found]))
+
+    @app.get("/events/wait", response_model=EventWaitResponse)
+    def wait_event(command_id: Annotated[int, Query(description="the command's id")],
+                   kinds: Annotated[str | None, Query(description="comma-separated event kinds (default "
+                                                      "FINISHED,FAILED,CANCELLED)")] = None,
+                   timeout_s: Annotated[float, Query(ge=0, le=MAX_WAIT_S, description="s")] = 10.0
+                   ) -> EventWaitResponse:
+        wanted = _kinds(kinds)
+        if not waiters.acquire(blocking=False):
+            raise RequestError(429, f"too many waiting requests (at most {MAX_WAITERS})")
+        try:
+            deadline = time.monotonic() + timeout_s
+            while True:  # in slices, so that closing the server ends the wait
+                left = deadline - time.monotonic()
+                event = node.queue.events.wait_for(command_id, wanted, max(0.0, min(left, 0.5)))
+                if event is not None or left <= 0.5 or closing.is_set():
+                    return EventWaitResponse(event=_event_model(event) if event is not None else None)
+        finally:
+            waiters.release()
+
+    @app.post("/run", response_model=VerbResponse)
+    def run() -> VerbResponse:
         return _verb(node.run)
 
-    @app.post("/stop")
-    def stop() -> dict[str, Any]:
+    @app.post("/stop", response_model=VerbResponse)
+    def stop() -> VerbResponse:
         return _verb(node.stop)
 
-    @app.post("/reset")
-    def reset() -> dict[str, Any]:
+    @app.post("/reset", response_model=VerbResponse)
+    def reset() -> VerbResponse:
         return _verb(node.reset)
 
-    @app.post("/user_confirm")
-    def user_confirm() -> dict[str, Any]:
+    @app.post("/user_confirm", response_model=VerbResponse)
+    def user_confirm() -> VerbResponse:
         return _verb(node.user_confirm)
 
-    @app.post("/pause_direct")
-    async def pause_direct(request: Request) -> dict[str, Any]:
-        return _verb(node.pause_direct, _behaviour_id(await _json_body(request, optional=True)))
+    @app.post("/pause_direct", response_model=VerbResponse)
+    def pause_direct(body: PauseRequest | None = None) -> VerbResponse:
+        return _verb(node.pause_direct, body.behaviour_id if body is not None else None)
 
-    @app.post("/pause_after_current")
-    async def pause_after_current(request: Request) -> dict[str, Any]:
-        return _verb(node.pause_after_current, _behaviour_id(await _json_body(request, optional=True)))
+    @app.post("/pause_after_current", response_model=VerbResponse)
+    def pause_after_current(body: PauseRequest | None = None) -> VerbResponse:
+        return _verb(node.pause_after_current, body.behaviour_id if body is not None else None)
 
-    @app.get("/behaviours")
-    def behaviours() -> dict[str, Any]:
-        return {"behaviours": node.queue.catalog.ids()}
+    @app.get("/behaviours", response_model=BehavioursResponse)
+    def behaviours() -> BehavioursResponse:
+        return BehavioursResponse(behaviours=list(node.queue.catalog.ids()))
 
-    @app.post("/external/{stream}")
-    async def external(stream: str, request: Request) -> dict[str, Any]:
-        body = await _json_body(request)
-        if not isinstance(body, dict) or set(body) - {"values", "validity_s"} or "values" not in body:
-            raise RequestError(400, 'expected {"values": [numbers], "validity_s": seconds}')
-        values = body["values"]
-        if not isinstance(values, list):
-            raise RequestError(400, f"{stream}: values: expected a list of numbers")
+    @app.post("/external/{stream}", response_model=AcceptedResponse)
+    def external(stream: Annotated[str, Path(description=f"one of {', '.join(STREAMS)}")],
+                 body: ExternalSample) -> AcceptedResponse:
         try:
-            accepted = node.push_external(stream, values, body.get("validity_s", 0.5))
+            accepted = node.push_external(stream, body.values, body.validity_s)
         except ExternalDataError as exc:
             raise RequestError(400, f"malformed sample: {exc}") from None
-        return {"accepted": accepted}
+        return AcceptedResponse(accepted=accepted)
 
     return app
+
+
+def is_loopback(host: str) -> bool:
+    """True for ``localhost`` and loopback addresses (127.0.0.0/8, ::1)."""
+    if host.strip().lower() == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host.strip("[]")).is_loopback
+    except ValueError:
+        return False
 
 
 class ControlServer:
     """uvicorn serving :func:`create_app` on ``host:port`` in a background thread (port 0: any free)."""
 
-    def __init__(self, node: QuadNode, port: int = 8765, host: str = "127.0.0.1") -> None:
-        config = uvicorn.Config(create_app(node), host=host, port=port, log_level="warning", lifespan="off")
+    def __init__(self, node: QuadNode, port: int = 8765, host: str = "127.0.0.1",
+                 token: str | None = None) -> None:
+        self.app = create_app(node, token)
+        config = uvicorn.Config(self.app, host=host, port=port, log_level="warning", lifespan="off",
+                                timeout_graceful_shutdown=2)
         self.server = uvicorn.Server(config)
         self._thread = threading.Thread(target=self.server.run, name="control-http", daemon=True)
         self.host = host
         self.port = port
+        self.token_required = token is not None
+        if token is None and not is_loopback(host):
+            log.warning("control surface on %s without a token: anyone who reaches the port can fly the "
+                        "vehicle (set --control-token or %s)", host, TOKEN_ENV)
 
     def start(self, timeout_s: float = 10.0) -> ControlServer:
         self._thread.start()
-        started = threading.Event()
-        for _ in range(int(timeout_s / 0.01)):
-            if self.server.started:
-                started.set()
-                break
-            if not self._thread.is_alive():
-                break
-            threading.Event().wait(0.01)
-        if not started.is_set():
-            raise RuntimeError(f"control server did not start on {self.host}:{self.port}")
+        deadline = time.monotonic() + timeout_s
+        while not self.server.started:
+            if not self._thread.is_alive() or time.monotonic() > deadline:
+                raise RuntimeError(f"control server did not start on {self.host}:{self.port}")
+            self._thread.join(0.01)
         sock = self.server.servers[0].sockets[0]
         self.port = sock.getsockname()[1]
-        log.info("control surface on http://%s:%d", self.host, self.port)
+        log.info("control surface on %s port %d (%s), %s", self.host, self.port, self.url,
+                 "bearer token required" if self.token_required else "no authentication")
         return self
 
     @property
     def url(self) -> str:
-        return f"http://{self.host}:{self.port}"
+        """Where a client on this machine reaches the surface (loopback for a wildcard host)."""
+        host = {"0.0.0.0": "127.0.0.1", "": "127.0.0.1", "::": "::1"}.get(self.host, self.host)
+        if ":" in host and not host.startswith("["):
+            host = f"[{host}]"
+        return f"http://{host}:{self.port}"
 
     def close(self) -> None:
+        self.app.state.closing.set()
         self.server.should_exit = True
-        self._thread.join(timeout=5.0)
+        if self._thread.is_alive():
+            self._thread.join(timeout=5.0)

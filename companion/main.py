@@ -3,18 +3,26 @@
 ``taskflight companion --autopilot URL [--rate HZ] [--control-port P]`` connects to the autopilot
 (``udpout:127.0.0.1:14550`` for the bundled model or ArduPilot SITL, ``serial:/dev/ttyACM0:921600``
 for a flight controller), streams setpoints at ``--rate`` Hz of autopilot time and serves the QAPI
-over HTTP on ``127.0.0.1:P`` (see :mod:`companion.control`). ``--commands FILE`` queues a YAML list
-of flight commands at start; ``--run`` starts executing them.
+over HTTP on ``--control-host`` (default ``127.0.0.1``) port P (see :mod:`companion.control`).
+``--control-token`` (default: the environment variable ``TASKFLIGHT_CONTROL_TOKEN``, which other
+users cannot read from the process list) makes every endpoint require ``Authorization: Bearer
+<token>``; serving on a non-loopback host without one logs a warning. ``--max-validity S`` caps the
+validity of external-data samples. ``--commands FILE`` queues a YAML list of flight commands at
+start; ``--run`` starts executing them.
 """
 
 from __future__ import annotations
 
 import argparse
 import logging
+import os
 
 from taskflight.runtime import stop_on_signals
 
 log = logging.getLogger(__name__)
+
+#: where ``--control-token`` defaults from (same as :data:`companion.control.TOKEN_ENV`)
+TOKEN_ENV = "TASKFLIGHT_CONTROL_TOKEN"
 
 
 def add_companion_arguments(parser: argparse.ArgumentParser) -> None:
@@ -24,7 +32,16 @@ def add_companion_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--rate", type=float, default=20.0, metavar="HZ",
                         help="setpoint stream rate in Hz of autopilot time (1..50, default 20)")
     parser.add_argument("--control-port", type=int, default=8765, metavar="P",
-                        help="HTTP control surface on 127.0.0.1:P (default 8765; 0 any free port, -1 off)")
+                        help="HTTP control surface on port P (default 8765; 0 any free port, -1 off)")
+    parser.add_argument("--control-host", default="127.0.0.1", metavar="HOST",
+                        help="address the control surface binds to (default 127.0.0.1; 0.0.0.0 all)")
+    parser.add_argument("--control-token", default=None, metavar="TOKEN",
+                        help="require 'Authorization: Bearer TOKEN' on the control surface (default: "
+                             f"${TOKEN_ENV} if set, else no authentication)")
+    # default None, resolved in run_companion: building the parser stays free of the flight layer's imports
+    parser.add_argument("--max-validity", type=float, default=None, metavar="S",
+                        help="longest validity (s) an external-data sample may claim (default: "
+                             "companion.flight.external.DEFAULT_MAX_VALIDITY_S)")
     parser.add_argument("--baud", type=int, default=57600, help="serial baud rate (default 57600)")
     parser.add_argument("--source-system", type=int, default=None,
                         help="our MAVLink system id (default: the autopilot's own)")
@@ -35,10 +52,17 @@ def add_companion_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--run", action="store_true", help="run the queue at start")
 
 
+def control_token(args: argparse.Namespace) -> str | None:
+    """``--control-token``, else ``$TASKFLIGHT_CONTROL_TOKEN``; None (no authentication) if neither is set."""
+    token = args.control_token if args.control_token is not None else os.environ.get(TOKEN_ENV)
+    return token if token and token.strip() else None
+
+
 def run_companion(args: argparse.Namespace) -> int:
     """Run until SIGINT/SIGTERM; returns the exit status (2 for bad options or files)."""
     from companion.control import ControlServer
     from companion.flight import load_catalog, load_commands, load_flight_config
+    from companion.flight.external import DEFAULT_MAX_VALIDITY_S
     from companion.node import QuadNode
     from taskflight.yamlio import ConfigError
 
@@ -47,7 +71,9 @@ def run_companion(args: argparse.Namespace) -> int:
         catalog = load_catalog(args.behaviours) if args.behaviours else None
         commands = load_commands(args.commands) if args.commands else []
         node = QuadNode(args.autopilot, rate_hz=args.rate, limits=limits, envelope=envelope, catalog=catalog,
-                        baud=args.baud, source_system=args.source_system)
+                        baud=args.baud, source_system=args.source_system,
+                        max_validity_s=(DEFAULT_MAX_VALIDITY_S if args.max_validity is None
+                                        else args.max_validity))
     except (ConfigError, ValueError, OSError) as exc:
         log.error("%s", exc)
         return 2
@@ -59,7 +85,8 @@ def run_companion(args: argparse.Namespace) -> int:
         if args.run:
             node.run()
         if args.control_port >= 0:
-            server = ControlServer(node, args.control_port).start()
+            server = ControlServer(node, args.control_port, host=args.control_host,
+                                   token=control_token(args)).start()
             log.info("companion: autopilot %s, %g Hz, control %s", args.autopilot, args.rate, server.url)
         while not stop.wait(0.5):
             pass

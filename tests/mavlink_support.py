@@ -47,6 +47,19 @@ def free_port(kind: int = socket.SOCK_DGRAM) -> int:
     return port
 
 
+def free_ports(n: int, kind: int = socket.SOCK_DGRAM) -> list[int]:
+    """``n`` distinct free ports (bound at the same time: two :func:`free_port` calls may return the same
+    port, and pymavlink's udpin sets SO_REUSEADDR, so two listeners would then share it silently)."""
+    socks = [socket.socket(socket.AF_INET, kind) for _ in range(n)]
+    try:
+        for s in socks:
+            s.bind(("127.0.0.1", 0))
+        return [s.getsockname()[1] for s in socks]
+    finally:
+        for s in socks:
+            s.close()
+
+
 def wall(sim_s: float, speedup: float = SPEEDUP, base_s: float = 5.0) -> float:
     """Wall deadline for ``sim_s`` simulated seconds (generous: a loaded 2-core machine)."""
     return base_s + 3.0 * sim_s / speedup
@@ -103,7 +116,8 @@ class SitlProcess:
 
 
 class Gcs:
-    """A pymavlink ground station on ``udpout:127.0.0.1:port``.
+    """A pymavlink ground station on ``udpout:127.0.0.1:port`` (or ``url``, e.g. ``udpin:`` for ArduCopter
+    SITL's ``udpclient`` serial ports).
 
     It sends MAV_TYPE_GCS heartbeats at ``heartbeat_hz`` of simulated time while ``heartbeats`` is set
     and records what it receives: the last message of each type (``last``), STATUSTEXTs (``texts``),
@@ -117,9 +131,9 @@ class Gcs:
     """
 
     def __init__(self, port: int, speedup: float = SPEEDUP, *, sysid: int = 255, key: bytes | None = None,
-                 heartbeat_hz: float = 1.0, background: bool = False) -> None:
+                 heartbeat_hz: float = 1.0, background: bool = False, url: str | None = None) -> None:
         mavutil.set_dialect("ardupilotmega")
-        self.conn = mavutil.mavlink_connection(f"udpout:127.0.0.1:{port}", source_system=sysid,
+        self.conn = mavutil.mavlink_connection(url or f"udpout:127.0.0.1:{port}", source_system=sysid,
                                                source_component=190)
         if key is not None:
             self.conn.setup_signing(key, sign_outgoing=True)
@@ -252,6 +266,10 @@ class Gcs:
                                                                          abs_tol=1e-4)
 
         self.wait(echoed, timeout_s, f"PARAM_VALUE {name}={value}")
+
+    def request_streams(self, hz: int) -> None:
+        """REQUEST_DATA_STREAM for every group (ArduCopter streams on a fresh link only when asked)."""
+        self.conn.mav.request_data_stream_send(1, 1, M.MAV_DATA_STREAM_ALL, hz, 1)
 
     def local_target(self, frame: int, mask: int, x: float = 0, y: float = 0, z: float = 0,
                      vx: float = 0, vy: float = 0, vz: float = 0) -> None:

@@ -78,6 +78,31 @@ def test_is_synced_from_the_echo() -> None:
     assert not sync.synced(12.0)  # stale
 
 
+def test_is_synced_matches_an_echo_advanced_by_the_feed_forward() -> None:
+    """ArduCopter integrates the pos-vel-accel target between our messages: at 5 m/s an echo 80 ms
+    after the send is 0.4 m ahead of the sent position, and still the target we streamed."""
+    sync = SyncTracker()
+    f = target_fields(Setpoint(0.0, (10.0, 0.0, -5.0), (5.0, 0.0, 0.0), (0.0, 0.0, 0.0), 0.0, 0.0))
+    sync.sent(20.0, f)
+    sync.echo(PositionTargetEcho(20_080, 0, (10.4, 0.0, -5.0), (5.0, 0.0, 0.0)), 20.08)
+    assert sync.synced(20.08) and sync.last_error == pytest.approx(0.0, abs=1e-9)
+    # the same echo without the advance (an autopilot stuck on the sent position) is not in sync ...
+    stuck = SyncTracker()
+    stuck.sent(20.0, f)
+    stuck.echo(PositionTargetEcho(20_300, 0, (10.0, 0.0, -5.0), (5.0, 0.0, 0.0)), 20.3)
+    assert not stuck.synced(20.3) and stuck.last_error == pytest.approx(1.5)
+    # ... nor is an echo of an older target left behind by 1 m
+    behind = SyncTracker()
+    behind.sent(20.0, f)
+    behind.echo(PositionTargetEcho(20_080, 0, (9.4, 0.0, -5.0), (5.0, 0.0, 0.0)), 20.08)
+    assert not behind.synced(20.08)
+    # acceleration is integrated too
+    acc = SyncTracker()
+    acc.sent(5.0, target_fields(Setpoint(0.0, (0.0, 0.0, -5.0), (1.0, 0.0, 0.0), (2.0, 0.0, 0.0), 0.0, 0.0)))
+    acc.echo(PositionTargetEcho(5_500, 0, (0.75, 0.0, -5.0), (2.0, 0.0, 0.0)), 5.5)
+    assert acc.synced(5.5)
+
+
 @pytest.mark.parametrize(
     ("url", "expected"),
     [

@@ -97,7 +97,8 @@ class Navigator:
         self.armed = False
         self.spooled = False
         self.action = IDLE
-        self.landed_state = LANDED_ON_GROUND if self.v.world_on_ground_estimate() else self.landed_state
+        # ArduCopter (Copter::update_land_detector): disarmed is landed, wherever it is
+        self.landed_state = LANDED_ON_GROUND
         self.v.control.reset()
         self._emit("Disarming motors")
         return True, ""
@@ -186,6 +187,7 @@ class Navigator:
 
     def periodic(self, dt: float) -> None:
         if not self.armed:
+            self.landed_state = LANDED_ON_GROUND  # as ArduCopter's land detector: disarmed is landed
             return
         v = self.v
         g = v.guidance

@@ -99,6 +99,7 @@ class GuidedSupervisor:
         self._wait_until = 0.0
         self._takeoff_alt: float | None = None
         self._takeoff_sent_alt: float | None = None
+        self._takeoff_accepted = False
         self._ground_down: float | None = None
         self._seen_guided = False
         self._armed_by_us = False
@@ -195,6 +196,7 @@ class GuidedSupervisor:
             self.phase = Phase.TAKING_OFF
             self._takeoff_alt = sp.takeoff_altitude
             self._takeoff_sent_alt = None
+            self._takeoff_accepted = False
             self._ground_down = s.position[2] if s.position is not None else None
             self._seen_guided = s.mode == GUIDED
             self._armed_by_us = False
@@ -218,6 +220,7 @@ class GuidedSupervisor:
     def _start_step(self, step: str, now_s: float) -> None:
         self._step = step
         self._step_started = now_s
+        self._takeoff_accepted = False
         self._req = None
         self._wait_until = now_s
 
@@ -233,7 +236,7 @@ class GuidedSupervisor:
         """
         if s.mode == GUIDED:
             self._seen_guided = True
-        if self._step == "takeoff" and s.armed and self._takeoff_sent_alt is not None \
+        if self._step == "takeoff" and s.armed and self._takeoff_accepted \
                 and (s.landed is False or self._climbed(s)):
             log.info("airborne: streaming setpoints")
             self.phase = Phase.ENGAGED
@@ -265,6 +268,8 @@ class GuidedSupervisor:
         if not req.done:
             return False
         if req.accepted:
+            if self._step == "takeoff":
+                self._takeoff_accepted = True
             # accepted: wait for the telemetry to show it; a take-off is never sent twice while it spools
             limit = LIFTOFF_TIMEOUT_S if self._step == "takeoff" else STATE_TIMEOUT_S
             if now_s - req.sent_s > limit:

@@ -9,7 +9,12 @@ be given together (angle with a rate feed-forward). Frame: MAV_FRAME_LOCAL_NED, 
 origin, the frame of LOCAL_POSITION_NED.
 
 is_synced (Sec. V): the autopilot follows what we stream when its POSITION_TARGET_LOCAL_NED echoes a
-target we sent recently; :class:`SyncTracker` keeps the last second of sent targets.
+target we sent recently; :class:`SyncTracker` keeps the last second of sent targets. An autopilot does
+not echo the target as sent: ArduCopter's pos-vel-accel GUIDED (``AC_PosControl::input_pos_vel_accel``)
+advances it every loop by its velocity and acceleration feed-forward, so the echo stamped
+``time_boot_ms`` is compared with each sent target *extrapolated to that time*
+(p + v dt + a dt^2 / 2), within ``tolerance_m`` plus ``timing_s`` of the target's speed (our estimate
+of the autopilot's clock and the echo's stamp differ by a few milliseconds).
 """
 
 from __future__ import annotations
@@ -62,15 +67,21 @@ def target_fields(sp: Setpoint) -> TargetFields:
 class SyncTracker:
     """Matches the autopilot's POSITION_TARGET_LOCAL_NED echo against recently sent targets."""
 
-    def __init__(self, window_s: float = 1.0, tolerance_m: float = 0.02, stale_s: float = 1.0) -> None:
+    def __init__(self, window_s: float = 1.0, tolerance_m: float = 0.05, stale_s: float = 1.0,
+                 timing_s: float = 0.05) -> None:
         self.window_s = window_s
         self.tolerance = tolerance_m
+        self.timing_s = timing_s
         self.stale_s = stale_s
         self._lock = threading.Lock()
         self._sent: deque[tuple[float, TargetFields]] = deque()
         self._last_match_s: float | None = None
         self._last_sent_s: float | None = None
         self._seen_echo: PositionTargetEcho | None = None
+        self.echoes = 0
+        self.matches = 0
+        #: the distance of the last echo from the best extrapolated target (m or m/s)
+        self.last_error: float | None = None
 
     def sent(self, t_s: float, fields: TargetFields) -> None:
         with self._lock:
@@ -80,22 +91,33 @@ class SyncTracker:
                 self._sent.popleft()
 
     def echo(self, echo: PositionTargetEcho, now_s: float) -> None:
-        """An echo arrived (called with each new one)."""
+        """An echo arrived (called with each new one); ``now_s`` is our estimate of the autopilot's time."""
         with self._lock:
             if echo == self._seen_echo:
                 return
             self._seen_echo = echo
-            if any(self._matches(f, echo) for _, f in self._sent):
+            self.echoes += 1
+            t_echo = echo.time_boot_ms * 1e-3
+            errors = [self._error(f, echo, t_echo - t) for t, f in self._sent
+                      if -self.timing_s <= t_echo - t <= self.window_s]
+            best = min(errors, key=lambda e: e[0] - e[1], default=None)
+            self.last_error = best[0] if best is not None else None
+            if best is not None and best[0] <= best[1]:
                 self._last_match_s = now_s
+                self.matches += 1
 
-    def _matches(self, f: TargetFields, echo: PositionTargetEcho) -> bool:
+    def _error(self, f: TargetFields, echo: PositionTargetEcho, dt: float) -> tuple[float, float]:
+        """(distance of the echo from ``f`` advanced by ``dt``, the tolerance); inf when not comparable."""
+        dt = max(dt, 0.0)
         if not f.type_mask & IGNORE_POS:
             if echo.type_mask & IGNORE_POS:
-                return False
-            return math.dist(f.p, echo.p) <= self.tolerance
+                return math.inf, 0.0
+            pred = tuple(p + v * dt + 0.5 * a * dt * dt for p, v, a in zip(f.p, f.v, f.a, strict=True))
+            speed = math.hypot(*f.v)
+            return math.dist(pred, echo.p), self.tolerance + self.timing_s * speed
         if echo.type_mask & IGNORE_VEL:
-            return False
-        return math.dist(f.v, echo.v) <= self.tolerance
+            return math.inf, 0.0
+        return math.dist(f.v, echo.v), self.tolerance
 
     def synced(self, now_s: float) -> bool:
         """A matching echo within ``stale_s`` while we are streaming."""

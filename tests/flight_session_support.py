@@ -1,0 +1,158 @@
+"""One companion flying one autopilot over loopback UDP, for the conformance tests (no tests here).
+
+:class:`FlightSession` starts an autopilot (the model or ArduCopter SITL, :mod:`autopilot_support`),
+a :class:`~companion.node.QuadNode` connected through the wire tap, and its HTTP control surface. It
+records what the companion hears (heartbeats, positions) and offers the waits the tests share, in
+wall time derived from simulated durations, plus :meth:`ensure_airborne` / :meth:`ensure_on_ground`
+so that each test can also run alone.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from pathlib import Path
+from typing import Any
+
+import httpx
+from autopilot_support import Autopilot, start_autopilot
+from companion_support import cmd
+from mavlink_support import GUIDED, wait_for
+from mavlink_support import wall as _wall
+
+from companion.control import ControlServer
+from companion.flight import EventKind, Setpoint
+from companion.node import QuadNode
+
+TAKEOFF = {"vertical": {"mode": "POS", "altitude": 5, "take_off": True}, "end": {"e_v": True}}
+LAND_HERE = {"vertical": {"mode": "POS", "altitude": 0.0, "allow_landing": True}, "end": {"e_v": True}}
+
+
+class FlightSession:
+    """Everything one autopilot's conformance tests share (see module docstring)."""
+
+    def __init__(self, kind: str, state_dir: Path, speedup: float) -> None:
+        self.speedup = speedup
+        self.ap: Autopilot = start_autopilot(kind, state_dir, speedup)
+        self.kind = kind
+        self.tap, self.gcs = self.ap.tap, self.ap.gcs
+        self.node = QuadNode(self.ap.companion_url, rate_hz=20.0)
+        self.streamed: list[Setpoint] = []
+        self.synced_ticks: list[bool] = []
+        self.heard: list[tuple[float, bool, float]] = []  # (autopilot s, armed, altitude) per heartbeat
+        self._lock = threading.Lock()
+        self.node.setpoint_listeners.append(self._on_setpoint)
+        self.node.link.listeners.append(self._on_message)
+        self.node.start()
+        self.server = ControlServer(self.node, port=0).start()
+        self.http = httpx.Client(base_url=self.server.url, timeout=10.0)
+        try:
+            wait_for(lambda: self.node.link.mirror.snapshot().position is not None, self.wall(60),
+                     f"{kind}: LOCAL_POSITION_NED (the EKF origin)")
+        except AssertionError as exc:
+            why = f"{exc}; {self.ap.describe()}; link {self.node.link.status()}"
+            self.close()
+            raise AssertionError(why) from None
+
+    # --- recording ---------------------------------------------------------------------------------------
+    def _on_setpoint(self, sp: Setpoint, fields: Any, t: float) -> None:
+        self.streamed.append(sp)
+
+    def _on_message(self, msg: Any) -> None:
+        if msg.get_type() == "HEARTBEAT":
+            s = self.node.link.mirror.snapshot()
+            alt = -s.position[2] if s.position is not None else 0.0
+            with self._lock:
+                self.heard.append((self.node.clock.now(), s.armed, alt))
+
+    def heard_since(self, t: float) -> list[tuple[float, bool, float]]:
+        with self._lock:
+            return [h for h in self.heard if h[0] >= t]
+
+    # --- helpers -----------------------------------------------------------------------------------------
+    def wall(self, sim_s: float) -> float:
+        return _wall(sim_s, self.speedup)
+
+    def post(self, path: str, body: Any = None) -> httpx.Response:
+        return self.http.post(path, json=body) if body is not None else self.http.post(path)
+
+    def status(self) -> dict[str, Any]:
+        return self.node.queue.status().to_dict()
+
+    def pos(self) -> tuple[float, float, float]:
+        p = self.node.link.mirror.snapshot().position
+        assert p is not None
+        return p
+
+    def alt(self) -> float:
+        return -self.pos()[2]
+
+    def speed(self) -> float:
+        return math.hypot(*self.node.link.mirror.snapshot().velocity)
+
+    def armed(self) -> bool:
+        return self.node.link.mirror.snapshot().armed
+
+    def phase(self) -> str:
+        return self.node.supervisor.phase.value
+
+    def sim_time(self) -> float:
+        return self.node.clock.now()
+
+    def sim_wait(self, sim_s: float) -> None:
+        t = self.sim_time() + sim_s
+        wait_for(lambda: self.sim_time() >= t, self.wall(sim_s), f"{sim_s} s of autopilot time", 0.002)
+
+    def add(self, *commands: dict[str, Any]) -> list[int]:
+        return self.node.add_commands([cmd(c) for c in commands])
+
+    def wait_finished(self, command_id: int, sim_s: float) -> None:
+        event = self.node.queue.events.wait_for(command_id, {EventKind.FINISHED, EventKind.FAILED,
+                                                             EventKind.CANCELLED}, self.wall(sim_s))
+        assert event is not None, f"command {command_id} did not finish (status {self.status()})"
+        assert event.kind is EventKind.FINISHED, f"command {command_id}: {event}"
+
+    def wait_index(self, index: int, sim_s: float) -> None:
+        wait_for(lambda: self.status()["current_command_index"] >= index, self.wall(sim_s),
+                 f"command index {index} (status {self.status()})")
+
+    def wait_near(self, target: tuple[float, float, float], tol: float, sim_s: float) -> None:
+        wait_for(lambda: math.dist(self.pos(), target) < tol, self.wall(sim_s),
+                 f"vehicle within {tol} m of {target} (at {self.pos()})")
+
+    def wait_still(self, sim_s: float, below: float = 0.3) -> None:
+        wait_for(lambda: self.speed() < below, self.wall(sim_s),
+                 f"vehicle at rest (speed {self.speed():.2f})")
+
+    # --- preconditions, so that each test also runs alone --------------------------------------------------
+    def ensure_airborne(self) -> None:
+        """Flying in GUIDED, engaged, the queue running with nothing left to do."""
+        if self.status()["queue_system_status"] == "OVERRIDDEN":
+            assert self.gcs.set_mode(GUIDED) == 0
+            wait_for(lambda: self.status()["queue_system_status"] == "RUNNING", self.wall(3), "given back")
+        if self.phase() == "ENGAGED" and self.alt() > 1.0:
+            self.node.reset()
+            self.node.run()
+            return
+        self.node.reset()
+        (cid,) = self.add(TAKEOFF if not self.armed() or self.alt() < 1.0 else {"end": {"e_wait": 0.5}})
+        self.node.run()
+        self.wait_finished(cid, 60)
+        wait_for(lambda: self.phase() == "ENGAGED", self.wall(5), "engaged")
+
+    def ensure_on_ground(self) -> None:
+        """Landed and disarmed, the queue reset."""
+        if not self.armed():
+            self.node.reset()
+            return
+        self.ensure_airborne()
+        self.add(LAND_HERE)
+        wait_for(lambda: not self.armed(), self.wall(60), "landed and disarmed")
+        wait_for(lambda: self.phase() == "IDLE", self.wall(3), "link idle after landing")
+        self.node.reset()
+
+    def close(self) -> None:
+        self.http.close()
+        self.server.close()
+        self.node.close()
+        self.ap.close()
