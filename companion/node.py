@@ -40,6 +40,8 @@ from companion.flight import (
 )
 from companion.flight.external import DEFAULT_MAX_VALIDITY_S
 from companion.link import AutopilotClock, GuidedSupervisor, MavlinkLink, Phase
+from companion.link.mirror import MirrorState
+from companion.link.rc import RcMapping, rc_velocity
 from companion.link.setpoints import TargetFields
 
 log = logging.getLogger(__name__)
@@ -90,7 +92,8 @@ class QuadNode:
 
     def __init__(self, autopilot_url: str, *, rate_hz: float = 20.0, limits: Limits | None = None,
                  envelope: Envelope | None = None, catalog: BehaviourCatalog | None = None, baud: int = 57600,
-                 source_system: int | None = None, max_validity_s: float = DEFAULT_MAX_VALIDITY_S) -> None:
+                 source_system: int | None = None, max_validity_s: float = DEFAULT_MAX_VALIDITY_S,
+                 rc_mapping: RcMapping | None = None) -> None:
         if not MIN_RATE_HZ <= rate_hz <= MAX_RATE_HZ:
             raise ValueError(f"rate: {rate_hz:g} Hz is outside {MIN_RATE_HZ:g}..{MAX_RATE_HZ:g} Hz")
         self.rate_hz = float(rate_hz)
@@ -103,6 +106,8 @@ class QuadNode:
                                   max_validity_s=max_validity_s)
         self.supervisor = GuidedSupervisor(self.link)
         self.setpoint_listeners: list[SetpointListener] = []
+        self.rc_mapping = rc_mapping or RcMapping()
+        self._rc_seen_ms: int | None = None
         self.ticks = 0
         self.streamed = 0
         self.resyncs = 0
@@ -210,6 +215,16 @@ class QuadNode:
                 log.exception("tick failed")
             next_t += self.period_s
 
+    def _feed_rc(self, s: MirrorState) -> None:
+        """A new RC_CHANNELS report becomes an ``rc_vel`` sample (RC_VEL modes; :mod:`companion.link.rc`)."""
+        rc = s.rc
+        if rc is None or rc.time_boot_ms == self._rc_seen_ms:
+            return
+        self._rc_seen_ms = rc.time_boot_ms
+        sample = rc_velocity(rc.channels, s.yaw, self.queue.limits, self.rc_mapping, rc.rssi)
+        if sample is not None:
+            self.queue.push_external("rc_vel", sample, self.rc_mapping.validity_s)
+
     def _tick(self, t_ap: float) -> None:
         """One tick at autopilot time ``t_ap``."""
         self.ticks += 1
@@ -228,6 +243,7 @@ class QuadNode:
                     self.queue_time.release(t_ap)
                 return
             self.queue_time.release(t_ap)  # airborne: the queue runs on from where it was held
+        self._feed_rc(s)
         vs = s.vehicle_state()
         if self.last_setpoint is None and vs is None:
             return

@@ -136,6 +136,25 @@ def test_body_relative_and_relative_targets_resolve_at_start_and_survive_a_pause
     assert sim.last.p == pytest.approx((-2.0, 10.0, -8.0), abs=1e-9)
 
 
+@pytest.mark.parametrize("yaw_deg", [30.0, 135.0, -60.0, 0.0])
+def test_body_relative_target_is_forward_and_right_of_any_heading(yaw_deg: float) -> None:
+    """forward 10, right 2 of the heading the command starts with, at headings that tell sine from
+    cosine and both signs apart (90 degrees alone does not)."""
+    turn = FlightCommand(heading=HeadingChannel(HeadingMode.POS, heading=yaw_deg),
+                         end=EndCondition(e_hd=True))
+    forward = FlightCommand(
+        HorizontalChannel(HorizontalMode.POS, north=10, east=2, frame="body_relative"),
+        end=EndCondition(e_h=True),
+    )
+    sim = fly(turn, forward)
+    until_index(sim, 2)
+    start = sim.last.p
+    until_index(sim, 3)
+    y = math.radians(yaw_deg)
+    expected = (start[0] + 10 * math.cos(y) - 2 * math.sin(y), start[1] + 10 * math.sin(y) + 2 * math.cos(y))
+    assert sim.last.p[:2] == pytest.approx(expected, abs=1e-9)
+
+
 def test_e_any_ends_with_the_first_channel() -> None:
     cmd = FlightCommand(
         HorizontalChannel(HorizontalMode.POS, north=3, east=0),

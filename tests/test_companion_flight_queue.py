@@ -286,6 +286,36 @@ def test_stop_then_run_resumes_the_stopped_command() -> None:
     assert sim.last.p == (30.0, 0.0, -5.0)
 
 
+def test_run_resumes_a_stopped_command_with_its_resolved_target_and_waited_time() -> None:
+    """Resuming is not restarting: a relative target stays where it was resolved, and the time an
+    E_Wait command already waited counts (a restart would fly 20 m from the stop point and wait 4 s)."""
+    rel = FlightCommand(
+        HorizontalChannel(HorizontalMode.POS, north=20.0, east=0.0, frame="relative", speed=4.0),
+        end=EndCondition(e_h=True),
+    )
+    sim = make_sim(takeoff(), rel, wait(4.0))
+    airborne(sim)
+    start = sim.last.p
+    sim.run_for(3.0)
+    sim.queue.stop()
+    sim.run_for(4.0)
+    stopped_at = sim.last.p
+    assert 5.0 < stopped_at[0] - start[0] < 20.0
+    sim.queue.run()
+    sim.run_until(index_is(2), 30)
+    assert sim.last.p[:2] == (start[0] + 20.0, start[1])
+    t_wait = sim.t
+    sim.run_for(2.5)
+    sim.queue.stop()
+    sim.run_for(5.0)
+    assert sim.queue.status().current_command_index == 2
+    sim.queue.run()
+    t_resumed = sim.t
+    sim.run_until(index_is(3), 10)
+    assert sim.t - t_resumed == pytest.approx(1.5, abs=0.11)  # 4 s minus the 2.5 s already waited
+    assert sim.t - t_wait > 4.0 + 5.0 - 0.11
+
+
 def test_landing_with_allow_landing_asks_for_land_and_ends_on_the_ground() -> None:
     sim = make_sim(takeoff(), land())
     airborne(sim)

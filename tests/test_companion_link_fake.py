@@ -57,7 +57,8 @@ def test_falls_back_to_request_data_stream_without_message_interval(connect: Any
         assert (M.MAV_CMD_SET_MESSAGE_INTERVAL, M.MAV_RESULT_UNSUPPORTED) in fake.acks
         # one request per ArduCopter group, started; POSITION (LOCAL_POSITION_NED) at the link's rate
         expected = {M.MAV_DATA_STREAM_POSITION: 20, M.MAV_DATA_STREAM_EXTRA1: 10,
-                    M.MAV_DATA_STREAM_EXTENDED_STATUS: 5, M.MAV_DATA_STREAM_EXTRA3: 2}
+                    M.MAV_DATA_STREAM_EXTENDED_STATUS: 5, M.MAV_DATA_STREAM_EXTRA3: 2,
+                    M.MAV_DATA_STREAM_RC_CHANNELS: 10}
         assert {g for g, _ in FALLBACK_GROUPS} == set(expected)
         got = [(r.stream_id, r.rate_hz, r.start) for r in fake.data_stream_requests]
         assert got == [(g, expected[g], True) for g, _ in FALLBACK_GROUPS]

@@ -29,10 +29,11 @@ Decisions where the paper is silent (documented once here)
     * ``V_WithHor`` flies the straight 3-D line to (north, east, altitude); its altitude is
       absolute; the horizontal ``speed`` stays the horizontal speed (the vertical component follows
       and, when the vertical limit binds, the whole line slows down). V_end equals H_end.
-    * RC velocity modes (``RC_VEL``): our vehicles have no RC receiver wired to the companion. They
-      are accepted and behave exactly as the corresponding ExtVel mode fed from the external stream
-      ``rc_vel`` (whoever has a stick: the link forwarding RC_CHANNELS, a ground station). With no
-      fresh ``rc_vel`` sample the channel's velocity is zero, like any stale ExtVel stream.
+    * RC velocity modes (``RC_VEL``): the channel's velocity is the pilot's stick, read from the
+      autopilot's RC_CHANNELS by the link (:mod:`companion.link.rc`: deadband, scale to the limits,
+      sticks relative to the vehicle's heading) and stored as the external stream ``rc_vel``; they
+      behave exactly as the corresponding ExtVel mode fed from that stream. With no fresh
+      ``rc_vel`` sample (no RC, no signal) the channel's velocity is zero, like any stale stream.
     * ``DNU`` ("do not use"): the channel's setpoint stays constant. If it was moving when the
       command started, it first comes to rest within the limits (never a jump) and then holds.
     * ``take_off`` needs ``V_Pos`` climbing (a relative altitude must be > 0); ``allow_landing``

@@ -52,7 +52,7 @@ M = mavutil.mavlink
 LINK_TIMEOUT_WALL_S = 3.0
 #: Messages whose time_boot_ms feeds the clock.
 _TIMED = frozenset({"LOCAL_POSITION_NED", "ATTITUDE", "SYSTEM_TIME", "GLOBAL_POSITION_INT",
-                    "POSITION_TARGET_LOCAL_NED"})
+                    "POSITION_TARGET_LOCAL_NED", "RC_CHANNELS"})
 
 
 def parse_url(url: str, baud: int) -> tuple[str, int]:
@@ -82,12 +82,14 @@ def stream_plan(rate_hz: float) -> list[tuple[int, float]]:
         (M.MAVLINK_MSG_ID_GPS_RAW_INT, 2.0),
         (M.MAVLINK_MSG_ID_SYSTEM_TIME, 2.0),
         (M.MAVLINK_MSG_ID_HOME_POSITION, 0.5),
+        (M.MAVLINK_MSG_ID_RC_CHANNELS, 10.0),
     ]
 
 
 #: REQUEST_DATA_STREAM fallback: ArduCopter's groups holding the messages above.
 FALLBACK_GROUPS = ((M.MAV_DATA_STREAM_POSITION, None), (M.MAV_DATA_STREAM_EXTRA1, 10),
-                   (M.MAV_DATA_STREAM_EXTENDED_STATUS, 5), (M.MAV_DATA_STREAM_EXTRA3, 2))
+                   (M.MAV_DATA_STREAM_EXTENDED_STATUS, 5), (M.MAV_DATA_STREAM_EXTRA3, 2),
+                   (M.MAV_DATA_STREAM_RC_CHANNELS, 10))
 
 
 class MavlinkLink:

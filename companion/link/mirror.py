@@ -44,6 +44,15 @@ class PositionTargetEcho:
 
 
 @dataclass(frozen=True)
+class RcReport:
+    """The autopilot's RC_CHANNELS: PWM microseconds per channel (0 / 65535 unused), RSSI (255 unknown)."""
+
+    time_boot_ms: int
+    channels: tuple[int, ...]
+    rssi: int
+
+
+@dataclass(frozen=True)
 class MirrorState:
     """One consistent view of the vehicle (None / 0 where not yet received)."""
 
@@ -68,6 +77,7 @@ class MirrorState:
     gps_satellites: int = 0
     global_position: tuple[float, float, float, float] | None = None  # lat, lon, alt AMSL, rel. alt
     position_target: PositionTargetEcho | None = None
+    rc: RcReport | None = None
     messages: int = 0
     texts: tuple[str, ...] = field(default_factory=tuple)
 
@@ -158,6 +168,11 @@ class VehicleMirror:
         elif t == "POSITION_TARGET_LOCAL_NED":
             changes = {"position_target": PositionTargetEcho(msg.time_boot_ms, msg.type_mask,
                                                              (msg.x, msg.y, msg.z), (msg.vx, msg.vy, msg.vz))}
+        elif t == "RC_CHANNELS":
+            n = max(0, min(int(msg.chancount), 18))
+            chans = tuple(int(getattr(msg, f"chan{i}_raw")) for i in range(1, n + 1))
+            changes = {"rc": RcReport(msg.time_boot_ms, chans, int(msg.rssi)),
+                       "time_boot_ms": msg.time_boot_ms}
         elif t == "STATUSTEXT":
             self._texts.append(msg.text)
             changes = {"texts": tuple(self._texts)}
