@@ -76,10 +76,10 @@ def test_mode_changes_and_refused_arm(gcs: Gcs) -> None:
         gcs.wait(lambda mode=mode: gcs.mode() == mode, 5, f"mode {mode}")
     gcs.conn.mav.set_mode_send(1, M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, GUIDED)  # the SET_MODE message
     gcs.wait(lambda: gcs.mode() == GUIDED, 5, "GUIDED by SET_MODE")
-    assert gcs.set_mode(77) == M.MAV_RESULT_DENIED
+    assert gcs.set_mode(77) == M.MAV_RESULT_FAILED  # as ArduCopter
     assert gcs.set_mode(LAND) == M.MAV_RESULT_ACCEPTED
     gcs.texts.clear()
-    assert gcs.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1) == M.MAV_RESULT_DENIED
+    assert gcs.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1) == M.MAV_RESULT_FAILED
     gcs.wait(lambda: any("not armable" in t for t in gcs.texts), 5, "the arming refusal's reason")
     assert not gcs.armed()
     assert gcs.command(31000) == M.MAV_RESULT_UNSUPPORTED
@@ -275,8 +275,12 @@ def test_local_ned_is_relative_to_the_origin_not_home(gcs: Gcs) -> None:
     # 30 m north of where it was, 7 m higher
     set_home(home.latitude + int(30 / 111_320 * 1e7), home.longitude, home.altitude / 1000 + 7.0)
     try:
-        moved = gcs.wait(lambda: abs(gcs.fresh("HOME_POSITION").z - (home.z - 7.0)) < 0.05, 10, "new home")
-        assert moved and gcs.last["HOME_POSITION"].x == pytest.approx(home.x + 30.0, abs=0.1)
+        # HOME_POSITION carries the new home in lat/lon/alt only (x, y, z stay 0, as ArduCopter sends them)
+        new_alt = home.altitude + 7000
+        gcs.wait(lambda: abs(gcs.fresh("HOME_POSITION").altitude - new_alt) <= 1, 10, "new home")
+        moved = gcs.last["HOME_POSITION"]
+        assert (moved.x, moved.y, moved.z) == (0.0, 0.0, 0.0)
+        assert moved.latitude == home.latitude + int(30 / 111_320 * 1e7)
         _go(gcs, M.MAV_FRAME_LOCAL_NED, 5, -5, -12, (5, -5, -12))
         tgt = gcs.fresh("POSITION_TARGET_LOCAL_NED")
         assert (tgt.x, tgt.y, tgt.z) == pytest.approx((5, -5, -12), abs=0.01)

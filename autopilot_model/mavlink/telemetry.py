@@ -229,11 +229,13 @@ class VehicleTelemetry:
         return self.mav.vfr_hud_encode(gs, gs, self._heading_cdeg() // 100, thr, st.position_geodetic[2], -vd)
 
     def home_position(self) -> Any:
+        """As ArduCopter (GCS_MAVLINK::send_home_position): lat/lon/alt only; x, y, z zero and q NaN, so
+        clients take local positions from LOCAL_POSITION_NED (home and the EKF origin may differ)."""
         lat, lon, alt = self.v.home
-        n, e, d = fm.home_ned(self.v)
+        nan = float("nan")
         return self.mav.home_position_encode(
             _clamp_int(lat * 1e7, -900000000, 900000000), _clamp_int(lon * 1e7, -1800000000, 1800000000),
-            _clamp_int(alt * 1000, -2**31, 2**31 - 1), n, e, d, [1.0, 0.0, 0.0, 0.0], 0.0, 0.0, 0.0,
+            _clamp_int(alt * 1000, -2**31, 2**31 - 1), 0.0, 0.0, 0.0, [nan, nan, nan, nan], 0.0, 0.0, 0.0,
             self.v.clock.time_usec)
 
     def extended_sys_state(self) -> Any:

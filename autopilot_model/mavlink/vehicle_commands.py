@@ -22,7 +22,7 @@ from autopilot_model.modules import flight_modes as fm
 from autopilot_model.modules.navigation import LANDED_ON_GROUND
 from taskflight.geo import geodetic_to_ned
 
-from .commands import ACCEPTED, DENIED, Command, CommandResult
+from .commands import ACCEPTED, DENIED, FAILED, Command, CommandResult
 
 if TYPE_CHECKING:
     from .endpoint import MavlinkEndpoint
@@ -35,8 +35,9 @@ M = mavlink2
 
 
 def _result(ok_why: tuple[bool, str]) -> CommandResult:
+    """ArduCopter answers a refused arm, disarm, take-off or mode change with MAV_RESULT_FAILED."""
     ok, why = ok_why
-    return (ACCEPTED, None) if ok else (DENIED, why)
+    return (ACCEPTED, None) if ok else (FAILED, why)
 
 
 class VehicleCommands:
@@ -69,7 +70,7 @@ class VehicleCommands:
             if nav.armed:
                 return ACCEPTED, None
             if not force and not self.modes.allows_arming():
-                return DENIED, f"Arm: Mode {self.modes.name} not armable"
+                return FAILED, f"Arm: Mode {self.modes.name} not armable"
             return _result(nav.arm(force=force))
         if p1 == 0:
             return _result(nav.disarm(force=force))
@@ -80,11 +81,11 @@ class VehicleCommands:
         alt = cmd.finite(7, "takeoff altitude")
         nav = self.v.nav
         if self.modes.mode not in fm.TAKEOFF_MODES:
-            return DENIED, f"Takeoff: not supported in {self.modes.name}"
+            return FAILED, f"Takeoff: not supported in {self.modes.name}"
         if not nav.armed:
-            return DENIED, "Takeoff: not armed"
+            return FAILED, "Takeoff: not armed"
         if nav.landed_state != LANDED_ON_GROUND:
-            return DENIED, "Takeoff: already flying"
+            return FAILED, "Takeoff: already flying"
         return _result(nav.takeoff(alt))
 
     # --- modes ---------------------------------------------------------------------------------
@@ -97,7 +98,7 @@ class VehicleCommands:
         if not int(base) & M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED:
             return DENIED, "Mode: only custom modes are supported"
         if custom != int(custom) or custom not in fm.MODE_NAMES:
-            return DENIED, f"Mode change denied: unknown mode {custom:g}"
+            return FAILED, f"No such mode {custom:g}"
         return self._mode(int(custom), "GCS command")
 
     def _on_set_mode(self, msg: Any, peer: Peer) -> None:
@@ -107,7 +108,7 @@ class VehicleCommands:
         if not msg.base_mode & M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED:
             result, reason = DENIED, "Mode: only custom modes are supported"
         elif msg.custom_mode not in fm.MODE_NAMES:
-            result, reason = DENIED, f"Mode change denied: unknown mode {msg.custom_mode}"
+            result, reason = FAILED, f"No such mode {msg.custom_mode}"
         else:
             result, reason = self._mode(msg.custom_mode, "GCS set_mode")
         if reason and result != ACCEPTED:
