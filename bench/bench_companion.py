@@ -1,10 +1,11 @@
-"""Bench: the companion's setpoint stream against the bundled model over loopback UDP (issue 4).
+"""Bench: the companion's setpoint stream against each autopilot over loopback UDP (issues 4 and 7).
 
-Starts the model (``python -m autopilot_model.sitl``, paced at ``--speedup``) behind a UDP wire tap
-and a :class:`~companion.node.QuadNode`, then measures
+Starts the autopilot (the bundled model, ``python -m autopilot_model.sitl``, or ArduPilot's copter SITL
+named by ``TASKFLIGHT_ARDUCOPTER``; both paced at ``--speedup``) behind a UDP wire tap and a
+:class:`~companion.node.QuadNode`, then measures
 
 * the streamed setpoint rate and interval jitter (p50 / p99 of |interval - period|) at 20 and 50 Hz,
-  from the tap's arrival times converted to autopilot time (wall x speedup: the model paces on the wall);
+  from the tap's arrival times converted to autopilot time (wall x the autopilot clock's measured rate);
 * the latency from user_confirm to the first setpoint of the next command (autopilot time);
 * the tracking error of the measured position (LOCAL_POSITION_NED) against the setpoint streamed
   for that instant on a three-waypoint flight (RMS and max, 3-D).
@@ -27,8 +28,10 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "tests"))
 
-from companion_support import WireTap, cmd  # noqa: E402
-from mavlink_support import SitlProcess, free_port, wait_for  # noqa: E402
+
+from autopilot_support import arducopter_missing, start_autopilot  # noqa: E402
+from companion_support import cmd  # noqa: E402
+from mavlink_support import wait_for  # noqa: E402
 
 from bench.common import machine, table  # noqa: E402
 from companion.node import QuadNode  # noqa: E402
@@ -44,11 +47,10 @@ def sim_wait(node: QuadNode, seconds: float, speedup: float) -> None:
     wait_for(lambda: node.clock.now() >= t, 10 + 3 * seconds / speedup, f"{seconds} s of autopilot time")
 
 
-def fly(rate: float, speedup: float, state: Path, sample_s: float) -> dict[str, Any]:
-    port = free_port()
-    sitl = SitlProcess([f"udpin:127.0.0.1:{port}"], state, speedup=speedup, extra=["--no-persist"])
-    tap = WireTap(port, record="SET_POSITION_TARGET_LOCAL_NED")
-    node = QuadNode(f"udpout:127.0.0.1:{tap.port}", rate_hz=rate)
+def fly(kind: str, rate: float, speedup: float, state: Path, sample_s: float) -> dict[str, Any]:
+    ap = start_autopilot(kind, state, speedup, record="SET_POSITION_TARGET_LOCAL_NED")
+    tap = ap.tap
+    node = QuadNode(ap.companion_url, rate_hz=rate)
     streamed: list[tuple[float, Any]] = []  # (autopilot time, setpoint)
     measured: list[tuple[float, tuple[float, float, float]]] = []
     node.setpoint_listeners.append(lambda sp, f, t: streamed.append((t, sp)))
@@ -62,7 +64,7 @@ def fly(rate: float, speedup: float, state: Path, sample_s: float) -> dict[str, 
     out: dict[str, Any] = {}
     try:
         node.start()
-        w = 30 + 3 * 20 / speedup
+        w = 30 + 3 * 60 / speedup
         wait_for(lambda: node.link.mirror.snapshot().position is not None, w, "telemetry")
         node.add_command(
             cmd({"vertical": {"mode": "POS", "altitude": 5, "take_off": True}, "end": {"e_v": True}})
@@ -73,18 +75,19 @@ def fly(rate: float, speedup: float, state: Path, sample_s: float) -> dict[str, 
         n0 = len(tap.times)
         sim_wait(node, sample_s, speedup)
         times = tap.times[n0:]
-        iv = [(b - a) * speedup for a, b in itertools.pairwise(times)]
-        out["rate"] = (len(times) - 1) / ((times[-1] - times[0]) * speedup)
+        scale = node.clock.rate  # autopilot seconds per wall second, as the companion measures it
+        iv = [(b - a) * scale for a, b in itertools.pairwise(times)]
+        out["rate"] = (len(times) - 1) / ((times[-1] - times[0]) * scale)
         out["jitter"] = [abs(x - 1 / rate) * 1000 for x in iv]
         # user_confirm -> first setpoint of the next command
         lat = []
         for _ in range(8):
-            idx = node.queue.add_command(cmd({"end": {"e_user": True}}))
-            node.queue.add_command(cmd({"end": {"e_wait": 0.2}}))
+            confirm_id, next_id = node.add_commands([cmd({"end": {"e_user": True}}),
+                                                     cmd({"end": {"e_wait": 0.2}})])
             wait_for(
-                lambda i=idx: (
+                lambda i=confirm_id: (
                     node.queue.status().confirmation_required_status
-                    and node.queue.status().current_command_index == i
+                    and node.queue.status().current_command_id == i
                 ),
                 w,
                 "waiting for confirmation",
@@ -92,12 +95,12 @@ def fly(rate: float, speedup: float, state: Path, sample_s: float) -> dict[str, 
             t0 = node.clock.now()
             node.user_confirm()
             first = wait_for(
-                lambda i=idx: next((t for t, sp in reversed(streamed) if sp.command_index == i + 1), None),
+                lambda i=next_id: next((t for t, sp in reversed(streamed) if sp.command_id == i), None),
                 w,
                 "next command streamed",
             )
             lat.append((first - t0) * 1000)
-            wait_for(lambda i=idx: node.queue.status().current_command_index >= i + 2, w, "pause ended")
+            node.queue.events.wait_for(next_id, timeout_s=w)
         out["latency"] = lat
         # tracking on the waypoint flight
         s0 = len(streamed)
@@ -124,8 +127,7 @@ def fly(rate: float, speedup: float, state: Path, sample_s: float) -> dict[str, 
         out["track"] = errs
     finally:
         node.close()
-        tap.close()
-        sitl.stop()
+        ap.close()
     return out
 
 
@@ -133,17 +135,26 @@ def main() -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--speedup", type=float, default=2.0, help="model speedup (1 = real time)")
     p.add_argument("--sample", type=float, default=10.0, help="seconds of autopilot time per rate sample")
+    default = "model" if arducopter_missing() else "model,arducopter"
+    p.add_argument("--autopilot", default=default,
+                   help=f"comma-separated: model, arducopter (default {default}; ArduCopter SITL needs "
+                        "TASKFLIGHT_ARDUCOPTER)")
     args = p.parse_args()
+    kinds = [k.strip() for k in args.autopilot.split(",") if k.strip()]
+    if "arducopter" in kinds and arducopter_missing():
+        p.error(str(arducopter_missing()))
     rows_rate, rows_other = [], []
     with tempfile.TemporaryDirectory() as tmp:
-        for rate in (20.0, 50.0):
-            r = fly(rate, args.speedup, Path(tmp) / f"r{rate:g}", args.sample)
+        for kind, rate in itertools.product(kinds, (20.0, 50.0)):
+            r = fly(kind, rate, args.speedup, Path(tmp) / f"{kind}{rate:g}", args.sample)
             rows_rate.append(
-                (f"{rate:g}", r["rate"], pct(r["jitter"], 0.5), pct(r["jitter"], 0.99), max(r["jitter"]))
+                (kind, f"{rate:g}", r["rate"], pct(r["jitter"], 0.5), pct(r["jitter"], 0.99),
+                 max(r["jitter"]))
             )
             tr = r["track"]
             rows_other.append(
                 (
+                    kind,
                     f"{rate:g}",
                     statistics.median(r["latency"]),
                     max(r["latency"]),
@@ -152,12 +163,14 @@ def main() -> int:
                     len(tr),
                 )
             )
-    print(f"# bench_companion ({machine()}), model speedup {args.speedup:g}; times are autopilot time\n")
-    print(table(["stream Hz", "measured Hz", "jitter p50 ms", "jitter p99 ms", "jitter max ms"], rows_rate))
+    print(f"# bench_companion ({machine()}), autopilot speedup {args.speedup:g}; times are autopilot time\n")
+    print(table(["autopilot", "stream Hz", "measured Hz", "jitter p50 ms", "jitter p99 ms", "jitter max ms"],
+                rows_rate))
     print()
     print(
         table(
             [
+                "autopilot",
                 "stream Hz",
                 "confirm->next p50 ms",
                 "confirm->next max ms",

@@ -238,7 +238,11 @@ class QuadNode:
             queue.fail_current(reason)
             self.queue_time.release(t_ap)
         if sup.holds_queue:
-            if not sup.step_takeoff(queue.executing_take_off(), s, t_ap):
+            airborne = sup.step_takeoff(queue.executing_take_off(), s, t_ap)
+            if airborne and not queue.mark_takeoff_airborne():
+                sup.takeoff_abandoned_in_the_air()  # stopped at the very moment of lift-off
+                airborne = False
+            if not airborne:
                 if not sup.holds_queue:  # cancelled: the queue's time runs again
                     self.queue_time.release(t_ap)
                 return

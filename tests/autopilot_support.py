@@ -82,7 +82,7 @@ class ArduCopterSitl:
 class Autopilot:
     """One autopilot under test with its wire tap and ground station (see module docstring)."""
 
-    def __init__(self, kind: str, state_dir: Path, speedup: float) -> None:
+    def __init__(self, kind: str, state_dir: Path, speedup: float, record: str | None = None) -> None:
         self.kind = kind
         self.speedup = speedup
         self.process: SitlProcess | ArduCopterSitl
@@ -90,7 +90,7 @@ class Autopilot:
             port = free_port()
             self.process = SitlProcess([f"udpin:127.0.0.1:{port}"], state_dir, speedup=speedup,
                                        extra=["--no-persist"])
-            self.tap = WireTap(port)
+            self.tap = WireTap(port, record=record)
             self.companion_url = f"udpout:127.0.0.1:{self.tap.port}"
             self.gcs = Gcs(port, speedup, background=True)
         elif kind == "arducopter":
@@ -98,7 +98,7 @@ class Autopilot:
             if missing:
                 pytest.skip(missing)
             companion_port, gcs_port = free_ports(2)
-            self.tap = WireTap(companion_port, companion_side="back")
+            self.tap = WireTap(companion_port, record=record, companion_side="back", avoid=(gcs_port,))
             self.companion_url = f"udpin:127.0.0.1:{companion_port}"
             self.gcs = Gcs(0, speedup, url=f"udpin:127.0.0.1:{gcs_port}", background=True)
             self.process = ArduCopterSitl([self.tap.port, gcs_port], speedup)
@@ -126,5 +126,6 @@ class Autopilot:
         self.process.stop()
 
 
-def start_autopilot(kind: str, state_dir: Path, speedup: float) -> Autopilot:
-    return Autopilot(kind, state_dir, speedup)
+def start_autopilot(kind: str, state_dir: Path, speedup: float, record: str | None = None) -> Autopilot:
+    """The autopilot ``kind`` ("model" or "arducopter") with its tap (timing ``record`` messages) and GCS."""
+    return Autopilot(kind, state_dir, speedup, record)

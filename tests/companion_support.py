@@ -25,6 +25,16 @@ def cmd(data: dict[str, Any]) -> FlightCommand:
     return command_from_dict(data)
 
 
+def _bound_socket(avoid: set[int]) -> socket.socket:
+    """A UDP socket bound on loopback to a free port not in ``avoid``."""
+    while True:
+        sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        sock.bind(("127.0.0.1", 0))
+        if sock.getsockname()[1] not in avoid:
+            return sock
+        sock.close()
+
+
 class WireTap:
     """A UDP relay that decodes what the companion sends.
 
@@ -36,14 +46,21 @@ class WireTap:
     """
 
     def __init__(self, back_port: int, record: str | None = None, companion_side: str = "front",
-                 keep: tuple[str, ...] = ("SET_POSITION_TARGET_LOCAL_NED",)) -> None:
+                 keep: tuple[str, ...] = ("SET_POSITION_TARGET_LOCAL_NED",), avoid: tuple[int, ...] = ()
+                 ) -> None:
         if companion_side not in ("front", "back"):
             raise ValueError("companion_side: front or back")
-        self.front = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        self.front.bind(("127.0.0.1", 0))
+        # neither of our own sockets may take a port chosen for someone else (a port freed a moment ago
+        # is a likely next ephemeral port): a tap bound to the companion's port would talk to itself
+        taken = {back_port, *avoid}
+        self.front = _bound_socket(taken)
         self.port = self.front.getsockname()[1]
-        self.back = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.back = _bound_socket(taken | {self.port})
         self.back.connect(("127.0.0.1", back_port))
+        # non-blocking: select() may report a socket readable for an ICMP error that a send() then
+        # consumes; a blocking recvfrom() would then wait for ever and stall the relay
+        self.front.setblocking(False)
+        self.back.setblocking(False)
         self.companion_side = companion_side
         self.sent: Counter[str] = Counter()
         #: wall arrival times of each message of type ``record`` (for the bench's jitter)
@@ -86,7 +103,7 @@ class WireTap:
             for s in ready:
                 try:
                     data, addr = s.recvfrom(65535)
-                except OSError:
+                except OSError:  # nothing after all (BlockingIOError), or an ICMP error
                     continue
                 if s is self.front:
                     self._client = addr
@@ -97,7 +114,10 @@ class WireTap:
                     if self.companion_side == "front":
                         self._parse(data)
                 elif self._client is not None:
-                    self.front.sendto(data, self._client)
+                    try:
+                        self.front.sendto(data, self._client)
+                    except OSError:
+                        continue
                     if self.companion_side == "back":
                         self._parse(data)
 

@@ -91,6 +91,8 @@ class CommandExecution:
         self._hd_passed = False
         #: the altitude the command started from (a take-off's ground)
         self.start_altitude = start.altitude
+        #: a take-off: the link reported the lift-off (see CommandQueue.mark_takeoff_airborne)
+        self.airborne = False
         self._resolve(start)
         self.resume(start)
 

@@ -42,8 +42,9 @@ Verbs (Sec. V) and the decisions where the paper is silent
 
 "Stopped if allowed" during a take-off (Sec. V)
     A take-off that has not yet left the ground (its execution has not advanced: the link holds the
-    queue's time while the autopilot arms and lifts off) stops at once; the link then cancels the
-    take-off (nothing arms, or it disarms). Once climbing, it may not be stopped until its reference
+    queue's time while the autopilot arms and lifts off; the link marks the lift-off with
+    ``mark_takeoff_airborne``) stops at once; the link then cancels the take-off (nothing arms, or it
+    disarms). Once climbing, it may not be stopped until its reference
     is ``takeoff_min_hold_m`` above where it started: ``stop``, ``pause_direct`` and ``reset``
     given in that window are *deferred* (status ``deferred``, a DEFERRED event) and carried out
     there, so the vehicle never hovers armed a few centimetres above the ground. ``run()`` cancels
@@ -107,6 +108,8 @@ log = logging.getLogger(__name__)
 
 #: A climbing take-off may not be stopped below this height above where it started (m).
 TAKEOFF_MIN_HOLD_M = 1.0
+#: Without word from the link, a take-off whose reference rose this much (m) has left the ground.
+TAKEOFF_CLIMBING_M = 0.05
 
 
 @dataclass
@@ -476,12 +479,27 @@ class CommandQueue:
             raise QueueError(str(exc.args[0])) from None
 
     def _takeoff_unstoppable(self) -> bool:
-        """A climbing take-off still below its minimum hold height (module docstring)."""
+        """A climbing take-off still below its minimum hold height (module docstring).
+
+        Climbing: the link said it lifted off (:meth:`mark_takeoff_airborne`), or, with no link (a
+        simulation), its reference has left the start altitude."""
         ex = self._exec
         if ex is None or self._behaviour is not None or self._state is not QueueState.RUNNING \
-                or not ex.command.vertical.take_off or ex.ended or ex.elapsed_s <= 0 or self._ref is None:
+                or not ex.command.vertical.take_off or ex.ended or self._ref is None:
             return False
-        return self._ref.altitude < ex.start_altitude + self.takeoff_min_hold_m
+        climbing = ex.airborne or self._ref.altitude - ex.start_altitude >= TAKEOFF_CLIMBING_M
+        return climbing and self._ref.altitude < ex.start_altitude + self.takeoff_min_hold_m
+
+    def mark_takeoff_airborne(self) -> bool:
+        """Called by the link when the vehicle lifted off for the executing take-off; False when the
+        take-off is no longer executing (stopped, reset or paused meanwhile). Atomic with the verbs: a
+        stop after it is deferred, a stop before it makes it answer False."""
+        with self._lock:
+            ex = self._active_execution()
+            if ex is None or self._behaviour is not None or not ex.command.vertical.take_off or ex.ended:
+                return False
+            ex.airborne = True
+            return True
 
     def _defer_if_taking_off(self, verb: str, behaviour: PauseBehaviour | None) -> bool:
         if not self._takeoff_unstoppable():

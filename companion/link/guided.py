@@ -238,13 +238,12 @@ class GuidedSupervisor:
             self._seen_guided = True
         if self._step == "takeoff" and s.armed and self._takeoff_accepted \
                 and (s.landed is False or self._climbed(s)):
+            self._req = None
+            if not wanted:
+                self.takeoff_abandoned_in_the_air()
+                return False
             log.info("airborne: streaming setpoints")
             self.phase = Phase.ENGAGED
-            self._req = None
-            if not wanted:  # stopped at the very moment of lift-off: the autopilot's take-off runs on
-                log.info("take-off no longer wanted but airborne: the autopilot completes it")
-                self.phase = Phase.IDLE
-                return False
             return True
         if not wanted:
             self._cancel("the queue no longer executes the take-off", s, now_s)
@@ -279,6 +278,13 @@ class GuidedSupervisor:
         self._req = None
         self._wait_until = now_s + RETRY_PAUSE_S
         return False
+
+    def takeoff_abandoned_in_the_air(self) -> None:
+        """The queue stopped the take-off just as the vehicle lifted off: the autopilot's own take-off
+        (MAV_CMD_NAV_TAKEOFF, already climbing) runs on to its altitude and holds; we stream nothing."""
+        log.info("take-off no longer wanted but airborne: the autopilot completes it")
+        self.phase = Phase.IDLE
+        self._req = None
 
     def _send_step(self, s: MirrorState, now_s: float) -> None:
         if self._step == "mode":
