@@ -239,7 +239,7 @@ class QuadNode:
             self.queue_time.release(t_ap)
         if sup.holds_queue:
             airborne = sup.step_takeoff(queue.executing_take_off(), s, t_ap)
-            if airborne and not queue.mark_takeoff_airborne():
+            if airborne and not queue.mark_takeoff_airborne(s.vehicle_state()):
                 sup.takeoff_abandoned_in_the_air()  # stopped at the very moment of lift-off
                 airborne = False
             if not airborne:

@@ -490,15 +490,23 @@ class CommandQueue:
         climbing = ex.airborne or self._ref.altitude - ex.start_altitude >= TAKEOFF_CLIMBING_M
         return climbing and self._ref.altitude < ex.start_altitude + self.takeoff_min_hold_m
 
-    def mark_takeoff_airborne(self) -> bool:
+    def mark_takeoff_airborne(self, vehicle: VehicleState | None = None) -> bool:
         """Called by the link when the vehicle lifted off for the executing take-off; False when the
         take-off is no longer executing (stopped, reset or paused meanwhile). Atomic with the verbs: a
-        stop after it is deferred, a stop before it makes it answer False."""
+        stop after it is deferred, a stop before it makes it answer False.
+
+        With ``vehicle``, the reference restarts at the measured state (the autopilot's own take-off
+        has already climbed by the time the lift-off is seen): the first streamed setpoint continues
+        the climb where the vehicle is, instead of pulling it back to the ground it left."""
         with self._lock:
             ex = self._active_execution()
             if ex is None or self._behaviour is not None or not ex.command.vertical.take_off or ex.ended:
                 return False
             ex.airborne = True
+            if vehicle is not None and self._ref is not None:
+                self._ref = self._gen.initial(self._ref.t_s, vehicle.p, vehicle.v, vehicle.yaw)
+                ex.resume(self._ref)
+                self._last_setpoint = None
             return True
 
     def _defer_if_taking_off(self, verb: str, behaviour: PauseBehaviour | None) -> bool:
