@@ -120,3 +120,41 @@ def test_urls(url: str, expected: tuple[str, int]) -> None:
 def test_bad_url() -> None:
     with pytest.raises(ValueError, match="expected udpin"):
         parse_url("http://x", 57600)
+
+
+@pytest.mark.parametrize("first_contact", [False, True])
+def test_clock_rate_survives_a_stall_and_catch_up_burst(first_contact: bool) -> None:
+    """A paced autopilot that stalls and then catches up in a burst (0.86 s of its time in 13 ms), later
+    or at the companion's first contact (as the model does when a client first connects), must not
+    leave the rate estimate inflated: an overestimate runs the companion's clock into its extrapolation
+    cap, so setpoints are stamped ahead of the autopilot."""
+    wall = FakeWall()
+    clock = AutopilotClock(wall=wall)
+    ap = 10.0
+
+    def run(seconds: float) -> None:
+        nonlocal ap
+        for _ in range(round(seconds / 0.01)):  # 5x, a sample every 10 ms of wall time
+            wall.t += 0.01
+            ap += 0.05
+            clock.observe(int(ap * 1000), wall.t)
+
+    def burst(owed: float) -> None:
+        nonlocal ap
+        for _ in range(13):  # what the stall owed, 13 samples 1 ms apart
+            wall.t += 0.001
+            ap += owed / 13
+            clock.observe(int(ap * 1000), wall.t)
+
+    if first_contact:
+        burst(0.86)
+        run(0.5)  # no rate from the first 0.2 s, then a quarter second of samples
+    else:
+        run(1.0)
+        assert clock.rate == pytest.approx(5.0, rel=0.02)
+        wall.t += 0.15
+        burst(0.75)
+    for _ in range(20):  # every 0.1 s for the next 2 s
+        run(0.1)
+        assert clock.rate == pytest.approx(5.0, rel=0.06)
+        assert clock.now() == pytest.approx(ap, abs=0.06)

@@ -6,7 +6,11 @@ model running ``--speedup K`` still sees setpoints at 20 Hz of *its* time. Every
 by the link's receive thread; :meth:`AutopilotClock.now` extrapolates between samples:
 
 * ``rate``: autopilot seconds per wall second, the slope over the last ``rate_window_s`` of wall
-  time (samples kept every 50 ms; 1 against a real autopilot, K against a sped-up model);
+  time (samples kept every 50 ms; 1 against a real autopilot, K against a sped-up model), or over
+  the window's newer half when that is lower, and none from the first ``settle_s`` after the first
+  sample: a paced simulator that stalled catches up in a burst (the model does on first contact),
+  and a burst in the window would otherwise inflate the rate, run the estimate into its
+  extrapolation cap and stamp setpoints ahead of the autopilot;
 * the mapping ``ap = anchor_ap + rate * (wall - anchor_wall)`` is anchored on the *least delayed*
   recent sample (network and thread delays only ever make samples late): a sample replaces the
   anchor when it is ahead of the anchor's prediction slowed by ``leak``, so a rate error cannot
@@ -31,8 +35,9 @@ class AutopilotClock:
     """Estimated autopilot time in seconds since its boot (see module docstring)."""
 
     def __init__(self, wall: Callable[[], float] = time.monotonic, rate_window_s: float = 2.0,
-                 max_extrapolation_s: float = 0.25, leak: float = 0.02) -> None:
+                 max_extrapolation_s: float = 0.25, leak: float = 0.02, settle_s: float = 0.2) -> None:
         self._wall = wall
+        self._settle_s = settle_s
         self._rate_window_s = rate_window_s
         self._max_extra = max_extrapolation_s
         self._leak = leak
@@ -49,6 +54,7 @@ class AutopilotClock:
         self._last_ap = 0.0
         self._last_wall = 0.0
         self._window: deque[tuple[float, float]] = deque()
+        self._sync_wall = 0.0
         self._returned = 0.0
         self.resets = 0
 
@@ -64,25 +70,38 @@ class AutopilotClock:
                 self.resets = resets
             if not self._synced:
                 self._synced = True
+                self._sync_wall = w
                 self._anchor_ap, self._anchor_wall = ap, w
                 self._last_ap, self._last_wall = ap, w
-                self._window.append((w, ap))
                 self._returned = ap
                 return
             if ap < self._last_ap:  # reordered sample: ignore
                 return
-            if w - self._window[-1][0] >= 0.05:
+            if w - self._sync_wall < self._settle_s:
+                pass  # the first samples may be a catch-up burst: no rate from them
+            elif not self._window or w - self._window[-1][0] >= 0.05:
                 self._window.append((w, ap))
                 while len(self._window) > 2 and w - self._window[1][0] >= self._rate_window_s:
                     self._window.popleft()
-                w0, ap0 = self._window[0]
-                if w - w0 >= min(0.25, self._rate_window_s) and ap > ap0:
-                    self._rate = (ap - ap0) / (w - w0)
-                    self._rate_measured = True
+                self._update_rate(w, ap)
             predicted = self._anchor_ap + self._rate * (1.0 - self._leak) * (w - self._anchor_wall)
             if ap >= predicted:
                 self._anchor_ap, self._anchor_wall = ap, w
             self._last_ap, self._last_wall = ap, w
+
+    def _update_rate(self, w: float, ap: float) -> None:
+        """The slope over the window, or over its newer half when that is lower (a stall and its
+        catch-up burst inside the window would otherwise inflate the rate for ``rate_window_s``)."""
+        w0, ap0 = self._window[0]
+        if w - w0 < min(0.25, self._rate_window_s) or ap <= ap0:
+            return
+        rate = (ap - ap0) / (w - w0)
+        half = (w - w0) / 2.0
+        mid = next(((wi, api) for wi, api in self._window if w - wi <= half), None)
+        if mid is not None and w - mid[0] >= 0.1 and ap > mid[1]:
+            rate = min(rate, (ap - mid[1]) / (w - mid[0]))
+        self._rate = rate
+        self._rate_measured = True
 
     # --- readers ---------------------------------------------------------------------------------------
     @property
