@@ -174,6 +174,7 @@ class GuidedSupervisor:
             log.info("landing command reached its altitude: LAND")
             self.phase = Phase.LANDING
             self._req = self.link.set_mode(LAND, now_s)
+            self._wait_until = now_s + RETRY_PAUSE_S
             return False
         return True
 
