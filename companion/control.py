@@ -57,12 +57,14 @@ Authentication
 
 from __future__ import annotations
 
+import dataclasses
 import hmac
 import ipaddress
 import json
 import logging
 import threading
 import time
+import typing
 from collections.abc import Awaitable, Callable, MutableMapping
 from typing import Annotated, Any
 
@@ -70,21 +72,19 @@ import uvicorn
 from fastapi import Body, FastAPI, Path, Query, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
-from pydantic import AllowInfNan, BaseModel, ConfigDict, Discriminator, Field, Strict, Tag
+from pydantic import AllowInfNan, BaseModel, ConfigDict, Discriminator, Field, Strict, Tag, create_model
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from companion.flight import (
     STREAMS,
     CommandError,
-    CommandStatus,
     EventKind,
     ExternalDataError,
     FlightCommand,
     QueueError,
     QueueEvent,
-    QueueState,
     QueueStateError,
-    QueueSystemStatus,
+    QueueStatus,
     Retarget,
     command_from_dict,
     command_to_dict,
@@ -215,21 +215,19 @@ class ErrorResponse(BaseModel):
     error: str = Field(examples=["commands[1].end: expected a mapping"])
 
 
-class QueueStatusModel(BaseModel):
-    """The QAPI status (Sec. V): the paper's fields, then ours."""
+def _model_of(cls: type, doc: str) -> type[BaseModel]:
+    """A pydantic model with the fields of the dataclass ``cls`` (one definition of each answer)."""
+    hints = typing.get_type_hints(cls)
+    spec: dict[str, Any] = {}
+    for f in dataclasses.fields(cls):
+        default = f.default if f.default is not dataclasses.MISSING else ...
+        spec[f.name] = (hints[f.name], default)
+    model = create_model(cls.__name__ + "Model", __doc__=doc, **spec)
+    return model
 
-    queue_system_status: QueueSystemStatus
-    queue_status: QueueState
-    current_command_index: int
-    current_command_status: CommandStatus
-    confirmation_required_status: bool
-    limit_reached: bool
-    target_position_unreachable: bool
-    is_synced: bool
-    current_command_id: int | None = None
-    generation: int = 0
-    failure: str | None = None
-    deferred: str | None = None
+
+#: The QAPI status (Sec. V): the paper's fields, then ours (:class:`companion.flight.qapi.QueueStatus`).
+QueueStatusModel = _model_of(QueueStatus, "The QAPI status (Sec. V): the paper's fields, then ours.")
 
 
 class NodeInfo(BaseModel):
@@ -290,16 +288,8 @@ class AcceptedResponse(BaseModel):
     accepted: bool = Field(description="false: older than the stream's newest sample (ignored)")
 
 
-class EventModel(BaseModel):
-    """One queue event (:class:`companion.flight.events.QueueEvent`)."""
-
-    seq: int
-    kind: EventKind
-    command_id: int | None
-    index: int | None
-    generation: int
-    t_s: float | None
-    detail: str = ""
+#: One queue event (:class:`companion.flight.events.QueueEvent`).
+EventModel = _model_of(QueueEvent, "One queue event (companion.flight.events.QueueEvent).")
 
 
 class EventsResponse(BaseModel):

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import pytest
 from companion_support import WireTap
-from mavlink_support import ROOT, Gcs, SitlProcess, free_port, free_ports, wait_for
+from mavlink_support import ROOT, Gcs, SitlProcess, free_port, free_ports, stop_process, wait_for
 
 #: the ArduCopter SITL binary, or None
 ARDUCOPTER = os.environ.get("TASKFLIGHT_ARDUCOPTER") or None
@@ -68,13 +68,7 @@ class ArduCopterSitl:
         self.proc = subprocess.Popen(args, cwd=self.dir.name, stdout=self._log, stderr=subprocess.STDOUT)
 
     def stop(self) -> None:
-        if self.proc.poll() is None:
-            self.proc.terminate()
-            try:
-                self.proc.wait(10)
-            except subprocess.TimeoutExpired:
-                self.proc.kill()
-                self.proc.wait(5)
+        stop_process(self.proc)
         self._log.close()
         self.dir.cleanup()
 

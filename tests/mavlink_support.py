@@ -77,6 +77,17 @@ def wait_for(pred: Callable[[], Any], timeout_s: float, what: str, poll_s: float
         time.sleep(poll_s)
 
 
+def stop_process(proc: subprocess.Popen[Any]) -> None:
+    """Terminate a child (SIGTERM, then SIGKILL after 10 s) and reap it."""
+    if proc.poll() is None:
+        proc.terminate()
+        try:
+            proc.wait(10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait(5)
+
+
 class SitlProcess:
     """``python -m autopilot_model.sitl`` in a subprocess; waits for its READY line."""
 
@@ -106,13 +117,7 @@ class SitlProcess:
         raise RuntimeError(f"SITL did not start: {self.ready or 'no READY line'}")
 
     def stop(self) -> None:
-        if self.proc.poll() is None:
-            self.proc.terminate()
-            try:
-                self.proc.wait(10)
-            except subprocess.TimeoutExpired:
-                self.proc.kill()
-                self.proc.wait(5)
+        stop_process(self.proc)
 
 
 class Gcs:
