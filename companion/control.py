@@ -57,14 +57,12 @@ Authentication
 
 from __future__ import annotations
 
-import dataclasses
 import hmac
 import ipaddress
 import json
 import logging
 import threading
 import time
-import typing
 from collections.abc import Awaitable, Callable, MutableMapping
 from typing import Annotated, Any
 
@@ -72,21 +70,38 @@ import uvicorn
 from fastapi import Body, FastAPI, Path, Query, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
-from pydantic import AllowInfNan, BaseModel, ConfigDict, Discriminator, Field, Strict, Tag, create_model
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
+from companion.control_models import (
+    UNION_TAGS,
+    AcceptedResponse,
+    AddedResponse,
+    BehavioursResponse,
+    CommandBatch,
+    CommandEntry,
+    CommandListResponse,
+    CommandsBody,
+    ErrorResponse,
+    EventModel,
+    EventsResponse,
+    EventWaitResponse,
+    ExternalSample,
+    FlightCommandModel,
+    PauseRequest,
+    QueueStatusModel,
+    RetargetRequest,
+    StatusResponse,
+    VerbResponse,
+)
 from companion.flight import (
     STREAMS,
     CommandError,
     EventKind,
     ExternalDataError,
-    FlightCommand,
     QueueError,
     QueueEvent,
     QueueStateError,
-    QueueStatus,
     Retarget,
-    command_from_dict,
     command_to_dict,
 )
 from companion.flight.events import TERMINAL
@@ -111,200 +126,6 @@ Send = Callable[[Message], Awaitable[None]]
 ASGIApp = Callable[[Scope, Receive, Send], Awaitable[None]]
 
 #: a JSON number (an integer is accepted; booleans and strings are not), finite
-Number = Annotated[float, Strict(), AllowInfNan(False)]
-
-
-# --- models: requests ------------------------------------------------------------------------------
-_CHANNEL_DOC = ("A channel in the flight codec's form: ``mode`` and that mode's parameters "
-                "(:mod:`companion.flight.commands`). Missing or null: DNU.")
-
-_COMMAND_EXAMPLES = [
-    {"vertical": {"mode": "POS", "altitude": 5, "take_off": True}, "end": {"e_v": True}},
-    {"horizontal": {"mode": "POS", "north": 10, "east": 5, "speed": 3, "speed_modified_by": ["vertical"]},
-     "vertical": {"mode": "POS", "altitude": 10, "frame": "relative"},
-     "heading": {"mode": "POINT", "north": 0, "east": 0},
-     "end": {"e_h": True, "e_v": True}},
-]
-
-
-class FlightCommandModel(BaseModel):
-    """A flight command (seed 000 Sec. IV-A) in the flight codec's form (:mod:`companion.flight.codec`).
-
-    The channels and the end condition are validated by the codec (modes, parameters, frames, an end
-    condition that can be reached); an error names the offending field.
-    """
-
-    model_config = ConfigDict(extra="forbid", json_schema_extra={"examples": _COMMAND_EXAMPLES})
-
-    horizontal: dict[str, Any] | None = Field(
-        None, description=_CHANNEL_DOC + " Modes: POS, EXT_POS, KEEP_DISTANCE, EXT_VEL, RC_VEL, DNU.",
-        examples=[{"mode": "POS", "north": 10, "east": 5, "frame": "absolute", "speed": 3}])
-    vertical: dict[str, Any] | None = Field(
-        None, description=_CHANNEL_DOC + " Modes: POS, WITH_HOR, EXT_POS, EXT_VEL, RC_VEL, DNU.",
-        examples=[{"mode": "POS", "altitude": 5, "take_off": True}])
-    heading: dict[str, Any] | None = Field(
-        None, description=_CHANNEL_DOC + " Modes: POS, FLIGHT_DIR, EXT_POS, EXT_VEL, RC_VEL, POINT, "
-        "EXT_POINT, DNU.", examples=[{"mode": "POS", "heading": 90, "rate": 30}])
-    end: dict[str, Any] = Field(
-        description="The end condition (Fig. 8): flags ``e_h``, ``e_v``, ``e_hd``, ``e_any``, ``e_user`` "
-        "and ``e_wait`` (s).", examples=[{"e_h": True, "e_v": True}])
-
-    def to_command(self, prefix: str = "") -> FlightCommand:
-        """The validated command; :class:`ConfigError` naming the field (``prefix.field``) otherwise."""
-        return command_from_dict(self.model_dump(exclude_none=True), file="<request>", prefix=prefix)
-
-
-class CommandBatch(BaseModel):
-    """Several flight commands, added atomically (all checked first; all or none)."""
-
-    model_config = ConfigDict(extra="forbid")
-
-    commands: list[FlightCommandModel] = Field(min_length=1)
-
-
-def _command_or_batch(value: Any) -> str:
-    return "batch" if isinstance(value, dict) and "commands" in value else "command"
-
-
-#: the union tags pydantic puts into an error's location (left out of the messages)
-_UNION_TAGS = frozenset({"batch", "command"})
-
-CommandsBody = Annotated[
-    Annotated[CommandBatch, Tag("batch")] | Annotated[FlightCommandModel, Tag("command")],
-    Discriminator(_command_or_batch),
-]
-
-
-class PauseRequest(BaseModel):
-    """The pause behaviour to run (default ``hover``)."""
-
-    model_config = ConfigDict(extra="forbid")
-
-    behaviour_id: str | None = Field(None, description="an id of ``GET /behaviours``", examples=["hover"])
-
-
-class ExternalSample(BaseModel):
-    """An external-data sample (Sec. IV-C), stamped on arrival with the queue's clock."""
-
-    model_config = ConfigDict(extra="forbid", json_schema_extra={"examples": [
-        {"values": [1.0, 0.0, 0.0, 0.0], "validity_s": 0.5}]})
-
-    values: list[Number] = Field(description="the stream's values: ext_pos 3 (north, east, down), ext_vel 4 "
-                                 "(vn, ve, vd, yaw rate), ext_heading 1, ext_point 2, rc_vel 4")
-    validity_s: Number = Field(0.5, gt=0, description="how long the sample stays fresh (s; at most the "
-                               "node's maximum, ``--max-validity``)")
-
-
-class RetargetRequest(BaseModel):
-    """New targets of the executing command (Sec. IV-D); left out: unchanged."""
-
-    model_config = ConfigDict(extra="forbid", json_schema_extra={"examples": [{"north": 12.0, "east": 4.0},
-                                                                              {"speed": 2.0}]})
-
-    north: Number | None = Field(None, description="m, local NED, absolute (horizontal POS)")
-    east: Number | None = Field(None, description="m, local NED, absolute (horizontal POS)")
-    altitude: Number | None = Field(None, description="m up, absolute (vertical POS or WITH_HOR)")
-    speed: Number | None = Field(None, description="m/s (horizontal POS, EXT_POS, KEEP_DISTANCE)")
-    heading: Number | None = Field(None, description="degrees, absolute (heading POS)")
-
-
-# --- models: answers -------------------------------------------------------------------------------
-class ErrorResponse(BaseModel):
-    """Every refused request (any 4xx)."""
-
-    error: str = Field(examples=["commands[1].end: expected a mapping"])
-
-
-def _model_of(cls: type, doc: str) -> type[BaseModel]:
-    """A pydantic model with the fields of the dataclass ``cls`` (one definition of each answer)."""
-    hints = typing.get_type_hints(cls)
-    spec: dict[str, Any] = {}
-    for f in dataclasses.fields(cls):
-        default = f.default if f.default is not dataclasses.MISSING else ...
-        spec[f.name] = (hints[f.name], default)
-    model = create_model(cls.__name__ + "Model", __doc__=doc, **spec)
-    return model
-
-
-#: The QAPI status (Sec. V): the paper's fields, then ours (:class:`companion.flight.qapi.QueueStatus`).
-QueueStatusModel = _model_of(QueueStatus, "The QAPI status (Sec. V): the paper's fields, then ours.")
-
-
-class NodeInfo(BaseModel):
-    """What the node's tick thread does."""
-
-    rate_hz: float
-    ticks: int
-    streamed: int
-    resyncs: int
-    queue_time_s: float
-    last_setpoint: dict[str, Any] | None
-
-
-class StatusResponse(BaseModel):
-    """``GET /status``."""
-
-    queue: QueueStatusModel
-    commands: int = Field(description="how many commands the list holds")
-    behaviour_id: str | None = Field(description="the pause behaviour running, if any")
-    flight: dict[str, Any] = Field(description="the GUIDED supervisor: phase, take-off, override")
-    link: dict[str, Any] = Field(description="the MAVLink link: connection, clock, statistics")
-    vehicle: dict[str, Any] = Field(description="the mirrored vehicle state")
-    node: NodeInfo
-
-
-class CommandEntry(BaseModel):
-    id: int = Field(description="the process-unique command id")
-    index: int = Field(description="its position in the list")
-    command: FlightCommandModel
-
-
-class CommandListResponse(BaseModel):
-    """``GET /commands``."""
-
-    commands: list[CommandEntry]
-    current_command_index: int
-    current_command_id: int | None
-    generation: int
-
-
-class AddedResponse(BaseModel):
-    """``POST /commands``: the new commands' ids and positions (null: a reset has dropped it already)."""
-
-    ids: list[int]
-    indices: list[int | None]
-
-
-class VerbResponse(BaseModel):
-    ok: bool = True
-    status: QueueStatusModel
-
-
-class BehavioursResponse(BaseModel):
-    behaviours: list[str]
-
-
-class AcceptedResponse(BaseModel):
-    accepted: bool = Field(description="false: older than the stream's newest sample (ignored)")
-
-
-#: One queue event (:class:`companion.flight.events.QueueEvent`).
-EventModel = _model_of(QueueEvent, "One queue event (companion.flight.events.QueueEvent).")
-
-
-class EventsResponse(BaseModel):
-    """``GET /events``: poll again with ``since=last_seq``."""
-
-    events: list[EventModel]
-    last_seq: int
-
-
-class EventWaitResponse(BaseModel):
-    """``GET /events/wait``: the event, or null when the deadline passed."""
-
-    event: EventModel | None
-
-
 # --- errors ----------------------------------------------------------------------------------------
 class RequestError(Exception):
     """A request the surface refuses (status code and message)."""
@@ -327,7 +148,7 @@ def _where(loc: Any) -> str:
     for p in parts:
         if isinstance(p, int):
             text += f"[{p}]"
-        elif p not in _UNION_TAGS:
+        elif p not in UNION_TAGS:
             text += f".{p}" if text else str(p)
     if source == "body":
         return text or "body"

@@ -7,38 +7,8 @@ vehicle state and streams the returned :class:`~companion.flight.setpoint.Setpoi
 own methods change it (one writer). Every change of a command's life is published as a
 :class:`~companion.flight.events.QueueEvent` on :attr:`CommandQueue.events` (wait on it or subscribe).
 
-Verbs (Sec. V) and the decisions where the paper is silent
-    ``add_command(c) -> id``  append (validated; an absolute target outside the envelope is
-        refused). If the queue is running and idle, the command starts at the next tick. Ids are
-        unique for the life of the process (never reused after ``reset()``).
-    ``add_commands([c, ...]) -> [id, ...]``  all validated first, then appended at once (atomic:
-        all or none, no tick in between).
-    ``check_command(c)``  raise what ``add_command(c)`` would, change nothing.
-    ``run()``  start or continue; also before anything is queued (execution starts with the first
-        command added). A stopped command is resumed (see below). Called during a pause behaviour,
-        it abandons the behaviour and continues at once ("pause_direct, then run again").
-        Idempotent when already running. Clears a failure (the failed command is tried again).
-    ``stop()``  do not advance; the current command (or pause behaviour) stops at once **if
-        allowed** and the reference comes to rest where it is, smoothly. ``run()`` resumes it.
-    ``pause_direct(behaviour_id=None)``  interrupt now and run a pause behaviour (default
-        ``hover``). When it finishes the interrupted command is **resumed** from the current
-        reference: resolved targets kept (a relative waypoint stays where it was), time already
-        waited and a given confirmation kept, trajectory replanned. Refused while a behaviour is
-        running. Cancels a pending ``pause_after_current``. Allowed while stopped: the behaviour
-        runs and the queue stays stopped afterwards (WAITING_FOR_BEHAVIOR_AND_STOPPING).
-    ``pause_after_current(behaviour_id=None)``  when the current command ends, run the behaviour,
-        then continue with the next command. With nothing executing it acts as ``pause_direct``.
-        Refused while a behaviour runs or another pause is pending.
-    ``reset()``  clear the list, drop any behaviour, hold where the reference is; the queue is
-        STOPPED afterwards (commands added later wait for ``run()``), the index restarts at 0 and
-        the ``generation`` goes up by one. Unfinished commands get a CANCELLED event.
-    ``user_confirm()``  the E_User confirmation of the executing command (or behaviour command);
-        :class:`QueueStateError` when nothing is waiting for one (nothing changes).
-    ``retarget(id, north=, east=, altitude=, speed=, heading=)``  change the running command's
-        target in flight (Sec. IV-D, :mod:`.retarget`); the stream stays continuous.
-    A verb in the wrong state raises :class:`QueueStateError`, an unknown behaviour
-    :class:`QueueError`, and changes nothing. While OVERRIDDEN only ``add_command``, ``stop``,
-    ``reset`` are accepted.
+The verbs (Sec. V), the decisions where the paper is silent, and the status fields are documented in
+:mod:`companion.flight.qapi`.
 
 "Stopped if allowed" during a take-off (Sec. V)
     A take-off that has not yet left the ground (its execution has not advanced: the link holds the
@@ -49,20 +19,6 @@ Verbs (Sec. V) and the decisions where the paper is silent
     given in that window are *deferred* (status ``deferred``, a DEFERRED event) and carried out
     there, so the vehicle never hovers armed a few centimetres above the ground. ``run()`` cancels
     a deferred stop or pause.
-
-Status (Sec. V, :class:`QueueStatus`)
-    ``queue_system_status`` RUNNING / OVERRIDDEN (someone else took the vehicle: ``set_overridden``,
-    called by the link on a mode change or disarm; the queue then stops and ``tick`` returns None;
-    when given back, the reference restarts from the measured state and the queue waits for run()).
-    ``queue_status`` STOPPED / RUNNING / WAITING_FOR_BEHAVIOR_AND_STOPPING /
-    WAITING_FOR_BEHAVIOR_AND_CONTINUING (what the queue does once the behaviour finishes).
-    ``current_command_index`` the command executing, or the one that starts on run(); equals the
-    number of commands when all are done. ``current_command_status`` UNKNOWN (no command at the
-    index) / STOPPED / RUNNING / PAUSED (a pause behaviour runs before it resumes or starts) /
-    FAILED (the link gave it up, e.g. a refused take-off; ``failure`` says why).
-    ``confirmation_required_status``, ``limit_reached``, ``target_position_unreachable`` (of the
-    last tick), ``is_synced`` (set by the link from the autopilot's POSITION_TARGET_LOCAL_NED echo).
-    Beyond the paper: ``current_command_id``, ``generation``, ``failure``, ``deferred``.
 
 Tick contract
     ``tick(now_s, vehicle_state, follow_vehicle=False) -> Setpoint | None``. ``now_s`` is the
