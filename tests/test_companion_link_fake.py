@@ -103,6 +103,27 @@ def test_uses_set_message_interval_when_supported(connect: Any) -> None:
         assert not link.commands.errors
 
 
+def test_one_refused_stream_does_not_switch_to_the_legacy_requests(connect: Any) -> None:
+    """An autopilot that knows SET_MESSAGE_INTERVAL but not one message (the model has no RC_CHANNELS;
+    here ATTITUDE is refused) keeps the per-message intervals for the rest: falling back to
+    REQUEST_DATA_STREAM would lose EXTENDED_SYS_STATE on ArduCopter (it is in no stream group)."""
+    plan = stream_plan(RATE_HZ)
+    refused = M.MAVLINK_MSG_ID_ATTITUDE
+    with FakeAutopilot() as fake:
+        fake.policy[M.MAV_CMD_SET_MESSAGE_INTERVAL] = (
+            lambda m: M.MAV_RESULT_UNSUPPORTED if int(m.param1) == refused else M.MAV_RESULT_ACCEPTED)
+        link = connect(fake)
+
+        def requested() -> set[int]:
+            return {int(c.param1) for c in fake.commands(M.MAV_CMD_SET_MESSAGE_INTERVAL)}
+
+        pump(link, lambda: requested() == {msg_id for msg_id, _ in plan}, 15.0, "every stream requested")
+        pump(link, lambda: link.mirror.snapshot().landed_state != 0, 5.0, "EXTENDED_SYS_STATE")
+        assert link.streams_mode == "message_interval"
+        assert fake.count("REQUEST_DATA_STREAM") == 0
+        assert "ATTITUDE" not in fake.stream_intervals
+
+
 def test_unacknowledged_command_is_retried_then_times_out(connect: Any) -> None:
     with FakeAutopilot(speedup=2.0) as fake:
         fake.ignore(M.MAV_CMD_DO_SET_MODE, times=10)

@@ -19,8 +19,9 @@ ArduCopter's GCS failsafe counts heartbeats from system MAV_GCS_SYSID (SYSID_MYG
 the companion's heartbeat never keeps the GCS failsafe quiet.
 
 Streams: MAV_CMD_SET_MESSAGE_INTERVAL per message, one at a time (ACKs carry no message id); if
-the autopilot does not support it (UNSUPPORTED or no ACK) the link falls back to REQUEST_DATA_STREAM
-with ArduCopter's stream groups. Requested again whenever the autopilot reappears.
+the autopilot does not support it (UNSUPPORTED or no ACK before any was accepted) the link falls back
+to REQUEST_DATA_STREAM with ArduCopter's stream groups; a message refused after others were accepted
+is only skipped (the model has no RC_CHANNELS). Requested again whenever the autopilot reappears.
 """
 
 from __future__ import annotations
@@ -121,6 +122,7 @@ class MavlinkLink:
         self._stream_queue: list[tuple[int, float]] = []
         self._stream_req: CommandRequest | None = None
         self.streams_mode = "none"  # none / message_interval / data_stream
+        self._interval_accepted = False
         self._last_hb_wall: float | None = None
         self.new_data = threading.Event()
         self.listeners: list[Callable[[Any], None]] = []
@@ -233,15 +235,22 @@ class MavlinkLink:
             self._streams_wanted = False
             self._stream_queue = stream_plan(self.rate_hz)
             self._stream_req = None
+            self._interval_accepted = False
             self.streams_mode = "message_interval"
             self.commands.request(M.MAV_CMD_REQUEST_MESSAGE, (M.MAVLINK_MSG_ID_HOME_POSITION,), now_s)
         req = self._stream_req
         if req is not None and not req.done:
             return
-        if (req is not None and req.state in (CommandState.TIMEOUT,)) or (
-                req is not None and req.result == M.MAV_RESULT_UNSUPPORTED):
-            self._fallback_streams()
+        if req is not None and req.accepted:
+            self._interval_accepted = True
+        refused = req is not None and (req.state is CommandState.TIMEOUT
+                                       or req.result == M.MAV_RESULT_UNSUPPORTED)
+        if refused and not self._interval_accepted:
+            self._fallback_streams()  # the autopilot does not know SET_MESSAGE_INTERVAL at all
             return
+        if refused or (req is not None and not req.accepted):
+            # it knows the command but not this message (the model has no RC_CHANNELS): skip it only
+            log.info("stream %s refused (%s); the other streams stay", req.params[0], req.describe())
         if not self._stream_queue:
             self._stream_req = None
             return
