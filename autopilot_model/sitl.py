@@ -109,7 +109,8 @@ class Sitl:
                                         | m.MAV_PROTOCOL_CAPABILITY_MISSION_FENCE
                                         | m.MAV_PROTOCOL_CAPABILITY_MISSION_RALLY)
         self.telemetry.critical = lambda: bool(
-            self.safety.gcs_failsafe or self.safety.battery_level or self.safety.fence_breached)
+            self.safety.gcs_failsafe or self.safety.battery_level or self.safety.fence_breached
+            or self.safety.ekf_failsafe)
         self.telemetry.fence_state = lambda: (
             bool(v.params.get("FENCE_ENABLE")) if "FENCE_ENABLE" in v.params else False,
             bool(self.safety.fence_breached))
