@@ -4,6 +4,17 @@ Gains, envelope limits, failsafe settings and the system id are parameters. Modu
 from the :class:`ParamStore` and may subscribe to changes; the MAVLink layer exposes the same store
 (PARAM_REQUEST_LIST / READ / SET) and persists it per instance. A rejected ``set`` leaves the value
 unchanged and raises :class:`ParamError` saying why.
+
+Every value a module sees is the flown value, as in ArduCopter, which loads its saved parameters from
+storage (``AP_Param::load_all``) before any library reads them:
+
+* the saved file may be attached before the pieces declare their parameters (the vehicle does so): a
+  saved value is applied when its parameter is declared, so whatever a module copies in its constructor
+  is already the saved value;
+* a file attached later, and every :meth:`ParamStore.set`, go through the change subscriptions, so a
+  module that copies a value (the controller's gain vector) follows it;
+* the airframe's values are *defaults* (:meth:`ParamStore.set_default`, ArduPilot's defaults file):
+  a saved value wins over them.
 """
 
 from __future__ import annotations
@@ -54,6 +65,10 @@ class ParamStore:
         self._defs: dict[str, ParamDef] = {}
         self._subs: list[tuple[str, Callable[[str, float], None]]] = []
         self._path: Path | None = None
+        self._pending: dict[str, object] = {}
+        """Saved values of parameters not declared yet (applied by :meth:`define`)."""
+        self._loaded: set[str] = set()
+        """Parameters whose value came from the saved file (an airframe default does not override)."""
 
     # --- definition ----------------------------------------------------------------------------
     def define(self, name: str, default: float, lo: float, hi: float, kind: str = PARAM_FLOAT,
@@ -62,6 +77,18 @@ class ParamStore:
         if name in self._defs:
             return
         self._defs[name] = ParamDef(name, float(default), float(lo), float(hi), kind, doc)
+        if name in self._pending:
+            self._load_value(name, self._pending.pop(name))
+
+    def set_default(self, name: str, value: float) -> float:
+        """Make ``value`` the default of ``name`` (an airframe's value; ArduPilot's defaults file); the
+        current value follows unless a saved value was loaded. Returns the current value."""
+        d = self.definition(name)
+        v = self._check(d, value)
+        d.default = v
+        if name not in self._loaded:
+            self._apply(d, v)
+        return d.value
 
     # --- access --------------------------------------------------------------------------------
     def __contains__(self, name: str) -> bool:
@@ -97,6 +124,15 @@ class ParamStore:
     def set(self, name: str, value: float) -> float:
         """Set a parameter after checking type and range; returns the stored value."""
         d = self.definition(name)
+        v = self._check(d, value)
+        if self._apply(d, v):
+            self._save()
+        return v
+
+    @staticmethod
+    def _check(d: ParamDef, value: object) -> float:
+        """``value`` as ``d`` stores it, or :class:`ParamError`."""
+        name = d.name
         try:
             v = float(value)
         except (TypeError, ValueError):
@@ -109,14 +145,17 @@ class ParamStore:
             v = float(round(v))
         if v < d.lo or v > d.hi:
             raise ParamError(f"{name}: {v:g} out of range [{d.lo:g}, {d.hi:g}]")
+        return v
+
+    def _apply(self, d: ParamDef, v: float) -> bool:
+        """Store a checked value and tell the subscribers; returns whether it changed."""
         if v == d.value:
-            return v
+            return False
         d.value = v
         for prefix, cb in list(self._subs):
-            if name.startswith(prefix):
-                cb(name, v)
-        self._save()
-        return v
+            if d.name.startswith(prefix):
+                cb(d.name, v)
+        return True
 
     def subscribe(self, prefix: str, callback: Callable[[str, float], None]) -> None:
         """Call ``callback(name, value)`` whenever a parameter whose name starts with ``prefix`` changes."""
@@ -124,32 +163,47 @@ class ParamStore:
 
     # --- persistence ---------------------------------------------------------------------------
     def attach_file(self, path: str | Path) -> None:
-        """Load saved values from ``path`` (unknown or invalid entries are logged and skipped), then
-        save every later change there."""
+        """Load saved values from ``path``, then save every later change there.
+
+        A saved value of a declared parameter is applied at once (subscribers are told, as for
+        :meth:`set`); one of a parameter not declared yet is applied when it is declared. Invalid
+        entries are logged and skipped (the default is kept); see :meth:`unknown_saved` for names no
+        piece declared."""
         self._path = Path(path)
-        if self._path.exists():
-            try:
-                saved = json.loads(self._path.read_text(encoding="utf-8"))
-            except (OSError, ValueError) as exc:
-                log.warning("ignoring unreadable parameter file %s: %s", self._path, exc)
-                saved = {}
-            for name, value in saved.items():
-                if name not in self._defs:
-                    log.warning("%s: unknown parameter %s ignored", self._path, name)
-                    continue
-                try:
-                    self._defs[name].value = float(value)
-                    d = self._defs[name]
-                    if not (d.lo <= d.value <= d.hi):
-                        raise ParamError(f"{value} out of range")
-                except (ParamError, TypeError, ValueError) as exc:
-                    log.warning("%s: parameter %s: %s; default kept", self._path, name, exc)
-                    self._defs[name].value = self._defs[name].default
+        if not self._path.exists():
+            return
+        try:
+            saved = json.loads(self._path.read_text(encoding="utf-8"))
+            if not isinstance(saved, dict):
+                raise ValueError("not a JSON object")
+        except (OSError, ValueError) as exc:
+            log.warning("ignoring unreadable parameter file %s: %s", self._path, exc)
+            return
+        for name, value in saved.items():
+            if name in self._defs:
+                self._load_value(name, value)
+            else:
+                self._pending[str(name)] = value
+
+    def unknown_saved(self) -> list[str]:
+        """Saved names that no piece has declared (kept in the file, not applied)."""
+        return sorted(self._pending)
+
+    def _load_value(self, name: str, value: object) -> None:
+        d = self._defs[name]
+        try:
+            v = self._check(d, value)
+        except ParamError as exc:
+            log.warning("%s: parameter %s: %s; default kept", self._path, name, exc)
+            return
+        self._loaded.add(name)
+        self._apply(d, v)
 
     def _save(self) -> None:
         if self._path is None:
             return
-        changed = {d.name: d.value for d in self._defs.values() if d.value != d.default}
+        changed: dict[str, object] = dict(self._pending)
+        changed.update({d.name: d.value for d in self._defs.values() if d.value != d.default})
         tmp = self._path.with_suffix(".tmp")
         self._path.parent.mkdir(parents=True, exist_ok=True)
         tmp.write_text(json.dumps(changed, indent=1, sort_keys=True), encoding="utf-8")

@@ -9,8 +9,9 @@ subprocess, through ``python -m autopilot_model.sitl``). It assembles:
   ``mavlink.telemetry`` in the telemetry group, seed 002) with the telemetry builders, the vehicle
   commands and the GUIDED target handlers,
 * missions (store, protocol, runner) and failsafes (safety), from the missions-and-failsafes work,
-* parameters persisted per instance (``<state-dir>/instance<N>/params.json``), attached after every
-  piece has declared its parameters.
+* parameters persisted per instance (``<state-dir>/instance<N>/params.json``), loaded before any
+  piece declares its parameters (a saved value is applied as its parameter is declared, so every piece
+  starts with the saved value, as ArduCopter's ``AP_Param::load_all`` does before the libraries start).
 
 Defaults for instance N follow ArduPilot SITL: ``tcpin:0.0.0.0:5760+10N``, plus one UDP endpoint
 ``udpin:0.0.0.0:14550+10N`` -- the port ground stations and companions conventionally use, in the
@@ -69,6 +70,8 @@ class Sitl:
                                   "instance": instance, "use_truth": use_truth, "seed": seed}
         if sensors:
             kwargs["sensors"] = sensors
+        if persist:
+            kwargs["params_file"] = self.state_dir / "params.json"
         self.vehicle = v = Vehicle.from_files(airframe, mod_file, **kwargs)
         self.modes = FlightModes(v)
         v.register("flight_modes.update", self.modes.update)
@@ -79,8 +82,8 @@ class Sitl:
         self.guided = GuidedTargetsProtocol(self.endpoint, self.modes)
         selected = ["flight_modes", "mavlink"]
         selected += self._wire_missions_and_safety()
-        if persist:
-            v.params.attach_file(self.state_dir / "params.json")
+        for name in v.params.unknown_saved():
+            log.warning("%s: unknown parameter %s ignored", self.state_dir / "params.json", name)
         v.select(*selected)
         v.start()
 
@@ -106,7 +109,8 @@ class Sitl:
                                         | m.MAV_PROTOCOL_CAPABILITY_MISSION_FENCE
                                         | m.MAV_PROTOCOL_CAPABILITY_MISSION_RALLY)
         self.telemetry.critical = lambda: bool(
-            self.safety.gcs_failsafe or self.safety.battery_level or self.safety.fence_breached)
+            self.safety.gcs_failsafe or self.safety.battery_level or self.safety.fence_breached
+            or self.safety.ekf_failsafe)
         self.telemetry.fence_state = lambda: (
             bool(v.params.get("FENCE_ENABLE")) if "FENCE_ENABLE" in v.params else False,
             bool(self.safety.fence_breached))

@@ -48,13 +48,18 @@ class Vehicle:
     def __init__(self, airframe: Airframe, modules_file: str | Path = DEFAULT_MODULES,
                  home: Sequence[float] = DEFAULT_HOME, speedup: float = 0.0, instance: int = 0,
                  sensors: str | None = None, use_truth: bool = False, seed: int | None = 0,
-                 offset_heuristic: str = "optimised", extra_select: Sequence[str] = ()) -> None:
+                 offset_heuristic: str = "optimised", extra_select: Sequence[str] = (),
+                 params_file: str | Path | None = None) -> None:
         self.airframe = airframe
         self.instance = instance
         self.home = (float(home[0]), float(home[1]), float(home[2]))
         self.home_heading_deg = float(home[3]) if len(home) > 3 else 0.0
         self.clock = SimClock(speedup)
         self.params = ParamStore()
+        if params_file is not None:
+            # before any piece declares (and copies) its parameters: the saved values are the flown
+            # ones from the start, as ArduCopter's AP_Param::load_all before the libraries initialise
+            self.params.attach_file(params_file)
         self._functions: dict[str, Callable[[], object]] = {}
         self.loop: MainLoop | None = None
         self._extra_select = list(extra_select)
@@ -102,7 +107,7 @@ class Vehicle:
         for name, value in af.gains.items():
             if name not in self.params:
                 raise ValueError(f"{af.source}: gains.{name}: unknown control parameter")
-            self.params.set(name, value)
+            self.params.set_default(name, value)  # the airframe's defaults; a saved value wins
         self.mixer = Mixer(self.world.mx, self.world.my, self.world.spin, af.torque_ratio, af.thrust_max,
                            af.spin_armed)
         self.nav = Navigator(self)

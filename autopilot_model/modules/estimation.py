@@ -17,6 +17,18 @@ through for debugging). Structure, as in small autopilots' INS/AHRS pair (seed 0
 * Altitude from the barometer is blended when the position source is GPS.
 
 The 500 Hz prediction is a numba kernel; the corrections run at the sensors' (lower) rates.
+
+Health, as ArduPilot's EKF reports it to ``Copter::ekf_check``:
+
+* Divergence: the kernels are compiled with fastmath, which lets the compiler assume that no value is
+  NaN or infinite, so a finite-value test inside them can be folded to "true". The test is a separate
+  kernel compiled *without* fastmath (:func:`ins_state_finite`), run on the stored state after each
+  update. A non-finite state is a filter fault: the last finite state is restored (the biases reset), so
+  nothing non-finite is ever published, and the position is not trusted for ``RECONVERGE_S``.
+* Consistency: each position sample's innovation is tested against a gate, as EKF3's innovation
+  consistency test (EK3_POS_I_GATE): ``pos_test_ratio`` = |innovation|^2 / gate^2; a sample with a
+  ratio above 1, or with a non-finite value, is rejected (not fused). ``pos_variance`` is its square
+  root, the figure ArduPilot's ``get_variances`` reports and FS_EKF_THRESH is compared with.
 """
 
 from __future__ import annotations
@@ -36,12 +48,28 @@ log = logging.getLogger(__name__)
 
 
 HIST = 256  # samples of estimate history kept for latency compensation (0.5 s at 500 Hz)
+RECONVERGE_S = 3.0
+"""After a filter fault the position is not trusted this long (a reset EKF's variances start large)."""
+
+
+@njit(cache=True)  # NOT fastmath: under fastmath the compiler may assume finite values and drop the test
+def ins_state_finite(est, acc, gbias, abias, good):  # pragma: no cover - numba
+    """True if the estimate, its acceleration and biases are all finite; then ``good`` <- ``est``."""
+    for k in range(est.shape[0]):
+        if not math.isfinite(est[k]):
+            return False
+    for k in range(3):
+        if not (math.isfinite(acc[k]) and math.isfinite(gbias[k]) and math.isfinite(abias[k])):
+            return False
+    for k in range(est.shape[0]):
+        good[k] = est[k]
+    return True
 
 
 @njit(cache=True, fastmath=True)
 def ins_predict(est, gyro, accel, gbias, abias, dt, acc_w, hist, hidx, now):  # pragma: no cover - numba
     """est = [p(3), v(3), q(4), w(3)]; integrates one IMU sample; writes NED acceleration to acc_w and
-    appends (now, p, v) to the ring ``hist`` at ``hidx[0]``. Returns False if the state is not finite."""
+    appends (now, p, v) to the ring ``hist`` at ``hidx[0]``. (No finite test here: see the module doc.)"""
     wx = gyro[0] - gbias[0]
     wy = gyro[1] - gbias[1]
     wz = gyro[2] - gbias[2]
@@ -71,19 +99,17 @@ def ins_predict(est, gyro, accel, gbias, abias, dt, acc_w, hist, hidx, now):  # 
     for k in range(6):
         hist[i, 1 + k] = est[k]
     hidx[0] = (i + 1) % hist.shape[0]
-    s = 0.0
-    for k in range(13):
-        s += est[k]
-    return math.isfinite(s)
 
 
 @njit(cache=True, fastmath=True)
 def ins_correct_position(est, abias, gbias, hist, hidx, sample, sample_time, gains, dv):  # pragma: no cover
     """Third-order observer update from a delayed position (and velocity) sample; see the module doc.
 
-    ``gains`` = [k1, k2, k3, kv (0 = no velocity), baro_weight, k_tilt, k_gbias, airborne].
+    ``gains`` = [k1, k2, k3, kv (0 = no velocity), baro_weight, k_tilt, k_gbias, airborne, 1/gate^2].
     The innovation is taken against the estimate at ``sample_time`` (from the history ring) and the
-    correction applied to the current estimate. ``dv`` receives the velocity correction."""
+    correction applied to the current estimate. ``dv`` receives the velocity correction. Returns the
+    innovation test ratio |innovation|^2 / gate^2; above 1 the sample is rejected and nothing changes
+    (the caller passes finite samples only, so the comparison is sound under fastmath)."""
     n = hist.shape[0]
     j = (hidx[0] - 1) % n
     best = j
@@ -93,6 +119,13 @@ def ins_correct_position(est, abias, gbias, hist, hidx, sample, sample_time, gai
             break
         best = j
         j = (j - 1) % n
+    ratio = 0.0
+    for k in range(3):
+        d = sample[k] - hist[best, 1 + k]
+        ratio += d * d
+    ratio *= gains[8]
+    if ratio > 1.0:
+        return ratio
     k1 = gains[0]
     k2 = gains[1]
     k3 = gains[2]
@@ -119,6 +152,7 @@ def ins_correct_position(est, abias, gbias, hist, hidx, sample, sample_time, gai
         cx = gains[5] * dv[1]
         cy = -gains[5] * dv[0]
         ins_rotate_world(est, gbias, cx, cy, 0.0, gains[6])
+    return ratio
 
 
 @njit(cache=True, fastmath=True)
@@ -200,11 +234,40 @@ class Estimator:
         self.hidx = np.zeros(1, dtype=np.int64)
         self._sample = np.zeros(6)
         self._dv = np.zeros(3)
-        self._gains = np.zeros(8)
+        self._gains = np.zeros(9)
+        # innovation gate (m): about five standard deviations of the innovation, as EK3_POS_I_GATE (500
+        # = 5 sigma); GPS innovations carry its metre-level correlated error, motion capture's are mm
+        self.pos_gate_m = 0.5 if mocap else 5.0
+        self.pos_test_ratio = 0.0
+        """Innovation test ratio of the last position sample (> 1: rejected; inf: not finite)."""
+        self.rejected = 0
+        """Position samples rejected (gate or non-finite), in total."""
         self.diverged = 0
+        """Filter faults (a non-finite state), in total."""
+        self._good = np.zeros(13)
+        self._good[6] = 1.0
+        self._fault_s = -math.inf
         self.initialised = False
         self.time_s = 0.0
-        self.healthy = False
+
+    # -- health (what ArduPilot's EKF reports to Copter::ekf_check and the AHRS health bit)
+    @property
+    def position_ok(self) -> bool:
+        """ArduCopter's ``ekf_position_ok``: initialised, and not re-converging after a filter fault."""
+        if self.use_truth:
+            return self.initialised and self.pos.sample is not None
+        return self.initialised and self.time_s - self._fault_s >= RECONVERGE_S
+
+    @property
+    def pos_variance(self) -> float:
+        """Normalised position innovation (sqrt of the test ratio), what FS_EKF_THRESH is compared with."""
+        return math.sqrt(self.pos_test_ratio)
+
+    @property
+    def healthy(self) -> bool:
+        """Usable for flight (pre-arm check, SYS_STATUS AHRS bit): the position is trusted and the last
+        position sample passed its consistency test."""
+        return self.position_ok and self.pos_test_ratio <= 1.0
 
     # -- estimation periodic (main-loop rate)
     def periodic(self, now_s: float) -> None:
@@ -213,17 +276,14 @@ class Estimator:
             x = self.world.x
             self.est[:] = x
             self.acc[:] = self.world.out[4:7]
-            self.healthy = self.pos.sample is not None
             self.initialised = True
             return
         if not self.initialised:
             self._initialise()
             if not self.initialised:
                 return
-        if not ins_predict(self.est, self.imu.gyro, self.imu.accel, self.gbias, self.abias, self.dt, self.acc,
-                           self.hist, self.hidx, now_s):
-            self._diverged()
-            return
+        ins_predict(self.est, self.imu.gyro, self.imu.accel, self.gbias, self.abias, self.dt, self.acc,
+                    self.hist, self.hidx, now_s)
         if self.pos.fresh:
             self.pos.fresh = False
             self._correct_position()
@@ -235,6 +295,8 @@ class Estimator:
             self._correct_baro()
         if self.on_ground:
             self._align_gravity()
+        if not ins_state_finite(self.est, self.acc, self.gbias, self.abias, self._good):
+            self._diverged()
 
     def _initialise(self) -> None:
         """Start from the first position fix, level, on the compass heading."""
@@ -249,23 +311,31 @@ class Estimator:
         self.pos.fresh = False
         self.hist[:, 0] = self.time_s
         self.hist[:, 1:7] = self.est[0:6]
+        self._good[:] = self.est
         self.initialised = True
-        self.healthy = True
 
     def _diverged(self) -> None:
-        """A non-finite estimate is never published: restart from the next position fix."""
+        """A filter fault (non-finite state): restore the last finite state, reset the biases and the
+        latency history, and distrust the position for ``RECONVERGE_S`` (ArduPilot's EKF resets itself on
+        a fault and reports itself unhealthy while its variances are large). Nothing non-finite is ever
+        published: this runs before the state interface reads the estimate."""
         self.diverged += 1
-        log.error("estimator diverged (%d); re-initialising", self.diverged)
-        self.initialised = False
-        self.healthy = False
+        log.error("estimator diverged (%d): last finite state restored", self.diverged)
+        self.est[:] = self._good
+        self.acc[:] = 0.0
         self.gbias[:] = 0.0
         self.abias[:] = 0.0
-        self.est[:] = 0.0
-        self.est[6] = 1.0
+        self.hist[:, 0] = self.time_s
+        self.hist[:, 1:7] = self.est[0:6]
+        self._fault_s = self.time_s
 
     def _correct_position(self) -> None:
         s = self.pos.sample
         if s is None:
+            return
+        if not all(math.isfinite(x) for x in s):
+            self.pos_test_ratio = math.inf
+            self.rejected += 1
             return
         T = 1.0 / self.pos.noise.pos_rate_hz
         w = self.pos_bw
@@ -278,9 +348,12 @@ class Estimator:
         g[5] = self.k_tilt
         g[6] = self.k_gbias
         g[7] = 0.0 if self.on_ground else 1.0
+        g[8] = 1.0 / (self.pos_gate_m * self.pos_gate_m)
         self._sample[:] = s
-        ins_correct_position(self.est, self.abias, self.gbias, self.hist, self.hidx, self._sample,
-                             self.pos.sample_time, g, self._dv)
+        self.pos_test_ratio = ins_correct_position(self.est, self.abias, self.gbias, self.hist, self.hidx,
+                                                   self._sample, self.pos.sample_time, g, self._dv)
+        if self.pos_test_ratio > 1.0:
+            self.rejected += 1
 
     def _correct_heading(self) -> None:
         e = self.est

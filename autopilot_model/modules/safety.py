@@ -9,6 +9,8 @@
   FENCE_RADIUS around home, inclusion/exclusion polygons and circles from the FENCE mission type;
   FENCE_ACTION). A breach acts once; if the vehicle keeps going a further FENCE_BACKUP_M outside, it
   acts again (ArduCopter's backup fence); the breach clears once back inside.
+* EKF (FS_EKF_THRESH, FS_EKF_ACTION): the estimator's position variance over threshold, or its position
+  unusable after a fault, for 1 s -> "EKF variance" and LAND (:mod:`.ekf_check`).
 
 Every action is announced by STATUSTEXT and carried out by ``modes.set_mode``, so it shows in the
 mode. As in ArduCopter, a failsafe does not switch a vehicle that is already landing to RTL, and an
@@ -30,6 +32,7 @@ from typing import Any
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 from shapely.geometry import Point, Polygon
 
+from autopilot_model.modules.ekf_check import EkfCheck
 from autopilot_model.modules.mission import (
     FENCE,
     FENCE_CIRCLE_EXCLUSION,
@@ -192,6 +195,12 @@ class Safety:
         if store is not None:
             store.on_change(self._on_plan_change)
             self._on_plan_change(FENCE)
+        self.ekf = EkfCheck(vehicle, modes, self._announce)
+
+    @property
+    def ekf_failsafe(self) -> bool:
+        """The EKF failsafe is on."""
+        return self.ekf.failsafe
 
     # --- periodic ---------------------------------------------------------------------------------
     def periodic(self) -> None:
@@ -200,6 +209,7 @@ class Safety:
         self._check_gcs(now)
         self._check_battery(now)
         self._check_fence()
+        self.ekf.periodic(now)
 
     # --- GCS heartbeat ----------------------------------------------------------------------------
     def _check_gcs(self, now: float) -> None:
