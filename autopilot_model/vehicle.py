@@ -3,8 +3,13 @@
 Assembly: airframe YAML -> parameters, physics (world), sensors, estimator, state interface, setpoint
 generator (guidance), cascaded PID (control), mixer (actuators), navigator, battery monitor; the module
 library YAML -> a static schedule (two-pass topological sort, task groups, prescalers and offsets) run by
-the main loop at 500 Hz on one :class:`~taskflight.clock.SimClock`. The world steps once per iteration
-after the autopilot's functions, so the autopilot sees the world one period late, as a real one does.
+the main loop at ``main_loop_hz`` (500 Hz by default) on one :class:`~taskflight.clock.SimClock`. The world
+steps once per iteration after the autopilot's functions, so the autopilot sees the world one period late,
+as a real one does.
+
+Every step comes from the schedule (issue 8, defect 3): the world and the clock advance by the main loop
+period; each periodic function (estimator, setpoint generator, controller, navigator, the barometer and
+compass corrections) steps by the period times its prescaler. Nothing assumes 500 Hz.
 
 This class is also the small Python API that tests use to command the model (issue 2); the MAVLink
 endpoint (issue 3) registers its own module functions with :meth:`Vehicle.register`.
@@ -30,7 +35,7 @@ from autopilot_model.physics.quadrotor import Quadrotor
 from autopilot_model.physics.wind import Wind
 from autopilot_model.quatmath import quat_yaw
 from autopilot_model.scheduler.mainloop import MainLoop
-from autopilot_model.scheduler.schedule import build_schedule
+from autopilot_model.scheduler.schedule import Schedule, build_schedule
 from autopilot_model.scheduler.spec import load_modules
 from autopilot_model.state import StateInterface
 from taskflight.clock import SimClock
@@ -73,8 +78,16 @@ class Vehicle:
         self.world.place(yaw=math.radians(self.home_heading_deg))
         self.wind = Wind(af.wind_mean, af.gust_sigma, af.gust_max, af.gust_tau, seed=seed)
         self.battery = Battery(af.battery_cells, af.battery_capacity_mah, af.battery_r)
-        self.main_hz = 500.0
-        self.dt = 1.0 / self.main_hz
+        # the main loop rate of the module library; the steps are set again from the built schedule
+        # (period times prescaler) in start()
+        self._config = load_modules(self._modules_file)
+        self.main_hz = self._config.main_loop_hz
+        self.dt = self._config.period_us / 1e6
+        """The physics step (s): one main loop period."""
+        self.nav_dt = self.dt
+        """The navigator's step (s): its prescaler times the period (set in :meth:`start`)."""
+        self.steps: dict[str, float] = {}
+        """Step (s) of every periodic function of the schedule, by name (set in :meth:`start`)."""
         self._battery_acc = 0.0
         self.battery_voltage = 0.0
 
@@ -157,13 +170,36 @@ class Vehicle:
     def start(self) -> MainLoop:
         """Resolve the modules, build the static schedule and run the init functions."""
         if self.loop is None:
-            config = load_modules(self._modules_file)
-            self.main_hz = config.main_loop_hz
+            config = self._config
             schedule = build_schedule(config, self._functions, select=self.selection(config.select),
                                       heuristic=self._heuristic)
+            self._set_steps(schedule)
             self.loop = MainLoop(schedule, self.clock, self._world_step)
             self.loop.run_init()
         return self.loop
+
+    def _set_steps(self, schedule: Schedule) -> None:
+        """Give every periodic function its step from the schedule: the main loop period times its
+        prescaler; the world (physics, wind, battery) steps one period, as the clock advances."""
+        self.main_hz = schedule.main_loop_hz
+        period = schedule.period_us / 1e6
+        self.dt = period
+        steps = self.steps = {p.name: p.prescaler * period for p in schedule.periodic}
+        est = self.estimator
+        est.dt = steps.get("ins.periodic", est.dt)
+        est.baro_dt = steps.get("baro.periodic", est.baro_dt)
+        est.heading_dt = steps.get("compass.periodic", est.heading_dt)
+        self.guidance.set_dt(steps.get("guidance.periodic", self.guidance.dt))
+        self.control.dt = steps.get("control.periodic", self.control.dt)
+        self.nav_dt = steps.get("nav.periodic", self.nav_dt)
+
+    def step_of(self, name: str) -> float:
+        """The step (s) of the periodic function ``name`` in the schedule: period times prescaler."""
+        self.start()
+        try:
+            return self.steps[name]
+        except KeyError:
+            raise KeyError(f"'{name}' is not a periodic function of the schedule") from None
 
     # --- module functions ---------------------------------------------------------------------------
     def _gps_periodic(self) -> None:
@@ -183,7 +219,7 @@ class Vehicle:
                                         (e[6], e[7], e[8], e[9]), (e[10], e[11], e[12]), (a[0], a[1], a[2]))
 
     def _nav_periodic(self) -> None:
-        self.nav.periodic(0.02)
+        self.nav.periodic(self.nav_dt)
 
     def _control_periodic(self) -> None:
         if not (self.nav.armed and self.nav.spooled):

@@ -249,6 +249,10 @@ class Estimator:
         self._fault_s = -math.inf
         self.initialised = False
         self.time_s = 0.0
+        # periods (s) of the barometer and compass samples the corrections consume: the sensors' rates
+        # until the vehicle sets them from its schedule
+        self.baro_dt = 1.0 / baro.noise.baro_rate_hz
+        self.heading_dt = 1.0 / compass.noise.heading_rate_hz
 
     # -- health (what ArduPilot's EKF reports to Copter::ekf_check and the AHRS health bit)
     @property
@@ -359,14 +363,14 @@ class Estimator:
         e = self.est
         err = self.compass.heading - quat_yaw(e[6], e[7], e[8], e[9])
         err = (err + math.pi) % (2.0 * math.pi) - math.pi
-        rate = 1.0 / self.compass.noise.heading_rate_hz
+        rate = self.heading_dt
         ins_rotate_world(e, self.gbias, 0.0, 0.0, self.k_yaw * err * rate, self.k_gbias * 0.2)
 
     def _correct_baro(self) -> None:
         if self.baro_weight <= 0:
             return
         innov = (-self.baro.alt - self.est[2]) * self.baro_weight
-        T = 1.0 / self.baro.noise.baro_rate_hz
+        T = self.baro_dt
         w = self.baro_bw
         self.est[2] += min(3.0 * w * T, 0.5) * innov
         self.est[5] += 3.0 * w * w * T * innov

@@ -192,7 +192,7 @@ class GuidedTargets:
         self.pva_acc: Vec3 = (0.0, 0.0, 0.0)
         self.braking = False  # shaping P_d to a stop after the timeout
         self._pva_t = 0.0  # sim time the moving target was last advanced to
-        self._dt = 0.02  # period of the runs (s), measured
+        self._dt = 0.0  # period of the runs (s): the schedule's until measured on the clock
         self._last_run_s: float | None = None
         self._acc: Vec3 = (0.0, 0.0, 0.0)  # the shaped acceleration given to the generator
 
@@ -361,6 +361,8 @@ class GuidedTargets:
         now = self.v.clock.now()
         if self._last_run_s is not None and 0.0 < now - self._last_run_s <= 0.1:
             self._dt = now - self._last_run_s
+        elif self._dt <= 0.0:
+            self._dt = self.v.step_of("flight_modes.update")
         self._last_run_s = now
         if self.braking:
             self._brake()

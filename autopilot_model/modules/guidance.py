@@ -263,6 +263,14 @@ class SetpointGenerator:
         self.reset((0.0, 0.0, 0.0))
 
     # ------------------------------------------------------------------------------ configuration
+    def set_dt(self, dt: float) -> None:
+        """Step :meth:`update` by ``dt`` seconds from now on (the schedule's period of the caller)."""
+        dt = _finite(dt, "dt")
+        if dt <= 0.0:
+            raise ValueError(f"dt must be > 0, got {dt}")
+        self.dt = dt
+        self.set_envelope(self.envelope)
+
     def set_envelope(self, envelope: Envelope) -> None:
         """Use a new P_env (e.g. after a parameter change). If P_d lies outside it, P_d is brought back
         inside at the limits (it cannot jump)."""
