@@ -7,16 +7,14 @@ named by ``TASKFLIGHT_ARDUCOPTER``; both paced at ``--speedup``) behind a UDP wi
 * the streamed setpoint rate and interval jitter (p50 / p99 of |interval - period|) at 20 and 50 Hz,
   from the tap's arrival times converted to autopilot time (wall x the autopilot clock's measured rate);
 * the latency from user_confirm to the first setpoint of the next command (autopilot time);
-* the tracking error of the measured position (LOCAL_POSITION_NED) against the setpoint streamed
-  for that instant on a three-waypoint flight (RMS and max, 3-D).
+* the tracking figure of :mod:`taskflight.tracking` on a three-waypoint flight: each streamed setpoint
+  against LOCAL_POSITION_NED interpolated to its autopilot time (horizontal and vertical RMS and max).
 """
 
 from __future__ import annotations
 
 import argparse
-import bisect
 import itertools
-import math
 import statistics
 import sys
 import tempfile
@@ -35,6 +33,7 @@ from mavlink_support import wait_for  # noqa: E402
 
 from bench.common import machine, table  # noqa: E402
 from companion.node import QuadNode  # noqa: E402
+from taskflight.tracking import StreamRecorder  # noqa: E402
 
 
 def pct(values: list[float], q: float) -> float:
@@ -52,15 +51,7 @@ def fly(kind: str, rate: float, speedup: float, state: Path, sample_s: float) ->
     tap = ap.tap
     node = QuadNode(ap.companion_url, rate_hz=rate)
     streamed: list[tuple[float, Any]] = []  # (autopilot time, setpoint)
-    measured: list[tuple[float, tuple[float, float, float]]] = []
     node.setpoint_listeners.append(lambda sp, f, t: streamed.append((t, sp)))
-    node.link.listeners.append(
-        lambda m: (
-            measured.append((m.time_boot_ms / 1000, (m.x, m.y, m.z)))
-            if m.get_type() == "LOCAL_POSITION_NED"
-            else None
-        )
-    )
     out: dict[str, Any] = {}
     try:
         node.start()
@@ -102,9 +93,8 @@ def fly(kind: str, rate: float, speedup: float, state: Path, sample_s: float) ->
             lat.append((first - t0) * 1000)
             node.queue.events.wait_for(next_id, timeout_s=w)
         out["latency"] = lat
-        # tracking on the waypoint flight
-        s0 = len(streamed)
-        m0 = len(measured)
+        # tracking on the waypoint flight (the figure of the demo's report, taskflight.tracking)
+        recorder = StreamRecorder(node)
         for n, e, alt in ((15.0, 0.0, 6.0), (15.0, 15.0, 8.0), (0.0, 0.0, 5.0)):
             node.add_command(
                 cmd(
@@ -118,13 +108,7 @@ def fly(kind: str, rate: float, speedup: float, state: Path, sample_s: float) ->
         end = len(node.queue.commands)
         wait_for(lambda: node.queue.status().current_command_index >= end, w + 60 / speedup * 3, "waypoints")
         sim_wait(node, 2.0, speedup)
-        sp_t = [t for t, _ in streamed[s0:]]
-        errs = []
-        for t, p in measured[m0:]:
-            k = bisect.bisect_right(sp_t, t) - 1
-            if k >= 0:
-                errs.append(math.dist(p, streamed[s0 + k][1].p))
-        out["track"] = errs
+        out["track"] = recorder.tracking()
     finally:
         node.close()
         ap.close()
@@ -152,17 +136,8 @@ def main() -> int:
                  max(r["jitter"]))
             )
             tr = r["track"]
-            rows_other.append(
-                (
-                    kind,
-                    f"{rate:g}",
-                    statistics.median(r["latency"]),
-                    max(r["latency"]),
-                    math.sqrt(sum(e * e for e in tr) / len(tr)),
-                    max(tr),
-                    len(tr),
-                )
-            )
+            rows_other.append((kind, f"{rate:g}", statistics.median(r["latency"]), max(r["latency"]),
+                               tr.h_rms, tr.h_max, tr.v_rms, tr.v_max, tr.compared))
     print(f"# bench_companion ({machine()}), autopilot speedup {args.speedup:g}; times are autopilot time\n")
     print(table(["autopilot", "stream Hz", "measured Hz", "jitter p50 ms", "jitter p99 ms", "jitter max ms"],
                 rows_rate))
@@ -174,9 +149,11 @@ def main() -> int:
                 "stream Hz",
                 "confirm->next p50 ms",
                 "confirm->next max ms",
-                "tracking RMS m",
-                "tracking max m",
-                "samples",
+                "horizontal RMS m",
+                "horizontal max m",
+                "vertical RMS m",
+                "vertical max m",
+                "setpoints",
             ],
             rows_other,
         )

@@ -17,7 +17,7 @@ import threading
 import time
 from collections import deque
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
@@ -27,6 +27,22 @@ log = logging.getLogger(__name__)
 
 #: the directory holding the ``autopilot_model`` package, put on the child's PYTHONPATH
 _ROOT = Path(__file__).resolve().parents[1]
+
+
+def stop_child(proc: subprocess.Popen[Any], timeout_s: float = 10.0, name: str = "child") -> int:
+    """Stop a child process: SIGTERM, wait ``timeout_s``, SIGKILL if it will not; reap it; its status."""
+    if proc.poll() is None:
+        proc.terminate()
+        try:
+            proc.wait(timeout_s)
+        except subprocess.TimeoutExpired:
+            log.warning("%s did not stop in %.0f s; killing it", name, timeout_s)
+            proc.kill()
+            proc.wait(5.0)
+        except BaseException:  # e.g. a second Ctrl-C while waiting: do not leave the child behind
+            proc.kill()
+            raise
+    return int(proc.returncode)
 
 
 class ModelProcess:
@@ -93,18 +109,7 @@ class ModelProcess:
         proc = self._proc
         if proc is None:
             return None
-        if proc.poll() is None:
-            proc.terminate()
-            try:
-                proc.wait(timeout_s)
-            except subprocess.TimeoutExpired:
-                log.warning("%s did not stop in %.0f s; killing it", self.name, timeout_s)
-                proc.kill()
-                proc.wait(5.0)
-            except BaseException:  # e.g. a second Ctrl-C while waiting: do not leave the child behind
-                proc.kill()
-                raise
-        self.returncode = proc.returncode
+        self.returncode = stop_child(proc, timeout_s, self.name)
         if self._reader is not None and self._reader is not threading.current_thread():
             self._reader.join(2.0)
         if proc.stdout is not None and (self._reader is None or not self._reader.is_alive()):

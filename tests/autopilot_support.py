@@ -20,7 +20,9 @@ from pathlib import Path
 
 import pytest
 from companion_support import WireTap
-from mavlink_support import ROOT, Gcs, SitlProcess, free_port, free_ports, stop_process, wait_for
+from mavlink_support import ROOT, Gcs, SitlProcess, free_port, free_ports, wait_for
+
+from taskflight.sitlproc import stop_child
 
 #: the ArduCopter SITL binary, or None
 ARDUCOPTER = os.environ.get("TASKFLIGHT_ARDUCOPTER") or None
@@ -68,7 +70,7 @@ class ArduCopterSitl:
         self.proc = subprocess.Popen(args, cwd=self.dir.name, stdout=self._log, stderr=subprocess.STDOUT)
 
     def stop(self) -> None:
-        stop_process(self.proc)
+        stop_child(self.proc, name="ArduCopter SITL")
         self._log.close()
         self.dir.cleanup()
 

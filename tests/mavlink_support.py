@@ -14,8 +14,6 @@ from __future__ import annotations
 import math
 import os
 import socket
-import subprocess
-import sys
 import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
@@ -25,6 +23,8 @@ from typing import Any
 
 os.environ.setdefault("MAVLINK20", "1")
 from pymavlink import mavutil
+
+from taskflight.sitlproc import ModelProcess
 
 mavutil.set_dialect("ardupilotmega")
 
@@ -77,47 +77,16 @@ def wait_for(pred: Callable[[], Any], timeout_s: float, what: str, poll_s: float
         time.sleep(poll_s)
 
 
-def stop_process(proc: subprocess.Popen[Any]) -> None:
-    """Terminate a child (SIGTERM, then SIGKILL after 10 s) and reap it."""
-    if proc.poll() is None:
-        proc.terminate()
-        try:
-            proc.wait(10)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait(5)
-
-
-class SitlProcess:
-    """``python -m autopilot_model.sitl`` in a subprocess; waits for its READY line."""
+class SitlProcess(ModelProcess):
+    """``python -m autopilot_model.sitl`` in a subprocess at a fixed speedup; started when built (READY)."""
 
     def __init__(self, urls: Sequence[str], state_dir: Path, speedup: float = SPEEDUP,
                  extra: Sequence[str] = (), timeout_s: float = 60.0) -> None:
-        args = [sys.executable, "-m", "autopilot_model.sitl", "--state-dir", str(state_dir),
-                "--speedup", str(speedup)]
+        args = ["--state-dir", str(state_dir), "--speedup", str(speedup)]
         for u in urls:
             args += ["--mavlink", u]
-        args += list(extra)
-        env = dict(os.environ)
-        env["PYTHONPATH"] = str(ROOT) + os.pathsep + env.get("PYTHONPATH", "")
-        self.proc = subprocess.Popen(args, cwd=ROOT, env=env, stdout=subprocess.PIPE,
-                                     stderr=subprocess.STDOUT,
-                                     text=True)
-        end = time.monotonic() + timeout_s
-        self.ready = ""
-        assert self.proc.stdout is not None
-        while time.monotonic() < end:
-            line = self.proc.stdout.readline()
-            if not line:
-                break
-            if line.startswith("READY"):
-                self.ready = line.strip()
-                return
-        self.stop()
-        raise RuntimeError(f"SITL did not start: {self.ready or 'no READY line'}")
-
-    def stop(self) -> None:
-        stop_process(self.proc)
+        super().__init__([*args, *extra], name="model SITL")
+        self.start(timeout_s)
 
 
 class Gcs:

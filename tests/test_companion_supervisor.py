@@ -94,7 +94,7 @@ def fly() -> Iterator[Fly]:
         def ready() -> bool:
             s = node.link.mirror.snapshot()
             return node.clock.synced and s.position is not None and s.global_position is not None \
-                and s.home_local is not None and s.landed is True and s.rc is not None \
+                and s.home is not None and s.landed is True and s.rc is not None \
                 and s.attitude is not None
         wait_for(ready, wall(15.0), "the node's telemetry (position, home, landed state, RC, attitude)")
         return fake, node

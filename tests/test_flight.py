@@ -9,9 +9,10 @@ from __future__ import annotations
 import math
 
 import pytest
+from square_support import fly_and_check_square
 
 from autopilot_model.airframe import load_airframe
-from autopilot_model.flights import fly_square, goto, land, takeoff
+from autopilot_model.flights import goto, land, takeoff
 from autopilot_model.modules.navigation import LANDED_ON_GROUND
 from autopilot_model.vehicle import Vehicle
 
@@ -54,16 +55,7 @@ def test_hover_climb_and_hold() -> None:
 
 
 def test_square_and_landing_track_setpoints() -> None:
-    v = _vehicle()
-    rec = fly_square(v, side=50.0, speed=5.0, alt=10.0)
-    s = rec.summary()
-    assert s["samples"] > 1000
-    assert s["h_max"] < 0.2, s
-    assert s["v_max"] < 0.1, s
-    assert v.nav.landed_state == LANDED_ON_GROUND and not v.nav.armed
-    assert v.world.position[2] == 0.0
-    # back where it started, within a hand's width
-    assert math.hypot(*v.world.position[:2]) < 0.3
+    fly_and_check_square(_vehicle())
 
 
 def test_outdoor_gps_flight_does_not_diverge() -> None:

@@ -8,15 +8,13 @@ the main loop rate or, at 1000 Hz, every second iteration.
 
 from __future__ import annotations
 
-import math
 import re
 from pathlib import Path
 
 import pytest
+from square_support import fly_and_check_square
 
 from autopilot_model.airframe import load_airframe
-from autopilot_model.flights import fly_square
-from autopilot_model.modules.navigation import LANDED_ON_GROUND
 from autopilot_model.vehicle import DEFAULT_MODULES, Vehicle
 
 
@@ -39,15 +37,7 @@ def test_square_flies_the_same_at_every_loop_rate(tmp_path: Path, main_hz: int, 
     v = Vehicle(af, modules_file=_modules_at(tmp_path, main_hz, fast_hz), sensors="indoor", seed=1)
     loop = v.start()
     assert loop.schedule.main_loop_hz == main_hz
-    rec = fly_square(v, side=50.0, speed=5.0, alt=10.0)
-    s = rec.summary()
-    # the bounds of the 500 Hz flight (tests/test_flight.py)
-    assert s["samples"] > 1000
-    assert s["h_max"] < 0.2, s
-    assert s["v_max"] < 0.1, s
-    assert v.nav.landed_state == LANDED_ON_GROUND and not v.nav.armed
-    assert v.world.position[2] == 0.0
-    assert math.hypot(*v.world.position[:2]) < 0.3
+    fly_and_check_square(v)  # the bounds of the 500 Hz flight (tests/test_flight.py)
     # simulated time = scheduled iterations x period, for the clock and for the physics alike
     assert loop.period_us == 1_000_000 // main_hz
     assert v.clock.now_us == loop.iteration * loop.period_us

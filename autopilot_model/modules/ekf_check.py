@@ -25,6 +25,8 @@ from typing import Any
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
+from autopilot_model.modules.flight_modes import ALT_HOLD, AUTO, BRAKE, GUIDED, LAND, LOITER, RTL
+
 log = logging.getLogger(__name__)
 
 EKF_CHECK_ITERATIONS_MAX = 10
@@ -32,14 +34,6 @@ EKF_CHECK_ITERATIONS_MAX = 10
 EKF_CHECK_WARNING_TIME_S = 30.0
 """"EKF variance" is sent at most this often."""
 
-# ArduCopter custom modes
-ALT_HOLD = 2
-AUTO = 3
-GUIDED = 4
-LOITER = 5
-RTL = 6
-LAND = 9
-BRAKE = 17
 REQUIRES_POSITION = frozenset({AUTO, GUIDED, LOITER, RTL, BRAKE})
 """Modes for which ArduCopter's ``requires_GPS()`` is true (of those the model has)."""
 

@@ -73,14 +73,13 @@ class Phase(Enum):
 
 
 def takeoff_altitude_above_home(target_up_local: float, s: MirrorState) -> float:
-    """NAV_TAKEOFF's param7 (m above home) for a target ``target_up_local`` m up in the local frame."""
-    if s.position is not None and s.global_position is not None:
-        home_up_local = -s.position[2] - s.global_position[3]
-    elif s.home_local is not None:
-        home_up_local = -s.home_local[2]
-    else:
-        home_up_local = 0.0
-    return target_up_local - home_up_local
+    """NAV_TAKEOFF's param7 (m above home) for a target ``target_up_local`` m up in the local frame.
+
+    Home's height in the local frame is ``-z - relative_alt`` (LOCAL_POSITION_NED, GLOBAL_POSITION_INT);
+    HOME_POSITION's x, y, z are zero on ArduCopter. Without both messages, home is taken at the origin."""
+    if s.position is None or s.global_position is None:
+        return target_up_local
+    return target_up_local + s.position[2] + s.global_position[3]
 
 
 class GuidedSupervisor:

@@ -72,7 +72,6 @@ class MirrorState:
     battery_voltage: float | None = None
     battery_remaining: int | None = None
     home: tuple[float, float, float] | None = None  # lat, lon (deg), alt AMSL (m)
-    home_local: Vec3 | None = None  # home in local NED
     gps_fix_type: int = 0
     gps_satellites: int = 0
     global_position: tuple[float, float, float, float] | None = None  # lat, lon, alt AMSL, rel. alt
@@ -114,7 +113,6 @@ class MirrorState:
             "attitude": list(self.attitude) if self.attitude else None,
             "battery_voltage": self.battery_voltage, "battery_remaining": self.battery_remaining,
             "home": list(self.home) if self.home else None,
-            "home_local": list(self.home_local) if self.home_local else None,
             "gps_fix_type": self.gps_fix_type, "gps_satellites": self.gps_satellites,
             "global_position": list(self.global_position) if self.global_position else None,
             "heartbeats": self.heartbeats, "messages": self.messages, "texts": list(self.texts[-5:]),
@@ -155,8 +153,7 @@ class VehicleMirror:
             volt = msg.voltage_battery / 1000.0 if msg.voltage_battery != 65535 else None
             changes = {"battery_voltage": volt, "battery_remaining": msg.battery_remaining}
         elif t == "HOME_POSITION":
-            changes = {"home": (msg.latitude * 1e-7, msg.longitude * 1e-7, msg.altitude * 1e-3),
-                       "home_local": (msg.x, msg.y, msg.z)}
+            changes = {"home": (msg.latitude * 1e-7, msg.longitude * 1e-7, msg.altitude * 1e-3)}
         elif t == "GPS_RAW_INT":
             changes = {"gps_fix_type": msg.fix_type, "gps_satellites": msg.satellites_visible}
         elif t == "GLOBAL_POSITION_INT":
