@@ -112,10 +112,6 @@ class Autopilot:
             out += "; ArduCopter log: " + " | ".join(tail)
         return out
 
-    @property
-    def is_arducopter(self) -> bool:
-        return self.kind == "arducopter"
-
     def close(self) -> None:
         self.gcs.close()
         self.tap.close()

@@ -99,7 +99,6 @@ class CommandQueue:
         self._generation = 0
         self._index = 0
         self._exec: CommandExecution | None = None
-        self._started_ids: set[int] = set()
         self._state = QueueState.STOPPED
         self._behaviour: _ActiveBehaviour | None = None
         self._pending_pause: PauseBehaviour | None = None
@@ -300,11 +299,7 @@ class CommandQueue:
             self._behaviour = None
             self._pending_pause = None
             self._deferred = None
-            if self._exec is not None:
-                # the command starts afresh from wherever the vehicle is when it is tried again
-                self._exec = None
-                if entry is not None:
-                    self._started_ids.discard(entry.id)
+            self._exec = None  # tried again, it starts afresh from wherever the vehicle is then
             self._emit(EventKind.FAILED, entry, self._index, reason)
             log.error("command %s failed: %s", entry.id if entry else None, reason)
 
@@ -532,9 +527,7 @@ class CommandQueue:
         if self._state is QueueState.RUNNING and self._exec is None and self._index < len(self._commands):
             entry = self._commands[self._index]
             self._exec = CommandExecution(entry.command, self._ref, self.limits)
-            if entry.id not in self._started_ids:
-                self._started_ids.add(entry.id)
-                self._emit(EventKind.STARTED, entry, self._index)
+            self._emit(EventKind.STARTED, entry, self._index)  # an execution is created once per start
             log.info("command %d (id %d) started", self._index, entry.id)
 
     def _start_behaviour(self, behaviour: PauseBehaviour, *, continuing: bool) -> None:
@@ -569,7 +562,6 @@ class CommandQueue:
         log.info("command %d finished", self._index)
         if entry is not None:
             self._emit(EventKind.FINISHED, entry, self._index)
-            self._started_ids.discard(entry.id)
         self._exec = None
         self._index += 1
         if self._pending_pause is not None:

@@ -112,10 +112,6 @@ class GuidedSupervisor:
         return self.phase is Phase.TAKING_OFF
 
     @property
-    def streaming(self) -> bool:
-        return self.phase is Phase.ENGAGED
-
-    @property
     def overridden(self) -> bool:
         return self.phase is Phase.OVERRIDDEN
 
