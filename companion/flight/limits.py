@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 import shapely
-from shapely.geometry import Point, Polygon
+from shapely.geometry import LineString, Point, Polygon
 from shapely.ops import nearest_points
 
 from taskflight.yamlio import ConfigError, Fields, load_yaml
@@ -162,6 +162,14 @@ class Envelope:
         if self._poly is None:
             return True
         return bool(self._poly.covers(Point(float(ne[0]), float(ne[1]))))
+
+    def covers_segment(self, a_ne: tuple[float, float], b_ne: tuple[float, float]) -> bool:
+        """True when the straight horizontal segment a-b stays inside the envelope (edges included)."""
+        if self._poly is None:
+            return True
+        if math.dist(a_ne, b_ne) < 1e-9:
+            return self.contains_ne(a_ne)
+        return bool(self._poly.covers(LineString([a_ne, b_ne])))
 
     def clamp_ne(self, ne: np.ndarray) -> tuple[np.ndarray, bool]:
         """Nearest horizontal point inside the envelope; ``True`` when it had to move."""

@@ -10,15 +10,7 @@ own methods change it (one writer). Every change of a command's life is publishe
 The verbs (Sec. V), the decisions where the paper is silent, and the status fields are documented in
 :mod:`companion.flight.qapi`.
 
-"Stopped if allowed" during a take-off (Sec. V)
-    A take-off that has not yet left the ground (its execution has not advanced: the link holds the
-    queue's time while the autopilot arms and lifts off; the link marks the lift-off with
-    ``mark_takeoff_airborne``) stops at once; the link then cancels the take-off (nothing arms, or it
-    disarms). Once climbing, it may not be stopped until its reference
-    is ``takeoff_min_hold_m`` above where it started: ``stop``, ``pause_direct`` and ``reset``
-    given in that window are *deferred* (status ``deferred``, a DEFERRED event) and carried out
-    there, so the vehicle never hovers armed a few centimetres above the ground. ``run()`` cancels
-    a deferred stop or pause.
+"Stopped if allowed" during a take-off (Sec. V): see :mod:`.takeoff_rule`.
 
 Tick contract
     ``tick(now_s, vehicle_state, follow_vehicle=False) -> Setpoint | None``. ``now_s`` is the
@@ -59,13 +51,10 @@ from .qapi import (
 from .reference import HOLD, Reference, ReferenceGenerator, wrap_pi
 from .retarget import Retarget, RetargetError, retargeted
 from .setpoint import Setpoint, SetpointKind, VehicleState
+from .takeoff_rule import TAKEOFF_MIN_HOLD_M, TakeoffStopRule
 
 log = logging.getLogger(__name__)
 
-#: A climbing take-off may not be stopped below this height above where it started (m).
-TAKEOFF_MIN_HOLD_M = 1.0
-#: Without word from the link, a take-off whose reference rose this much (m) has left the ground.
-TAKEOFF_CLIMBING_M = 0.05
 
 
 @dataclass
@@ -76,7 +65,7 @@ class _ActiveBehaviour:
     continuing: bool  # what the queue does afterwards: continue (True) or stay stopped
 
 
-class CommandQueue:
+class CommandQueue(TakeoffStopRule):
     """The QAPI command queue (see module docstring)."""
 
     def __init__(self, limits: Limits | None = None, envelope: Envelope | None = None,
@@ -103,6 +92,7 @@ class CommandQueue:
         self._behaviour: _ActiveBehaviour | None = None
         self._pending_pause: PauseBehaviour | None = None
         self._deferred: tuple[str, PauseBehaviour | None] | None = None
+        self._deferred_entries: list[QueuedCommand] = []  # a deferred replace_commands' new list
         self._failure: str | None = None
         self._overridden = False
         self._synced = False
@@ -153,6 +143,34 @@ class CommandQueue:
         commands = list(commands)
         if not commands:
             return []
+        self._check_all(commands)
+        with self._locked():
+            ids = [self._append(c) for c in commands]
+            log.info("commands %s added", ids)
+            self._maybe_start()
+            return ids
+
+    def replace_commands(self, commands: Sequence[FlightCommand]) -> list[int]:
+        """``reset()``, ``add_commands(commands)`` and ``run()`` as one verb, with no tick in between:
+        how the behaviors (seed 001) switch flight maneuvers while the setpoint stream stays
+        continuous (the new commands start from the reference as it is, moving or not). Checked
+        first (all or none). During a take-off that may not be stopped yet it is deferred like
+        ``reset`` (the ids are returned at once; their ADDED events come when it is carried out)."""
+        commands = list(commands)
+        if not commands:
+            raise QueueError("replace_commands: no commands")
+        self._check_all(commands)
+        with self._locked():
+            self._refuse_if_overridden("replace_commands")
+            entries = [QueuedCommand(new_command_id(), c) for c in commands]
+            if self._takeoff_unstoppable():
+                self._defer_if_taking_off("replace", None)
+                self._deferred_entries = entries
+            else:
+                self._do_replace(entries)
+            return [e.id for e in entries]
+
+    def _check_all(self, commands: Sequence[FlightCommand]) -> None:
         for i, c in enumerate(commands):
             try:
                 self.check_command(c)
@@ -164,16 +182,20 @@ class CommandQueue:
                 if len(commands) == 1:
                     raise
                 raise QueueError(f"commands[{i}]: {exc}") from None
-        with self._locked():
-            ids = []
-            for c in commands:
-                entry = QueuedCommand(new_command_id(), c)
-                self._commands.append(entry)
-                ids.append(entry.id)
-                self._emit(EventKind.ADDED, entry, len(self._commands) - 1)
-            log.info("commands %s added", ids)
-            self._maybe_start()
-            return ids
+
+    def _append(self, command: FlightCommand, entry: QueuedCommand | None = None) -> int:
+        entry = entry or QueuedCommand(new_command_id(), command)
+        self._commands.append(entry)
+        self._emit(EventKind.ADDED, entry, len(self._commands) - 1)
+        return entry.id
+
+    def _do_replace(self, entries: list[QueuedCommand]) -> None:
+        self._do_reset()
+        for e in entries:
+            self._append(e.command, e)
+        self._state = QueueState.RUNNING
+        log.info("commands replaced by %s", [e.id for e in entries])
+        self._maybe_start()
 
     def run(self) -> None:
         with self._locked():
@@ -275,7 +297,7 @@ class CommandQueue:
                 self._state = QueueState.STOPPED
                 self._behaviour = None
                 self._pending_pause = None
-                self._deferred = None
+                self._drop_deferred("the vehicle was taken over")
                 self._ref = None
                 self._last_setpoint = None
                 self._emit(EventKind.OVERRIDDEN, self._current_entry(), self._index)
@@ -298,7 +320,7 @@ class CommandQueue:
             self._state = QueueState.STOPPED
             self._behaviour = None
             self._pending_pause = None
-            self._deferred = None
+            self._drop_deferred(f"the take-off failed: {reason}")
             self._exec = None  # tried again, it starts afresh from wherever the vehicle is then
             self._emit(EventKind.FAILED, entry, self._index, reason)
             log.error("command %s failed: %s", entry.id if entry else None, reason)
@@ -428,61 +450,6 @@ class CommandQueue:
             return self.catalog.get(bid)
         except KeyError as exc:
             raise QueueError(str(exc.args[0])) from None
-
-    def _takeoff_unstoppable(self) -> bool:
-        """A climbing take-off still below its minimum hold height (module docstring).
-
-        Climbing: the link said it lifted off (:meth:`mark_takeoff_airborne`), or, with no link (a
-        simulation), its reference has left the start altitude."""
-        ex = self._exec
-        if ex is None or self._behaviour is not None or self._state is not QueueState.RUNNING \
-                or not ex.command.vertical.take_off or ex.ended or self._ref is None:
-            return False
-        climbing = ex.airborne or self._ref.altitude - ex.start_altitude >= TAKEOFF_CLIMBING_M
-        return climbing and self._ref.altitude < ex.start_altitude + self.takeoff_min_hold_m
-
-    def mark_takeoff_airborne(self, vehicle: VehicleState | None = None) -> bool:
-        """Called by the link when the vehicle lifted off for the executing take-off; False when the
-        take-off is no longer executing (stopped, reset or paused meanwhile). Atomic with the verbs: a
-        stop after it is deferred, a stop before it makes it answer False.
-
-        With ``vehicle``, the reference restarts at the measured state (the autopilot's own take-off
-        has already climbed by the time the lift-off is seen): the first streamed setpoint continues
-        the climb where the vehicle is, instead of pulling it back to the ground it left."""
-        with self._lock:
-            ex = self._active_execution()
-            if ex is None or self._behaviour is not None or not ex.command.vertical.take_off or ex.ended:
-                return False
-            ex.airborne = True
-            if vehicle is not None and self._ref is not None:
-                self._ref = self._gen.initial(self._ref.t_s, vehicle.p, vehicle.v, vehicle.yaw)
-                ex.resume(self._ref)
-                self._last_setpoint = None
-            return True
-
-    def _defer_if_taking_off(self, verb: str, behaviour: PauseBehaviour | None) -> bool:
-        if not self._takeoff_unstoppable():
-            return False
-        if self._deferred is not None and self._deferred[0] == "reset" and verb != "reset":
-            raise QueueStateError(f"{verb}: a reset is already deferred until the take-off may be stopped")
-        self._deferred = (verb, behaviour)
-        text = f"{verb} deferred until the take-off is {self.takeoff_min_hold_m:g} m up"
-        log.info("%s", text)
-        self._emit(EventKind.DEFERRED, self._current_entry(), self._index, text)
-        return True
-
-    def _apply_deferred(self) -> None:
-        if self._deferred is None or self._takeoff_unstoppable():
-            return
-        verb, behaviour = self._deferred
-        self._deferred = None
-        log.info("carrying out the deferred %s", verb)
-        if verb == "stop":
-            self._do_stop()
-        elif verb == "reset":
-            self._do_reset()
-        elif verb == "pause_direct" and behaviour is not None and self._behaviour is None:
-            self._start_behaviour(behaviour, continuing=self._state is QueueState.RUNNING)
 
     def _do_stop(self) -> None:
         running = self._state is QueueState.RUNNING or self._behaviour is not None

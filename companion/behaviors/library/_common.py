@@ -1,0 +1,51 @@
+"""Helpers the flight maneuvers share: the situation "flying", the reference's position, channel builders."""
+
+from __future__ import annotations
+
+from companion.flight import (
+    EndCondition,
+    FlightCommand,
+    HeadingChannel,
+    HeadingMode,
+    HorizontalChannel,
+    HorizontalMode,
+    VerticalChannel,
+    VerticalMode,
+)
+
+from ..controller import BehaviorExecutionController
+
+Vec3 = tuple[float, float, float]
+
+
+def need_flying(c: BehaviorExecutionController) -> str | None:
+    """The situation of every maneuver but TAKE_OFF: the vehicle flies and the companion has it."""
+    state = c.flight_state()
+    if state != "flying":
+        return f"needs flight_state(self, flying); the vehicle is {state or 'in an unknown state'}"
+    if c.ctx.queue.status().queue_system_status.name == "OVERRIDDEN":
+        return "the vehicle is controlled elsewhere (a pilot or ground station took it)"
+    return None
+
+
+def reference_neu(c: BehaviorExecutionController) -> Vec3:
+    """Where the reference is now ((north, east, up)); the vehicle's position before the first tick."""
+    ref = c.ctx.queue.reference
+    if ref is not None:
+        return (float(ref.p[0]), float(ref.p[1]), float(ref.altitude))
+    v = c.ctx.vehicle()
+    if v is None:
+        return (0.0, 0.0, 0.0)
+    return (v.p[0], v.p[1], -v.p[2])
+
+
+def go_to(point: Vec3, speed: float | None = None) -> FlightCommand:
+    """The straight 3-D line to ``point`` ((north, east, up), absolute), heading kept."""
+    return FlightCommand(HorizontalChannel(HorizontalMode.POS, north=point[0], east=point[1], speed=speed),
+                         VerticalChannel(VerticalMode.WITH_HOR, altitude=point[2]),
+                         HeadingChannel(HeadingMode.DNU), EndCondition(e_h=True, e_v=True))
+
+
+def hold(end: EndCondition) -> FlightCommand:
+    return FlightCommand(HorizontalChannel(HorizontalMode.DNU), VerticalChannel(VerticalMode.DNU),
+                         HeadingChannel(HeadingMode.DNU), end)

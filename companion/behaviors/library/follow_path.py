@@ -1,0 +1,38 @@
+"""FOLLOW_PATH: fly through ``path`` ((north, east, up), ...) waypoints in order."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+from companion.flight import FlightCommand
+from companion.flight.setpoint import VehicleState
+
+from ..controller import FlightBehavior, distance, ned_of, register
+from ..services import TrajectoryPlanner
+from ._common import go_to, need_flying, reference_neu
+
+
+@register
+class FollowPath(FlightBehavior):
+    """Situation: flying. One straight leg per waypoint (planned inside the envelope); goal achieved
+    when the last leg finished; progress is measured toward the waypoint being flown."""
+
+    behavior = "FOLLOW_PATH"
+
+    def situation(self, params: Mapping[str, Any]) -> str | None:
+        return need_flying(self)
+
+    def commands(self, params: Mapping[str, Any]) -> list[FlightCommand]:
+        planner = self.ctx.processes.get("trajectory_planner")
+        assert isinstance(planner, TrajectoryPlanner)
+        legs = planner.plan(reference_neu(self), [tuple(p) for p in params["path"]])
+        return [go_to(p, params.get("speed")) for p in legs]
+
+    def goal_distance(self, vehicle: VehicleState) -> float | None:
+        path = self.params["path"]
+        leg = min(len(self.finished), len(path) - 1)
+        return distance(vehicle.p, ned_of(path[leg]))
+
+    def status(self) -> dict[str, Any]:
+        return {**super().status(), "waypoint": min(len(self.finished) + 1, len(self.params.get("path", ())))}

@@ -1,0 +1,35 @@
+"""GO_TO_POINT (seed 001 Sec. 5.1.1, 6.2.1): fly to ``coordinate`` (north, east, up) metres from home."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+from companion.flight import FlightCommand
+from companion.flight.setpoint import VehicleState
+
+from ..controller import FlightBehavior, distance, ned_of, register
+from ..services import TrajectoryPlanner
+from ._common import go_to, need_flying, reference_neu
+
+
+@register
+class GoToPoint(FlightBehavior):
+    """Situation: flying. The trajectory planner checks the straight line inside the envelope; the
+    motion controller flies it. Goal: the command finished (the reference is there). Performance:
+    the catalog's time-out and progress window on the measured distance to the point. A point the
+    planner cannot reach ends the behavior at its first check with ``wrong_progress``."""
+
+    behavior = "GO_TO_POINT"
+
+    def situation(self, params: Mapping[str, Any]) -> str | None:
+        return need_flying(self)
+
+    def commands(self, params: Mapping[str, Any]) -> list[FlightCommand]:
+        planner = self.ctx.processes.get("trajectory_planner")
+        assert isinstance(planner, TrajectoryPlanner)
+        legs = planner.plan(reference_neu(self), [tuple(params["coordinate"])])
+        return [go_to(p, params.get("speed")) for p in legs]
+
+    def goal_distance(self, vehicle: VehicleState) -> float | None:
+        return distance(vehicle.p, ned_of(self.params["coordinate"]))
