@@ -29,6 +29,31 @@ def _cmd_companion(args: argparse.Namespace) -> int:
     return run_companion(args)
 
 
+def _cmd_behaviors(args: argparse.Namespace) -> int:
+    return args.behaviors_handler(args)
+
+
+def _cmd_behaviors_timeline(args: argparse.Namespace) -> int:
+    from companion.behaviors.timeline import TimelineError, run_timeline
+
+    try:
+        print(run_timeline(args.log, args.out, args.title))
+    except (OSError, TimelineError) as exc:
+        print(f"taskflight behaviors timeline: error: {exc}", file=sys.stderr)
+        return 2
+    return 0
+
+
+def add_behaviors_arguments(parser: argparse.ArgumentParser) -> None:
+    """``taskflight behaviors SUBCOMMAND``: each sub-command sets ``behaviors_handler``."""
+    bsub = parser.add_subparsers(dest="behaviors_command", required=True, metavar="SUBCOMMAND")
+    tp = bsub.add_parser("timeline", help="draw a flight log's behavior activations and processes (PNG)")
+    tp.add_argument("log", metavar="LOG", help="the flight's JSON-lines log (coordinator, process manager)")
+    tp.add_argument("--out", required=True, metavar="FILE.png", help="the PNG to write")
+    tp.add_argument("--title", default=None, help="the figure's title")
+    tp.set_defaults(behaviors_handler=_cmd_behaviors_timeline)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="taskflight", description=__doc__.splitlines()[0])
     parser.add_argument("-v", "--verbose", action="count", default=0, help="more log output (-vv: debug)")
@@ -57,6 +82,10 @@ def build_parser() -> argparse.ArgumentParser:
         cp = sub.add_parser("companion", help="run the companion for one vehicle")
         add_companion_arguments(cp)
         handlers["companion"] = _cmd_companion
+
+    bp = sub.add_parser("behaviors", help="the executive layer: behaviors, beliefs, processes (seed 001)")
+    add_behaviors_arguments(bp)
+    handlers["behaviors"] = _cmd_behaviors
 
     parser.set_defaults(_handlers=handlers)
     return parser

@@ -67,6 +67,7 @@ class MirrorState:
     armed: bool = False
     landed_state: int = 0
     position: Vec3 | None = None
+    position_time_ms: int | None = None  # LOCAL_POSITION_NED's time_boot_ms (the estimate's age)
     velocity: Vec3 = (0.0, 0.0, 0.0)
     attitude: Vec3 | None = None  # roll, pitch, yaw (rad)
     battery_voltage: float | None = None
@@ -144,7 +145,7 @@ class VehicleMirror:
                        "system_id": msg.get_srcSystem(), "component_id": msg.get_srcComponent()}
         elif t == "LOCAL_POSITION_NED":
             changes = {"position": (msg.x, msg.y, msg.z), "velocity": (msg.vx, msg.vy, msg.vz),
-                       "time_boot_ms": msg.time_boot_ms}
+                       "time_boot_ms": msg.time_boot_ms, "position_time_ms": msg.time_boot_ms}
         elif t == "ATTITUDE":
             changes = {"attitude": (msg.roll, msg.pitch, msg.yaw), "time_boot_ms": msg.time_boot_ms}
         elif t == "EXTENDED_SYS_STATE":
