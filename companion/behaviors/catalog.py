@@ -33,6 +33,7 @@ precedence conditions set must not present loops").
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -355,8 +356,10 @@ def catalog_from_data(data: Any, file: str = "<input>") -> BehaviorCatalog:
         requires.setdefault(b, set()).add(a)
     cycle = find_cycle(requires)
     if cycle:
-        raise ConfigError(file, edge_line.get((cycle[-2], cycle[-1])), "compatibility_conditions",
-                          f"precedence loop: {' before '.join(cycle)}")
+        lines = sorted({edge_line[(a, b)] or 0 for a, b in itertools.pairwise(cycle)})
+        raise ConfigError(file, lines[-1], "compatibility_conditions",
+                          f"precedence loop: {' before '.join(cycle)} (conditions on lines "
+                          f"{', '.join(map(str, lines))})")
     return BehaviorCatalog(descriptors.values(), exclusive, precedence, priority, source=file)
 
 

@@ -185,23 +185,27 @@ class BehaviorCoordinator:
         with self._lock:
             act = self._active.get(target) or next(
                 (a for a in self._active.values() if a.activation_id == target), None)
-            if act is None:
-                return self._answer(None, requester, False, f"{target} is not active", kind="inhibit")
-            if requester not in self.catalog.requester_priority:
-                return self._answer(None, requester, False, f"unknown requester {requester!r}", kind="inhibit")
-            if self.catalog.priority(requester) < self.catalog.priority(act.requester):
-                return self._answer(None, requester, False, f"{act.behavior} was requested by {act.requester}, "
-                                    f"which has priority over {requester}", kind="inhibit")
-            needing = [b for b in self._active if b != act.behavior
-                       and act.behavior in self.catalog.required_before(b)]
-            if needing:
-                return self._answer(None, requester, False, f"{', '.join(sorted(needing))} need(s) "
-                                    f"{act.behavior} active", kind="inhibit")
+            why = self._inhibit_refusal(act, target, requester)
+            if why is not None or act is None:
+                return self._answer(None, requester, False, why or "", kind="inhibit")
             self._end(act, Termination(TerminationCause.INTERRUPTED, f"inhibited by {requester}"))
             started = self._start_defaults()
             self.ctx.processes.collect()
             return self._answer(None, requester, True, "inhibited", act.activation_id, (act.behavior,),
                                 tuple(started), kind="inhibit", behavior=act.behavior)
+
+    def _inhibit_refusal(self, act: Activation | None, target: str, requester: str) -> str | None:
+        if act is None:
+            return f"{target} is not active"
+        if requester not in self.catalog.requester_priority:
+            return f"unknown requester {requester!r}"
+        if self.catalog.priority(requester) < self.catalog.priority(act.requester):
+            return f"{act.behavior} was requested by {act.requester}, which has priority over {requester}"
+        needing = [b for b in self._active
+                   if b != act.behavior and act.behavior in self.catalog.required_before(b)]
+        if needing:
+            return f"{', '.join(sorted(needing))} need(s) {act.behavior} active"
+        return None
 
     def monitor(self, now_s: float) -> list[Ended]:
         """Performance monitoring of every active behavior, end-of-behavior and the default behaviors."""

@@ -1,0 +1,176 @@
+"""The executive layer of one vehicle (seed 001 Fig. 4): coordinator, beliefs, updaters, processes.
+
+:class:`ExecutiveLayer` assembles, over a :class:`~companion.node.QuadNode` (or any queue with a
+clock and a vehicle-state source, for tests):
+
+* the belief memory and its updaters (the common belief updater reads the link's mirror; the
+  :class:`QueueBeliefUpdater` says who controls the vehicle),
+* the process manager with the bundled execution processes (:mod:`.services`),
+* the behavior coordinator with the catalog's execution controllers,
+* the *monitor thread*: at ``monitor_hz`` of the autopilot's clock it runs the coordinator's
+  performance monitoring and the running processes' periodic work,
+* the flight log: every request, behavior start and termination and process start and stop as one
+  JSON object per line (``log_path``), the input of ``taskflight behaviors timeline``.
+
+Nothing here sends MAVLink: behaviors act on the command queue, the link streams it.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import threading
+from collections.abc import Callable
+from pathlib import Path
+from typing import IO, TYPE_CHECKING, Any
+
+from companion.flight.queue import CommandQueue
+from companion.flight.setpoint import VehicleState
+
+from .beliefs import BeliefMemory
+from .catalog import BehaviorCatalog, load_catalog
+from .controller import BehaviorContext
+from .coordinator import BehaviorCoordinator
+from .processes import ProcessManager
+from .services import JoystickFeed, bundled_processes
+from .updaters import BeliefUpdater, BeliefUpdaterRunner, CommonBeliefUpdater
+
+if TYPE_CHECKING:
+    from companion.node import QuadNode
+
+log = logging.getLogger(__name__)
+
+DEFAULT_MONITOR_HZ = 20.0
+
+
+class QueueBeliefUpdater(BeliefUpdater):
+    """``control(self, companion | elsewhere)`` from the queue's status (OVERRIDDEN: a pilot or GCS)."""
+
+    name = "queue"
+
+    def __init__(self, queue: CommandQueue, period_s: float = 0.2) -> None:
+        self.queue = queue
+        self.period_s = period_s
+
+    def update(self, memory: BeliefMemory, now_s: float) -> None:
+        overridden = self.queue.status().queue_system_status.name == "OVERRIDDEN"
+        memory.add(f"control(self, {'elsewhere' if overridden else 'companion'})")
+
+
+class FlightLog:
+    """JSON lines, one writer lock; kept in memory too (the last ``keep`` records)."""
+
+    def __init__(self, path: str | Path | None = None, keep: int = 20000) -> None:
+        self.path = Path(path) if path is not None else None
+        self._file: IO[str] | None = self.path.open("a", encoding="utf-8") if self.path else None
+        self._lock = threading.Lock()
+        self.records: list[dict[str, Any]] = []
+        self._keep = keep
+
+    def __call__(self, record: dict[str, Any]) -> None:
+        with self._lock:
+            self.records.append(record)
+            if len(self.records) > self._keep:
+                del self.records[: len(self.records) - self._keep]
+            if self._file is not None:
+                self._file.write(json.dumps(record, separators=(",", ":")) + "\n")
+                self._file.flush()
+
+    def close(self) -> None:
+        with self._lock:
+            if self._file is not None:
+                self._file.close()
+                self._file = None
+
+
+class ExecutiveLayer:
+    """See module docstring."""
+
+    def __init__(self, queue: CommandQueue, now: Callable[[], float],
+                 vehicle: Callable[[], VehicleState | None], *, catalog: BehaviorCatalog | None = None,
+                 updaters: list[Any] | None = None, wall_until: Callable[[float], float] | None = None,
+                 ready: Callable[[], bool] | None = None, log_path: str | Path | None = None,
+                 monitor_hz: float = DEFAULT_MONITOR_HZ) -> None:
+        if not 1.0 <= monitor_hz <= 100.0:
+            raise ValueError(f"monitor rate {monitor_hz:g} Hz outside 1..100 Hz")
+        self.queue = queue
+        self.now = now
+        self.catalog = catalog or load_catalog()
+        self.log = FlightLog(log_path)
+        self.beliefs = BeliefMemory()
+        self.processes = ProcessManager(bundled_processes(queue, queue.envelope), now, sink=self.log)
+        self.ctx = BehaviorContext(queue, self.beliefs, self.processes, now, vehicle)
+        self.coordinator = BehaviorCoordinator(self.catalog, self.ctx, sink=self.log)
+        self.updaters = BeliefUpdaterRunner(self.beliefs, [QueueBeliefUpdater(queue), *(updaters or [])], now,
+                                            wall_until)
+        self._wall_until = wall_until
+        self._ready = ready or (lambda: True)
+        self.period_s = 1.0 / monitor_hz
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self.monitor_cycles = 0
+
+    @classmethod
+    def for_node(cls, node: QuadNode, **kw: Any) -> ExecutiveLayer:
+        """The executive layer over a running companion node (its queue, clock and mirror)."""
+        mirror = node.link.mirror
+        common = CommonBeliefUpdater(mirror.snapshot, node.clock.now, period_s=0.2)
+        return cls(node.queue, node.clock.now, lambda: mirror.snapshot().vehicle_state(),
+                   updaters=[common], wall_until=node.clock.wall_until, ready=lambda: node.clock.synced, **kw)
+
+    # --- lifecycle -------------------------------------------------------------------------------------
+    def start(self) -> ExecutiveLayer:
+        self.updaters.start()
+        self._thread = threading.Thread(target=self._loop, name="behavior-monitor", daemon=True)
+        self._thread.start()
+        return self
+
+    def close(self) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=2.0)
+        self.updaters.close()
+        self.log.close()
+
+    def __enter__(self) -> ExecutiveLayer:
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # --- one monitor cycle ---------------------------------------------------------------------------
+    def step(self, now_s: float) -> None:
+        """Performance monitoring, defaults, the processes' periodic work (the monitor thread's cycle)."""
+        self.coordinator.monitor(now_s)
+        self.processes.tick(now_s)
+        self.monitor_cycles += 1
+
+    def _loop(self) -> None:
+        next_t: float | None = None
+        while not self._stop.is_set():
+            if not self._ready():
+                self._stop.wait(0.05)
+                continue
+            now = self.now()
+            if next_t is None or now - next_t > 5 * self.period_s or now < next_t - 1.0:
+                next_t = now
+            if now < next_t:
+                wait = self._wall_until(next_t) if self._wall_until is not None else next_t - now
+                self._stop.wait(min(max(wait, 0.0), 0.05))
+                continue
+            try:
+                self.step(now)
+            except Exception:
+                log.exception("behavior monitor cycle failed")
+            next_t += self.period_s
+
+    # --- conveniences --------------------------------------------------------------------------------
+    @property
+    def joystick(self) -> JoystickFeed:
+        feed = self.processes.get("joystick_feed")
+        assert isinstance(feed, JoystickFeed)
+        return feed
+
+    def status(self) -> dict[str, Any]:
+        return {**self.coordinator.status(), "processes": self.processes.status(),
+                "monitor_cycles": self.monitor_cycles}
