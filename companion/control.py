@@ -28,6 +28,8 @@ process-unique command ids (:mod:`companion.flight.events`).
 ``GET  /behaviours``                       the pause behaviours' ids
 ``POST /external/{stream}``                an external-data sample ``{"values": [...], "validity_s": 0.5}``
                                            (streams: ext_pos, ext_vel, ext_heading, ext_point, rc_vel)
+``/behaviors/...``, ``/beliefs``           the executive layer (seed 001), when served: see
+                                           :mod:`companion.control_behaviors`
 =========================================  ===========================================================
 
 Errors
@@ -72,6 +74,8 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
+from companion.behaviors.system import ExecutiveLayer
+from companion.control_behaviors import add_behavior_routes
 from companion.control_models import (
     UNION_TAGS,
     AcceptedResponse,
@@ -246,10 +250,11 @@ def _kinds(text: str | None) -> frozenset[EventKind]:
     return frozenset(out)
 
 
-def create_app(node: QuadNode, token: str | None = None) -> FastAPI:
+def create_app(node: QuadNode, token: str | None = None, behaviors: ExecutiveLayer | None = None) -> FastAPI:
     """The FastAPI application serving ``node``'s QAPI (see module docstring).
 
     ``token``: require ``Authorization: Bearer <token>`` on every endpoint (None: no authentication).
+    ``behaviors``: also serve the executive layer (:mod:`companion.control_behaviors`).
     ``app.state.closing`` (a :class:`threading.Event`) ends pending ``/events/wait`` requests when set.
     """
     if token is not None and (not isinstance(token, str) or not token.strip()):
@@ -401,6 +406,8 @@ def create_app(node: QuadNode, token: str | None = None) -> FastAPI:
             raise RequestError(400, f"malformed sample: {exc}") from None
         return AcceptedResponse(accepted=accepted)
 
+    if behaviors is not None:
+        add_behavior_routes(app, behaviors, RequestError)
     return app
 
 
@@ -418,8 +425,8 @@ class ControlServer:
     """uvicorn serving :func:`create_app` on ``host:port`` in a background thread (port 0: any free)."""
 
     def __init__(self, node: QuadNode, port: int = 8765, host: str = "127.0.0.1",
-                 token: str | None = None) -> None:
-        self.app = create_app(node, token)
+                 token: str | None = None, behaviors: ExecutiveLayer | None = None) -> None:
+        self.app = create_app(node, token, behaviors)
         config = uvicorn.Config(self.app, host=host, port=port, log_level="warning", lifespan="off",
                                 timeout_graceful_shutdown=2)
         self.server = uvicorn.Server(config)

@@ -47,7 +47,16 @@ def add_companion_arguments(parser: argparse.ArgumentParser) -> None:
                         help="our MAVLink system id (default: the autopilot's own)")
     parser.add_argument("--flight-config", default=None, metavar="YAML",
                         help="limits and operational envelope (companion.flight.limits)")
-    parser.add_argument("--behaviours", default=None, metavar="YAML", help="extra pause behaviours")
+    parser.add_argument("--behaviours", default=None, metavar="YAML",
+                        help="extra pause behaviours of the queue (seed 000 Sec. V)")
+    parser.add_argument("--behavior-catalog", default=None, metavar="YAML",
+                        help="the executive layer's behavior catalog (seed 001; default "
+                             "mission_specs/behavior_catalog.yaml)")
+    parser.add_argument("--no-behaviors", action="store_true",
+                        help="no executive layer: the queue is driven through the QAPI only")
+    parser.add_argument("--behavior-log", default=None, metavar="FILE",
+                        help="append behavior and process events as JSON lines (for 'taskflight behaviors "
+                             "timeline')")
     parser.add_argument("--commands", default=None, metavar="YAML", help="flight commands to queue at start")
     parser.add_argument("--run", action="store_true", help="run the queue at start")
 
@@ -60,6 +69,8 @@ def control_token(args: argparse.Namespace) -> str | None:
 
 def run_companion(args: argparse.Namespace) -> int:
     """Run until SIGINT/SIGTERM; returns the exit status (2 for bad options or files)."""
+    from companion.behaviors.catalog import load_catalog as load_behavior_catalog
+    from companion.behaviors.system import ExecutiveLayer
     from companion.control import ControlServer
     from companion.flight import load_catalog, load_commands, load_flight_config
     from companion.flight.external import DEFAULT_MAX_VALIDITY_S
@@ -70,6 +81,8 @@ def run_companion(args: argparse.Namespace) -> int:
         limits, envelope = load_flight_config(args.flight_config) if args.flight_config else (None, None)
         catalog = load_catalog(args.behaviours) if args.behaviours else None
         commands = load_commands(args.commands) if args.commands else []
+        behavior_catalog = None if args.no_behaviors else load_behavior_catalog(
+            *([args.behavior_catalog] if args.behavior_catalog else []))
         node = QuadNode(args.autopilot, rate_hz=args.rate, limits=limits, envelope=envelope, catalog=catalog,
                         baud=args.baud, source_system=args.source_system,
                         max_validity_s=(DEFAULT_MAX_VALIDITY_S if args.max_validity is None
@@ -79,14 +92,18 @@ def run_companion(args: argparse.Namespace) -> int:
         return 2
     stop = stop_on_signals()
     server = None
+    layer = None
     try:
         node.start()
+        if behavior_catalog is not None:
+            layer = ExecutiveLayer.for_node(node, catalog=behavior_catalog,
+                                            log_path=args.behavior_log).start()
         node.add_commands(commands)
         if args.run:
             node.run()
         if args.control_port >= 0:
             server = ControlServer(node, args.control_port, host=args.control_host,
-                                   token=control_token(args)).start()
+                                   token=control_token(args), behaviors=layer).start()
             log.info("companion: autopilot %s, %g Hz, control %s", args.autopilot, args.rate, server.url)
         while not stop.wait(0.5):
             pass
@@ -96,5 +113,7 @@ def run_companion(args: argparse.Namespace) -> int:
     finally:
         if server is not None:
             server.close()
+        if layer is not None:
+            layer.close()
         node.close()
     return 0

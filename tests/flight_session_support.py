@@ -20,8 +20,9 @@ from companion_support import cmd
 from mavlink_support import GUIDED, wait_for
 from mavlink_support import wall as _wall
 
+from companion.behaviors.system import ExecutiveLayer
 from companion.control import ControlServer
-from companion.flight import EventKind, Setpoint
+from companion.flight import Envelope, EventKind, Setpoint
 from companion.node import QuadNode
 
 TAKEOFF = {"vertical": {"mode": "POS", "altitude": 5, "take_off": True}, "end": {"e_v": True}}
@@ -31,12 +32,14 @@ LAND_HERE = {"vertical": {"mode": "POS", "altitude": 0.0, "allow_landing": True}
 class FlightSession:
     """Everything one autopilot's conformance tests share (see module docstring)."""
 
-    def __init__(self, kind: str, state_dir: Path, speedup: float) -> None:
+    def __init__(self, kind: str, state_dir: Path, speedup: float, *, behaviors: bool = False,
+                 envelope: Envelope | None = None) -> None:
         self.speedup = speedup
         self.ap: Autopilot = start_autopilot(kind, state_dir, speedup)
         self.kind = kind
         self.tap, self.gcs = self.ap.tap, self.ap.gcs
-        self.node = QuadNode(self.ap.companion_url, rate_hz=20.0)
+        self.node = QuadNode(self.ap.companion_url, rate_hz=20.0, envelope=envelope)
+        self.layer: ExecutiveLayer | None = None
         self.streamed: list[Setpoint] = []
         self.synced_ticks: list[bool] = []
         self.heard: list[tuple[float, bool, float]] = []  # (autopilot s, armed, altitude) per heartbeat
@@ -44,7 +47,9 @@ class FlightSession:
         self.node.setpoint_listeners.append(self._on_setpoint)
         self.node.link.listeners.append(self._on_message)
         self.node.start()
-        self.server = ControlServer(self.node, port=0).start()
+        if behaviors:
+            self.layer = ExecutiveLayer.for_node(self.node, log_path=state_dir / "behaviors.jsonl").start()
+        self.server = ControlServer(self.node, port=0, behaviors=self.layer).start()
         self.http = httpx.Client(base_url=self.server.url, timeout=10.0)
         try:
             wait_for(lambda: self.node.link.mirror.snapshot().position is not None, self.wall(60),
@@ -154,5 +159,7 @@ class FlightSession:
     def close(self) -> None:
         self.http.close()
         self.server.close()
+        if self.layer is not None:
+            self.layer.close()
         self.node.close()
         self.ap.close()

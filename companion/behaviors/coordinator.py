@@ -89,7 +89,7 @@ class Activation:
 
     def to_dict(self) -> dict[str, Any]:
         return {"activation_id": self.activation_id, "behavior": self.behavior, "requester": self.requester,
-                "params": _jsonable(self.params), "text": format_activation(self.behavior, self.params),
+                "params": jsonable(self.params), "text": format_activation(self.behavior, self.params),
                 "started_at": round(self.started_at, 3), "paused": self.controller.paused,
                 **self.controller.status()}
 
@@ -301,7 +301,7 @@ class BehaviorCoordinator:
         self._active[behavior] = act
         log.info("behavior %s started (%s, %s)", format_activation(behavior, params), requester, aid)
         self._emit({"type": "behavior", "event": "started", "behavior": behavior, "activation_id": aid,
-                    "requester": requester, "params": _jsonable(params)})
+                    "requester": requester, "params": jsonable(params)})
         for fn in self.listeners:
             fn("started", act)
         return True
@@ -338,9 +338,10 @@ class BehaviorCoordinator:
             self._sink({"t": round(self.ctx.now(), 4), **record})
 
 
-def _jsonable(value: Any) -> Any:
+def jsonable(value: Any) -> Any:
+    """Parameters as JSON-able data (tuples become lists)."""
     if isinstance(value, Mapping):
-        return {str(k): _jsonable(v) for k, v in value.items()}
+        return {str(k): jsonable(v) for k, v in value.items()}
     if isinstance(value, tuple | list):
-        return [_jsonable(v) for v in value]
+        return [jsonable(v) for v in value]
     return value
