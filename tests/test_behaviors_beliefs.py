@@ -305,3 +305,13 @@ def test_json_conversions() -> None:
             term_from_json(bad)
     with pytest.raises(BeliefError):
         belief_from_json({"predicate": "p"})
+
+
+def test_answers_are_copies_and_objects_may_come_from_json() -> None:
+    m = _world()
+    first = m.consult("position(57, ?p)")[0]
+    first["p"] = "tampered"
+    assert m.consult("position(57, ?p)") == [{"p": (3.0, 4.5, 0.0)}]
+    m.add("label((3.0, 4.5, 0.0), gate)")
+    assert m.values("label", [3.0, 4.5, 0.0]) == ["gate"] and m.value("label", (3.0, 4.5, 0.0)) == "gate"
+    assert m.first("object(?x, obstacle)") == {"x": 32} and m.first("object(?x, tree)") is None

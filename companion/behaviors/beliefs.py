@@ -69,6 +69,11 @@ def _as_query(query: Query | Belief | str) -> Query:
     raise BeliefError(f"query: expected a Query or its text, got {type(query).__name__}")
 
 
+def _as_object(obj: Any, what: str) -> Term:
+    """An object given by a caller (JSON lists accepted) as a hashable term."""
+    return check_term(term_from_json(obj) if isinstance(obj, list) else obj, what)
+
+
 def _match(pattern: Any, term: Term, env: Bindings) -> Bindings | None:
     """Unify a pattern argument with a ground term under ``env``; the extended bindings or None.
 
@@ -192,7 +197,7 @@ class BeliefMemory:
 
     def forget(self, predicate: str, obj: Term) -> list[Belief]:
         """Remove every belief ``predicate(obj, ...)`` (e.g. a charge that is no longer known)."""
-        key = (predicate, check_term(term_from_json(obj) if isinstance(obj, list) else obj, "forget"))
+        key = (predicate, _as_object(obj, "forget"))
         with self._lock:
             gone = list(self._by_obj.get(key, {}))
             for b in gone:
@@ -238,19 +243,21 @@ class BeliefMemory:
         """Every binding of the query's variables that makes all its patterns hold."""
         q = _as_query(query)
         with self._lock:
-            return list(self._solve(q.patterns, 0, {}))
+            return [dict(env) for env in self._solve(q.patterns, 0, {})]
 
     def holds(self, query: Query | Belief | str) -> bool:
         """True if the query has at least one answer."""
         q = _as_query(query)
         with self._lock:
-            return next(self._solve(q.patterns, 0, {}), None) is not None
+            env = next(self._solve(q.patterns, 0, {}), None)
+        return None if env is None else dict(env) is not None
 
     def first(self, query: Query | Belief | str) -> Bindings | None:
         """The first answer, or None."""
         q = _as_query(query)
         with self._lock:
-            return next(self._solve(q.patterns, 0, {}), None)
+            env = next(self._solve(q.patterns, 0, {}), None)
+        return None if env is None else dict(env)
 
     def _solve(self, patterns: tuple[Pattern, ...], i: int, env: Bindings) -> Iterator[Bindings]:
         if i == len(patterns):
@@ -286,8 +293,9 @@ class BeliefMemory:
 
     def values(self, predicate: str, obj: Term) -> list[Term]:
         """All values of ``predicate(obj, ?)`` (at most one unless the predicate is multi-valued)."""
+        key = (predicate, _as_object(obj, "values"))
         with self._lock:
-            return [b.args[1] for b in self._by_obj.get((predicate, obj), ()) if len(b.args) == 2]
+            return [b.args[1] for b in self._by_obj.get(key, ()) if len(b.args) == 2]
 
     def beliefs(self, predicate: str | None = None) -> list[Belief]:
         """The beliefs held (of one predicate if given), in the order they were added."""
