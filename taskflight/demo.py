@@ -7,7 +7,9 @@ it as it would to an ArduCopter, queues the flight commands of ``mission_specs/f
 (take off, a straight 3-D leg, a pause, back, land) and streams setpoints; progress is logged and a
 report printed at the end. Everything the demo knows of the vehicle comes over MAVLink, through the
 companion (its mirror of the autopilot's telemetry, its estimate of the autopilot clock).
-``--model-only`` flies the model's own Python API through a 50 m square instead.
+``--behaviors`` flies by behavior activation requests instead (seed 001: the companion's executive
+layer, ``mission_specs/behaviors_demo.txt``; :mod:`taskflight.demo_behaviors`), ``--timeline PNG``
+drawing its Fig. 10; ``--model-only`` flies the model's own Python API through a 50 m square.
 
 The report's tracking figure (:mod:`taskflight.tracking`) compares what the companion streamed with what
 the autopilot said the vehicle did, on one clock and in one frame: each streamed position setpoint
@@ -56,6 +58,11 @@ def add_demo_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--commands", default=str(DEMO_COMMANDS),
                    help="flight-command YAML for the companion (default: mission_specs/"
                         "flight_commands_demo.yaml)")
+    p.add_argument("--behaviors", nargs="?", const="default", default=None, metavar="FILE",
+                   help="fly by behavior activation requests (seed 001) instead of flight commands: one "
+                        "activation per line (default: mission_specs/behaviors_demo.txt)")
+    p.add_argument("--timeline", default=None, metavar="PNG",
+                   help="with --behaviors: draw the behavior and process timeline (seed 001 Fig. 10)")
     p.add_argument("--timeout", type=float, default=300.0, help="give up after this many simulated seconds")
 
 
@@ -108,8 +115,11 @@ def _sigterm_as_interrupt() -> Iterator[None]:
 
 
 def _run_stack_demo(args: argparse.Namespace) -> int:
+    from companion.behaviors.catalog import load_catalog as load_behavior_catalog
+    from companion.behaviors.system import ExecutiveLayer
     from companion.flight.codec import load_commands
     from companion.node import QuadNode
+    from taskflight.demo_behaviors import BEHAVIORS_DEMO, fly_behaviors, load_activations
     from taskflight.sitlproc import ModelProcess
     from taskflight.yamlio import ConfigError
 
@@ -117,12 +127,22 @@ def _run_stack_demo(args: argparse.Namespace) -> int:
     if speedup <= 0:
         log.error("the stack demo needs a finite --speedup (the companion runs on the wall clock too)")
         return 2
+    behaviors = getattr(args, "behaviors", None)
+    mission = str(BEHAVIORS_DEMO) if behaviors == "default" else behaviors
     try:
-        commands = load_commands(args.commands)
-    except (ConfigError, ValueError) as exc:
+        if mission is not None:
+            catalog = load_behavior_catalog()
+            from companion.behaviors.activation import check_format
+
+            texts = load_activations(mission, lambda req: check_format(catalog, req))
+            commands = []
+        else:
+            commands = load_commands(args.commands)
+    except (ConfigError, ValueError, OSError) as exc:
         log.error("%s", exc)
         return 2
     port = _free_udp_port()
+    behavior_lines: list[str] = []
     with _sigterm_as_interrupt(), tempfile.TemporaryDirectory(prefix="taskflight-demo-") as state:
         model = ModelProcess(_model_arguments(args, state, port, speedup))
         try:
@@ -135,10 +155,24 @@ def _run_stack_demo(args: argparse.Namespace) -> int:
             node = QuadNode(f"udpout:127.0.0.1:{port}", rate_hz=20.0)
             recorder = StreamRecorder(node)
             t_wall = time.perf_counter()
+            layer = None
             try:
                 node.start()
-                ok = _fly(node, commands, args.timeout, speedup, lambda: model.running)
+                if mission is not None:
+                    layer = ExecutiveLayer.for_node(node, catalog=catalog,
+                                                    log_path=Path(state) / "behaviors.jsonl").start()
+                    deadline = time.monotonic() + args.timeout / speedup + 30
+                    ok, behavior_lines = fly_behaviors(layer, texts, deadline, lambda: not model.running)
+                    ok = ok and _wait_landed(node, time.monotonic() + 60 / speedup + 10)
+                    if args.timeline and layer.log.path is not None:
+                        from companion.behaviors.timeline import run_timeline
+
+                        behavior_lines.append(f"  timeline: {run_timeline(layer.log.path, args.timeline)}")
+                else:
+                    ok = _fly(node, commands, args.timeout, speedup, lambda: model.running)
             finally:
+                if layer is not None:
+                    layer.close()
                 node.close()
             wall = time.perf_counter() - t_wall
         finally:
@@ -147,10 +181,13 @@ def _run_stack_demo(args: argparse.Namespace) -> int:
         log.warning("demo: the autopilot model exited with status %s", model.returncode)
     st = node.qapi_status()
     snap = node.link.mirror.snapshot()
+    what = (f"  behavior activations: {mission} ({len(texts)} behaviors)"
+            if mission is not None else f"  flight commands: {args.commands} ({len(commands)} commands)")
     lines = [
         "",
         "Taskflight demo: autopilot model (its own process) + companion over MAVLink (loopback UDP)",
-        f"  flight commands: {args.commands} ({len(commands)} commands)",
+        what,
+        *behavior_lines,
         f"  simulated {node.clock.now():.1f} s in {wall:.1f} s wall (model at {speedup:g}x)",
         f"  setpoints streamed: {node.streamed}; queue: {st.queue_status.name}, "
         f"command index {st.current_command_index}",
@@ -160,6 +197,15 @@ def _run_stack_demo(args: argparse.Namespace) -> int:
     ]
     print("\n".join(lines))  # the command's report (CLI output, not library logging)
     return 0 if ok else 1
+
+
+def _wait_landed(node: QuadNode, deadline_wall: float) -> bool:
+    while time.monotonic() < deadline_wall:
+        if _landed_and_disarmed(node.link.mirror.snapshot()):
+            return True
+        time.sleep(0.05)
+    log.error("demo: not landed and disarmed in time")
+    return False
 
 
 def _landed_and_disarmed(snap: MirrorState) -> bool:

@@ -225,3 +225,20 @@ def test_a_catalog_behavior_without_controller_is_refused() -> None:
     ctx = BehaviorContext(w.queue, w.beliefs, w.layer.processes, lambda: 0.0, lambda: None)
     with pytest.raises(ValueError, match="DANCE has no execution controller"):
         BehaviorCoordinator(cat, ctx)
+
+
+def test_a_vehicle_taken_over_interrupts_and_refuses_flight_behaviors() -> None:
+    w = World()
+    w.take_off()
+    assert w.activate("GO_TO_POINT coordinate: (20, 0, 5)").accepted
+    w.run(1.0)
+    w.queue.set_overridden(True)  # a pilot or ground station took the vehicle
+    e = w.wait_ended("GO_TO_POINT", 1.0)
+    assert e.cause.value == "interrupted" and "taken over" in e.detail
+    w.run(1.0)
+    assert "KEEP_HOVERING" not in w.active()
+    r = w.activate("GO_TO_POINT coordinate: (0, 0, 5)")
+    assert not r.accepted and "controlled elsewhere" in r.reason
+    assert w.beliefs.holds("control(self, elsewhere)")
+    w.queue.set_overridden(False)  # given back: hovering by default
+    w.run_until(lambda: "KEEP_HOVERING" in w.active(), 2.0, "KEEP_HOVERING once given back")

@@ -49,8 +49,8 @@ def active(f: FlightSession) -> dict[str, str]:
 
 def wait_end(f: FlightSession, activation_id: str, sim_s: float) -> dict[str, Any]:
     def ended() -> dict[str, Any] | None:
-        return next((e for e in f.http.get("/behaviors").json()["ended"] if e["activation_id"] == activation_id),
-                    None)
+        ended = f.http.get("/behaviors").json()["ended"]
+        return next((e for e in ended if e["activation_id"] == activation_id), None)
     wait_for(lambda: ended() is not None, f.wall(sim_s), f"end of {activation_id} (active: {active(f)})")
     result = ended()
     assert result is not None
@@ -96,7 +96,8 @@ def test_flight_by_activation_requests(f: FlightSession, tmp_path: Path) -> None
     # once KEEP_HOVERING took over and started again for FOLLOW_PATH
     trace = [(e.process, e.event) for e in f.layer.processes.trace]
     assert trace.count(("motion_controller", "start")) == 1 and ("motion_controller", "stop") not in trace
-    assert trace.count(("trajectory_planner", "start")) == 2 and trace.count(("trajectory_planner", "stop")) == 2
+    assert trace.count(("trajectory_planner", "start")) == 2
+    assert trace.count(("trajectory_planner", "stop")) == 2
 
 
 def test_emergency_land_preempts_a_mission_go_to_point(f: FlightSession) -> None:

@@ -242,6 +242,45 @@ def test_run_cancels_a_deferred_stop() -> None:
     assert sim.last.p == (0.0, 0.0, -5.0)
 
 
+# --- replace_commands: how behaviors switch maneuvers ----------------------------------------------------
+def test_replace_commands_switches_in_flight_without_a_jump() -> None:
+    sim = make_sim(takeoff(5.0), waypoint(30.0, 0.0, 5.0))
+    q = sim.queue
+    airborne(sim)
+    sim.run_for(3.0)  # flying north at speed
+    old = q.entries[1].id
+    ids = q.replace_commands([waypoint(0.0, 10.0, 6.0)])
+    st = q.status()
+    assert st.queue_status is QueueState.RUNNING
+    assert st.current_command_id == ids[0] and st.current_command_index == 0
+    kinds = [(e.kind, e.command_id) for e in q.events.since(0)[-5:]]
+    assert (EventKind.CANCELLED, old) in kinds and (EventKind.ADDED, ids[0]) in kinds
+    sim.run_until(index_is(1), 30)
+    assert sim.last.p == (0.0, 10.0, -6.0)
+    assert step_violations(sim.setpoints, LIMITS) == []
+    with pytest.raises(CommandError):
+        q.replace_commands([waypoint(1.0, 1.0, 5.0), FlightCommand(end=EndCondition(e_wait=-1))])
+    assert q.entries[0].id == ids[0]  # a bad list changes nothing
+    with pytest.raises(QueueError):
+        q.replace_commands([])
+
+
+def test_replace_commands_during_a_climbing_take_off_is_deferred_and_superseded() -> None:
+    sim = make_sim(takeoff(5.0))
+    q = sim.queue
+    q.run()
+    sim.run_until(lambda s: -s.last.p[2] > 0.2, 10)
+    first = q.replace_commands([waypoint(5.0, 0.0, 3.0)])
+    assert q.status().deferred == "replace" and q.events.since(0)[-1].kind is EventKind.DEFERRED
+    second = q.replace_commands([waypoint(0.0, 5.0, 3.0)])
+    assert q.events.wait_for(first[0], {EventKind.CANCELLED}, 0) is not None
+    sim.run_until(lambda s: s.queue.status().deferred is None, 10)
+    assert -sim.last.p[2] >= q.takeoff_min_hold_m and q.status().current_command_id == second[0]
+    sim.run_until(index_is(1), 30)
+    assert sim.last.p == (0.0, 5.0, -3.0)
+    assert step_violations(sim.setpoints, LIMITS) == []
+
+
 # --- failure and following the vehicle ----------------------------------------------------------------------
 def test_a_failed_command_shows_in_the_status_and_run_tries_it_again() -> None:
     sim = make_sim(takeoff(5.0))

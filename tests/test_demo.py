@@ -145,3 +145,22 @@ def test_demo_with_a_bad_command_file_is_a_clear_error(tmp_path, caplog: pytest.
     bad.write_text("commands:\n  - horizontal: {mode: FLY}\n", encoding="utf-8")
     assert main(["demo", "--commands", str(bad)]) == 2
     assert "bad.yaml:2" in caplog.text
+
+
+def test_behavior_demo_flies_by_activation_requests(capsys: pytest.CaptureFixture[str], tmp_path) -> None:
+    """``taskflight demo --behaviors``: the mission requester asks for each behavior of
+    mission_specs/behaviors_demo.txt; every one achieves its goal and the Fig. 10 timeline is drawn."""
+    png = tmp_path / "timeline.png"
+    assert main(["demo", "--behaviors", "--speedup", "8", "--timeline", str(png)]) == 0
+    out = capsys.readouterr().out
+    assert "result: OK" in out and "landed and disarmed: True" in out
+    causes = re.findall(r"^  (TAKE_OFF|GO_TO_POINT|ROTATE|FOLLOW_PATH|LAND)\b.*: (\w+) after", out, re.M)
+    assert len(causes) == 7 and {c for _, c in causes} == {"goal_achieved"}, out
+    assert png.read_bytes()[:4] == b"\x89PNG"
+
+
+def test_behavior_demo_refuses_a_bad_mission_file(tmp_path, caplog: pytest.LogCaptureFixture) -> None:
+    bad = tmp_path / "mission.txt"
+    bad.write_text("TAKE_OFF\n# a comment\nGO_TO_POINT coordinate: (1, 2)\n")
+    assert main(["demo", "--behaviors", str(bad)]) == 2
+    assert f"{bad}:3: coordinate: expected 3 values" in caplog.text

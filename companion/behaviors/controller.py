@@ -36,7 +36,7 @@ from companion.flight.qapi import QueueError
 from companion.flight.setpoint import VehicleState
 
 from .catalog import BehaviorDescriptor
-from .processes import ProcessManager
+from .processes import ProcessError, ProcessManager
 
 if TYPE_CHECKING:
     from companion.flight.queue import CommandQueue
@@ -125,7 +125,10 @@ class BehaviorExecutionController:
         self.started_at = self.ctx.now()
         self._paused_since = None
         self._paused_total = 0.0
-        self.ctx.processes.request_start(self.descriptor.processes, self.behavior)
+        try:
+            self.ctx.processes.request_start(self.descriptor.processes, self.behavior)
+        except ProcessError as exc:
+            raise StartError(str(exc)) from None
         try:
             self.on_start(self.params)
         except (StartError, QueueError, ValueError) as exc:

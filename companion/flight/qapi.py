@@ -7,6 +7,9 @@ Verbs (Sec. V) and the decisions where the paper is silent
     ``add_commands([c, ...]) -> [id, ...]``  all validated first, then appended at once (atomic:
         all or none, no tick in between).
     ``check_command(c)``  raise what ``add_command(c)`` would, change nothing.
+    ``replace_commands([c, ...]) -> [id, ...]``  ``reset()``, ``add_commands`` and ``run()`` at once
+        (no tick in between): the behaviors' way to switch maneuvers (seed 001); deferred like
+        ``reset`` during a take-off that may not be stopped yet.
     ``run()``  start or continue; also before anything is queued (execution starts with the first
         command added). A stopped command is resumed (see below). Called during a pause behaviour,
         it abandons the behaviour and continues at once ("pause_direct, then run again").

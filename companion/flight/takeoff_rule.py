@@ -4,11 +4,12 @@
     A take-off that has not yet left the ground (its execution has not advanced: the link holds the
     queue's time while the autopilot arms and lifts off; the link marks the lift-off with
     ``mark_takeoff_airborne``) stops at once; the link then cancels the take-off (nothing arms, or it
-    disarms). Once climbing, it may not be stopped until its reference
-    is ``takeoff_min_hold_m`` above where it started: ``stop``, ``pause_direct`` and ``reset``
-    given in that window are *deferred* (status ``deferred``, a DEFERRED event) and carried out
-    there, so the vehicle never hovers armed a few centimetres above the ground. ``run()`` cancels
-    a deferred stop or pause.
+    disarms). Once climbing, it may not be stopped until its reference is ``takeoff_min_hold_m``
+    above where it started: ``stop``, ``pause_direct``, ``reset`` and ``replace_commands`` given in
+    that window are *deferred* (status ``deferred``, a DEFERRED event) and carried out there, so the
+    vehicle never hovers armed a few centimetres above the ground. ``run()`` cancels a deferred stop
+    or pause; a later ``reset`` or ``replace_commands`` supersedes a deferred one (its commands are
+    CANCELLED).
 
 :class:`TakeoffStopRule` holds the methods; :class:`~.queue.CommandQueue` inherits them and owns
 the state they read and write (one writer: the queue, under its lock).
