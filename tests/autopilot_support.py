@@ -14,6 +14,7 @@ link. Tests that need ArduCopter use :data:`requires_arducopter` (a skip saying 
 from __future__ import annotations
 
 import os
+import socket
 import subprocess
 import tempfile
 from pathlib import Path
@@ -53,6 +54,25 @@ AUTOPILOTS = [pytest.param("model", id="model"),
 _instances = iter(range(10, 60))
 
 
+def _instance_free(i: int) -> bool:
+    """Instance ``i``'s own ports (RC input UDP 5501+10i, SERIAL0 TCP 5760+10i) are free here: another
+    test process (or agent) running SITL at the same time picks another one."""
+    for kind, port in ((socket.SOCK_DGRAM, 5501 + 10 * i), (socket.SOCK_STREAM, 5760 + 10 * i)):
+        with socket.socket(socket.AF_INET, kind) as sock:
+            try:
+                sock.bind(("127.0.0.1", port))
+            except OSError:
+                return False
+    return True
+
+
+def _next_instance() -> int:
+    for i in _instances:
+        if _instance_free(i):
+            return i
+    raise RuntimeError("no free ArduCopter SITL instance number in 10..59")
+
+
 class ArduCopterSitl:
     """ArduPilot's copter SITL in a temporary folder; SERIALn sends UDP to ``ports[n]`` on loopback."""
 
@@ -60,7 +80,7 @@ class ArduCopterSitl:
                  home: str = HOME) -> None:
         assert ARDUCOPTER is not None
         self.dir = tempfile.TemporaryDirectory(prefix="arducopter-")
-        self.instance = next(_instances) if instance is None else instance
+        self.instance = _next_instance() if instance is None else instance
         args = [ARDUCOPTER, "--model", "+", "--speedup", f"{speedup:g}", "--defaults", str(COPTER_PARM),
                 f"-I{self.instance}", "--home", home, "-w"]
         for n, port in enumerate(ports):
