@@ -18,7 +18,7 @@ from mavlink_support import GUIDED, LAND, VEL_ONLY, M, wait_for
 #: Parameters a ground station or the companion uses, by their current ArduCopter names.
 PARAMS = ("GUID_TIMEOUT", "FS_GCS_ENABLE", "FS_GCS_TIMEOUT", "MAV_SYSID", "MAV_GCS_SYSID", "DISARM_DELAY",
           "WPNAV_SPEED", "WPNAV_SPEED_UP", "LAND_SPEED", "RTL_ALT", "FENCE_ENABLE", "ANGLE_MAX",
-          "ATC_RAT_RLL_P", "PSC_VELXY_P", "PILOT_TKOFF_ALT")
+          "ATC_RAT_RLL_P", "PSC_VELXY_P", "PSC_VELXY_FLTE", "PSC_VELXY_FLTD", "PILOT_TKOFF_ALT")
 #: Their former names: current ArduCopter answers neither.
 OLD_PARAMS = ("SYSID_THISMAV", "SYSID_MYGCS")
 

@@ -58,11 +58,12 @@ CHECKS: dict[str, tuple[str, Callable[[dict[str, Any]], bool]]] = {
     "old_param_names": ("SYSID_THISMAV, SYSID_MYGCS unknown",
                         lambda o: all(o["params"][n] is None for n in OLD_PARAMS)),
     "param_defaults": ("GUID_TIMEOUT 3, FS_GCS_ENABLE 0, FS_GCS_TIMEOUT 5, DISARM_DELAY 10, LAND_SPEED 50, "
-                       "RTL_ALT 1500, MAV_SYSID 1, MAV_GCS_SYSID 255",
+                       "RTL_ALT 1500, MAV_SYSID 1, MAV_GCS_SYSID 255, PSC_VELXY_FLTE 5, PSC_VELXY_FLTD 5",
                        lambda o: all(o["params"][n] == v for n, v in (
                            ("GUID_TIMEOUT", 3.0), ("FS_GCS_ENABLE", 0.0), ("FS_GCS_TIMEOUT", 5.0),
                            ("DISARM_DELAY", 10.0), ("LAND_SPEED", 50.0), ("RTL_ALT", 1500.0),
-                           ("MAV_SYSID", 1.0), ("MAV_GCS_SYSID", 255.0)))),
+                           ("MAV_SYSID", 1.0), ("MAV_GCS_SYSID", 255.0), ("PSC_VELXY_FLTE", 5.0),
+                           ("PSC_VELXY_FLTD", 5.0)))),
     "arm_in_guided": ("ACCEPTED once the pre-arm checks pass", lambda o: o["arm"] == ACCEPTED),
     "takeoff": ("ACCEPTED", lambda o: o["takeoff"] == ACCEPTED),
     "takeoff_again_on_the_ground": ("ACCEPTED while still on the ground (FAILED once the land detector "

@@ -54,7 +54,7 @@ class Clock:
 def env(tmp_path):
     ep, clock = FakeEndpoint(), Clock()
     store = MissionStore(tmp_path / "mission.json")
-    proto = MissionProtocol(ep, store, now=clock.now, wall=clock.now, home=lambda: HOME)
+    proto = MissionProtocol(ep, store, now=clock.now, home=lambda: HOME)
     return ep, clock, store, proto
 
 
@@ -201,6 +201,29 @@ def test_retries_then_cancel(env):
     acks = ep.take("MISSION_ACK")
     assert [a.type for a in acks] == [mavlink.MAV_MISSION_OPERATION_CANCELLED]
     assert not proto.uploading and store.count() == 0
+
+
+def test_timeouts_count_simulated_time_only(env, monkeypatch):
+    """Issue 8, defect 4: as in ArduCopter SITL (``AP_HAL::millis()`` is simulated time), the request is
+    repeated and the upload given up on simulated time, whatever the wall does: a sped-up model (the wall
+    stands still while simulated time passes) times out, a paused one (the wall runs on) does not."""
+    ep, clock, _, proto = env
+    wall = [1000.0]
+    monkeypatch.setattr("time.monotonic", lambda: wall[0])
+    monkeypatch.setattr("time.time", lambda: wall[0])
+    ep.deliver(gcs().mission_count_encode(1, 1, 2, MISSION))
+    assert [r.seq for r in ep.take("MISSION_REQUEST_INT")] == [0]
+    wall[0] += 60.0  # a paused simulation: only the wall runs
+    proto.periodic()
+    assert ep.take() == []
+    for _ in range(MAX_RETRIES):  # a sped-up simulation: only simulated time runs
+        clock.t += ITEM_TIMEOUT_S + 0.01
+        proto.periodic()
+        assert [r.seq for r in ep.take("MISSION_REQUEST_INT")] == [0]
+    clock.t += ITEM_TIMEOUT_S + 0.01
+    proto.periodic()
+    assert [a.type for a in ep.take("MISSION_ACK")] == [mavlink.MAV_MISSION_OPERATION_CANCELLED]
+    assert not proto.uploading
 
 
 def test_duplicate_item_rerequests_and_lost_final_ack_repeated(env):

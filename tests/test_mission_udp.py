@@ -5,6 +5,7 @@ and an AUTO flight that visits the waypoints. Deadlines are wall time derived fr
 
 from __future__ import annotations
 
+import itertools
 import math
 import time
 from collections.abc import Iterator
@@ -12,7 +13,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from mavlink_support import AUTO, GUIDED, Gcs, M, sitl_and_gcs, wall
+from mavlink_support import AUTO, GUIDED, SPEEDUP, Gcs, M, sitl_and_gcs, wall
 
 from taskflight.geo import ned_to_geodetic
 
@@ -127,16 +128,35 @@ def test_upload_download_equal_and_bad_upload_changes_nothing(gcs: Gcs) -> None:
 
 
 def test_upload_abandoned_is_cancelled_after_retries(gcs: Gcs) -> None:
+    """Issue 8, defect 4: the requests are repeated 1 s apart and the upload given up in *simulated* time,
+    as ArduCopter SITL does (its ``AP_HAL::millis()`` is the simulation's clock): at SPEEDUP the whole
+    exchange takes a tenth of its simulated duration on the wall. Each MISSION_* message is stamped with
+    the vehicle's time_boot_ms of the latest ATTITUDE (4 Hz by default) heard before it."""
     before = download(gcs)
     gcs.mission.clear()
+    stamped: list[tuple[str, int, float]] = []  # (type, seq or result, simulated seconds)
+
+    def stamp_until_ack() -> bool:
+        with gcs._lock:
+            new, gcs.mission[:] = list(gcs.mission), []
+        t = gcs.last["ATTITUDE"].time_boot_ms / 1000.0
+        for m in new:
+            stamped.append((m.get_type(), m.type if m.get_type() == "MISSION_ACK" else m.seq, t))
+        return any(k == "MISSION_ACK" for k, _, _ in stamped)
+
+    gcs.msg("ATTITUDE")
     gcs.conn.mav.mission_count_send(1, 1, 4, 0)
     t0 = time.monotonic()
-    gcs.wait(lambda: any(m.get_type() == "MISSION_ACK" for m in gcs.mission), 30, "MISSION_ACK")
-    requests = [m.seq for m in gcs.mission if m.get_type() == "MISSION_REQUEST_INT"]
-    ack = next(m for m in gcs.mission if m.get_type() == "MISSION_ACK")
-    assert ack.type == M.MAV_MISSION_OPERATION_CANCELLED
-    assert requests == [0] * 6  # the request and 5 repeats
-    assert time.monotonic() - t0 >= 5.5  # 1 s apart on the wall too (the GCS lives on the wall)
+    gcs.wait(stamp_until_ack, gcs.wall(10), "MISSION_ACK after the repeated requests")
+    wall_s = time.monotonic() - t0
+    requests = [(v, t) for k, v, t in stamped if k == "MISSION_REQUEST_INT"]
+    acks = [(v, t) for k, v, t in stamped if k == "MISSION_ACK"]
+    assert [v for v, _ in acks] == [M.MAV_MISSION_OPERATION_CANCELLED]
+    assert [v for v, _ in requests] == [0] * 6  # the request and 5 repeats
+    gaps = [b[1] - a[1] for a, b in itertools.pairwise(requests)]
+    assert all(0.6 <= g <= 1.5 for g in gaps), gaps  # 1 s apart in simulated time (4 Hz stamps)
+    assert 5.5 <= acks[0][1] - requests[0][1] <= 7.0
+    assert wall_s < 6.0 * 3 / SPEEDUP + 1.0  # not paced by the wall: about 0.6 s at SPEEDUP 10
     assert len(download(gcs)) == len(before)
 
 

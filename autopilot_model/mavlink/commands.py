@@ -14,7 +14,8 @@ or if it arrives within :attr:`CommandDispatcher.dup_window_s`: it is answered w
 and not executed again. Only an *accepted* command is remembered this way: a refused one changed
 nothing, so sending it again (e.g. arming after the reason for the refusal went away) re-evaluates it.
 The windows are wall time on purpose: retransmission is a property of the
-link and the client's timers, which run on the wall clock, not of simulated time. Commands that are
+link and the client's timers, which run on the wall clock, not of simulated time (ArduCopter has no such
+windows: it executes every retransmission; see ``docs/conformance.md``, "Time bases"). Commands that are
 harmless to repeat (requests for messages, intervals) are never deduplicated.
 """
 

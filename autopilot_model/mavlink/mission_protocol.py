@@ -4,7 +4,8 @@ Upload: MISSION_COUNT -> MISSION_REQUEST_INT(0) -> MISSION_ITEM_INT(0) -> ... ->
 arrive into a staging list; the stored plan is replaced only when the whole upload succeeded, so a
 bad item or an abandoned upload leaves the stored plan unchanged. A request that gets no answer is
 repeated after :data:`ITEM_TIMEOUT_S`; after :data:`MAX_RETRIES` repeats the upload is given up with
-MISSION_ACK(MAV_MISSION_OPERATION_CANCELLED) (ArduPilot behaves the same way). A legacy MISSION_ITEM
+MISSION_ACK(MAV_MISSION_OPERATION_CANCELLED) (ArduPilot repeats every second too, and gives up 8 s after
+the last item it received, where the model gives up after about 6 s). A legacy MISSION_ITEM
 is accepted and converted.
 
 Download: MISSION_REQUEST_LIST -> MISSION_COUNT; then each MISSION_REQUEST_INT (or legacy
@@ -16,9 +17,13 @@ Also: MISSION_CLEAR_ALL, MISSION_SET_CURRENT (answered with MISSION_CURRENT), MI
 on every change and streamed by the endpoint's telemetry (its builder is registered here). Mission
 types MISSION, FENCE and RALLY are kept separately.
 
-Timeouts concern a peer that lives on the wall clock while the model may run faster (lockstep,
-``--speedup``): a timeout fires only once its duration has passed both in simulated time and on the
-wall, so a sped-up simulation does not starve a real ground station.
+Time base (issue 8, defect 4): every timeout here is simulated time (the vehicle clock), as in
+ArduCopter SITL, where ``MissionItemProtocol::update`` measures the request timeout with
+``AP_HAL::millis()`` and SITL's ``millis()`` is the simulation's stopped clock. So the protocol keeps
+the same rule as the GCS failsafe and every other vehicle timer: a model sped up N times repeats an
+unanswered request after ``ITEM_TIMEOUT_S / N`` wall seconds, as ArduCopter at ``--speedup N`` does,
+and a paused or slowed model never gives up on a ground station that is merely slower than the wall.
+The model's rule for each purpose is listed in ``docs/conformance.md`` ("Time bases").
 """
 
 from __future__ import annotations
@@ -43,16 +48,16 @@ from autopilot_model.modules.mission import (
     validate_item,
     validate_plan,
 )
-from taskflight.clock import WallClock
 
 log = logging.getLogger(__name__)
 
 ITEM_TIMEOUT_S = 1.0
-"""Time without the requested item after which the request is repeated."""
+"""Simulated time without the requested item after which the request is repeated (ArduPilot: 1 s)."""
 MAX_RETRIES = 5
 """Repeated requests before an upload is given up."""
 ACK_REPEAT_WINDOW_S = 5.0
-"""How long after an upload the final item, if sent again (our ACK was lost), is acknowledged again."""
+"""Simulated time after an upload during which the final item, if sent again (our ACK was lost), is
+acknowledged again."""
 MISSION_TYPE_ALL = mavlink.MAV_MISSION_TYPE_ALL
 
 # MISSION_STATE values for MISSION_CURRENT
@@ -91,8 +96,8 @@ class _Upload:
     link: Any
     peer: tuple[int, int]
     items: list[MissionItem] = field(default_factory=list)
-    t_sim: float = 0.0
-    t_wall: float = 0.0
+    t_request: float = 0.0
+    """Simulated time of the last MISSION_REQUEST_INT sent."""
     retries: int = 0
 
     @property
@@ -109,8 +114,7 @@ class MissionProtocol:
 
     def __init__(self, endpoint: Endpoint, store: MissionStore, *,
                  now: Callable[[], float] | None = None,
-                 home: Callable[[], tuple[float, float, float] | None] | None = None,
-                 wall: Callable[[], float] | None = None) -> None:
+                 home: Callable[[], tuple[float, float, float] | None] | None = None) -> None:
         self.endpoint = endpoint
         self.store = store
         self.status: MissionStatus | None = None
@@ -121,7 +125,6 @@ class MissionProtocol:
                 raise ValueError("MissionProtocol needs a clock: pass now= or an endpoint with .vehicle")
             now = vehicle.clock.now
         self._now = now
-        self._wall = wall or WallClock().now
         self._home = home if home is not None else (lambda: _vehicle_home(vehicle))
         self._uploads: dict[int, _Upload] = {}
         self._finished: dict[int, tuple[tuple[int, int], int, float]] = {}
@@ -150,11 +153,8 @@ class MissionProtocol:
                      msg.get_srcComponent(), _result_name(result))
         self._send(link, "mission_ack", msg.get_srcSystem(), msg.get_srcComponent(), result, mission_type)
 
-    def _elapsed(self, t_sim: float, t_wall: float) -> float:
-        return min(self._now() - t_sim, self._wall() - t_wall)
-
     def _request(self, up: _Upload) -> None:
-        up.t_sim, up.t_wall = self._now(), self._wall()
+        up.t_request = self._now()
         self._send(up.link, "mission_request_int", up.peer[0], up.peer[1], up.expected, up.mission_type)
 
     # --- upload ---------------------------------------------------------------------------------
@@ -342,7 +342,7 @@ class MissionProtocol:
     def periodic(self) -> None:
         """Repeat unanswered requests and give up exhausted uploads (call at 10 Hz or faster)."""
         for up in list(self._uploads.values()):
-            if self._elapsed(up.t_sim, up.t_wall) < ITEM_TIMEOUT_S:
+            if self._now() - up.t_request < ITEM_TIMEOUT_S:
                 continue
             if up.retries >= MAX_RETRIES:
                 del self._uploads[up.mission_type]

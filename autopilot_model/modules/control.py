@@ -5,6 +5,15 @@ position -> velocity -> acceleration -> attitude -> body rate -> commands [thrus
 * Position loop: v_cmd = v_d + K_pos (p_d - p), the correction limited to ``vel_corr_max``.
 * Velocity loop (PID with anti-windup): a_cmd = a_d + K_vp (v_cmd - v) + K_vi * integral + K_vd * d/dt.
   Feed-forward from P_d = [p_d, v_d, a_d] is what lets the vehicle follow the setpoint generator tightly.
+  Horizontally the error is low-pass filtered first, as ArduCopter's ``AC_PID_2D::update_all`` does for
+  ``PSC_VELXY_``: the error e_f += (e - e_f) alpha(PSC_VELXY_FLTE) feeds P and I, its derivative
+  (e_f - e_f,prev) / dt, filtered again with alpha(PSC_VELXY_FLTD), feeds D, with ArduPilot's
+  ``calc_lowpass_alpha_dt``: alpha = dt / (dt + 1 / (2 pi f)), 1 (no filter) for f = 0. Both default to
+  5 Hz as in ArduCopter (POSCONTROL_VEL_XY_FILT_HZ, POSCONTROL_VEL_XY_FILT_D_HZ). After a reset the filter
+  starts at the raw error and a zero derivative, as ArduPilot's ``reset_filter``; 0 Hz on both gives the
+  unfiltered loop. Measured by ``bench/bench_hover.py`` (issue 8 item 10): the filter does not lower the
+  true speed in a GPS hover (about 0.32 m/s median without, 0.36 with), whose power lies below 1 Hz,
+  where the position loop follows the wander of the GPS-aided position estimate; see the README.
 * Acceleration to attitude: the specific force f = a_cmd - g gives the desired body z axis
   (-f/|f|) and the collective thrust m * (-f . z_body); the tilt is limited to ``max_tilt`` by
   shrinking the horizontal part of f (and the horizontal integrator stops winding up).
@@ -29,8 +38,11 @@ from autopilot_model.params import ParamStore
 (G_POS_XY_P, G_POS_Z_P, G_VEL_XY_P, G_VEL_XY_I, G_VEL_XY_D, G_VEL_Z_P, G_VEL_Z_I, G_VEL_Z_D,
  G_ANG_RP_P, G_ANG_Y_P, G_RAT_RP_P, G_RAT_RP_I, G_RAT_RP_D, G_RAT_Y_P, G_RAT_Y_I, G_RAT_Y_D,
  G_MAX_TILT, G_MAX_RATE_RP, G_MAX_RATE_Y, G_VEL_IMAX, G_RAT_IMAX, G_MASS, G_IXX, G_IYY, G_IZZ,
- G_THRUST_MAX, G_VEL_CORR_MAX, G_ACC_Z_UP_MAX) = range(28)
-GAIN_SIZE = 28
+ G_THRUST_MAX, G_VEL_CORR_MAX, G_ACC_Z_UP_MAX, G_VEL_XY_FLTE, G_VEL_XY_FLTD) = range(30)
+GAIN_SIZE = 30
+# horizontal velocity filter state layout: filtered error x, y; filtered derivative x, y; reset flag
+F_EX, F_EY, F_DX, F_DY, F_RESET = range(5)
+FILT_SIZE = 5
 
 # (parameter name, gain index, default, min, max, scale from parameter to SI, doc)
 GAIN_PARAMS: tuple[tuple[str, int, float, float, float, float, str], ...] = (
@@ -39,6 +51,10 @@ GAIN_PARAMS: tuple[tuple[str, int, float, float, float, float, str], ...] = (
     ("PSC_VELXY_P", G_VEL_XY_P, 6.0, 0.0, 20.0, 1.0, "horizontal velocity P (1/s)"),
     ("PSC_VELXY_I", G_VEL_XY_I, 4.0, 0.0, 20.0, 1.0, "horizontal velocity I (1/s^2)"),
     ("PSC_VELXY_D", G_VEL_XY_D, 0.0, 0.0, 5.0, 1.0, "horizontal velocity D (-)"),
+    ("PSC_VELXY_FLTE", G_VEL_XY_FLTE, 5.0, 0.0, 100.0, 1.0,
+     "horizontal velocity error filter for P and I (Hz, 0 = off)"),
+    ("PSC_VELXY_FLTD", G_VEL_XY_FLTD, 5.0, 0.0, 100.0, 1.0,
+     "horizontal velocity error derivative filter for D (Hz, 0 = off)"),
     ("PSC_VELZ_P", G_VEL_Z_P, 5.0, 0.0, 20.0, 1.0, "vertical velocity P (1/s)"),
     ("PSC_VELZ_I", G_VEL_Z_I, 3.0, 0.0, 20.0, 1.0, "vertical velocity I (1/s^2)"),
     ("PSC_VELZ_D", G_VEL_Z_D, 0.0, 0.0, 5.0, 1.0, "vertical velocity D (-)"),
@@ -58,9 +74,20 @@ GAIN_PARAMS: tuple[tuple[str, int, float, float, float, float, str], ...] = (
 
 
 @njit(cache=True, fastmath=True)
-def cascade_step(est, ref, g, integ, prev, dt, out):  # pragma: no cover - numba
+def lowpass_alpha(dt, hz):  # pragma: no cover - numba
+    """ArduPilot's ``calc_lowpass_alpha_dt``: the first-order low-pass weight for a step ``dt`` at ``hz``
+    (1: no filtering when ``hz`` is 0)."""
+    if hz <= 0.0:
+        return 1.0
+    rc = 1.0 / (2.0 * math.pi * hz)
+    return dt / (dt + rc)
+
+
+@njit(cache=True, fastmath=True)
+def cascade_step(est, ref, g, integ, prev, filt, dt, out):  # pragma: no cover - numba
     """One control step. ``est`` = [p(3), v(3), q(4), w(3)], ``ref`` = [p_d(3), v_d(3), a_d(3), yaw_d,
-    yaw_rate_d]. ``integ`` (6) and ``prev`` (6) hold integrator and previous-error state.
+    yaw_rate_d]. ``integ`` (6) and ``prev`` (6) hold integrator and previous-error state, ``filt``
+    (:data:`FILT_SIZE`) the horizontal velocity error filter (``F_RESET`` 1: start it at the next step).
     ``out`` = [thrust (N), torque x, y, z (N m), desired q (4), a_cmd (3), saturated flag]."""
     # ---- position -> velocity
     vc = g[G_VEL_CORR_MAX]
@@ -81,13 +108,30 @@ def cascade_step(est, ref, g, integ, prev, dt, out):  # pragma: no cover - numba
     vcx = ref[3] + cx
     vcy = ref[4] + cy
     vcz = ref[5] + cz
-    # ---- velocity PID -> acceleration
-    evx = vcx - est[3]
-    evy = vcy - est[4]
+    # ---- velocity PID -> acceleration (horizontal: AC_PID_2D's filtered error and derivative)
+    rvx = vcx - est[3]
+    rvy = vcy - est[4]
     evz = vcz - est[5]
+    if filt[F_RESET] != 0.0:
+        filt[F_EX] = rvx
+        filt[F_EY] = rvy
+        filt[F_DX] = 0.0
+        filt[F_DY] = 0.0
+        filt[F_RESET] = 0.0
+    else:
+        ae = lowpass_alpha(dt, g[G_VEL_XY_FLTE])
+        ad = lowpass_alpha(dt, g[G_VEL_XY_FLTD])
+        lex = filt[F_EX]
+        ley = filt[F_EY]
+        filt[F_EX] = lex + (rvx - lex) * ae
+        filt[F_EY] = ley + (rvy - ley) * ae
+        filt[F_DX] += ((filt[F_EX] - lex) / dt - filt[F_DX]) * ad
+        filt[F_DY] += ((filt[F_EY] - ley) / dt - filt[F_DY]) * ad
+    evx = filt[F_EX]
+    evy = filt[F_EY]
     imax = g[G_VEL_IMAX]
-    axc = ref[6] + g[G_VEL_XY_P] * evx + integ[0] + g[G_VEL_XY_D] * (evx - prev[0]) / dt
-    ayc = ref[7] + g[G_VEL_XY_P] * evy + integ[1] + g[G_VEL_XY_D] * (evy - prev[1]) / dt
+    axc = ref[6] + g[G_VEL_XY_P] * evx + integ[0] + g[G_VEL_XY_D] * filt[F_DX]
+    ayc = ref[7] + g[G_VEL_XY_P] * evy + integ[1] + g[G_VEL_XY_D] * filt[F_DY]
     azc = ref[8] + g[G_VEL_Z_P] * evz + integ[2] + g[G_VEL_Z_D] * (evz - prev[2]) / dt
     prev[0] = evx
     prev[1] = evy
@@ -258,6 +302,8 @@ class CascadedController:
         self.ref = np.zeros(11)
         self.integ = np.zeros(6)
         self.prev = np.zeros(6)
+        self.filt = np.zeros(FILT_SIZE)
+        self.filt[F_RESET] = 1.0
         self.out = np.zeros(12)
         self.commands = self.out  # [thrust, tx, ty, tz] in out[0:4]
         self._clear = False
@@ -274,6 +320,8 @@ class CascadedController:
             return
         self.integ[:] = 0.0
         self.prev[:] = 0.0
+        self.filt[:] = 0.0
+        self.filt[F_RESET] = 1.0
         self.out[:] = 0.0
         self.out[4] = 1.0
         self._clear = True
@@ -286,4 +334,4 @@ class CascadedController:
         ref[9] = yaw
         ref[10] = yaw_rate
         self._clear = False
-        cascade_step(est, ref, self.g, self.integ, self.prev, self.dt, self.out)
+        cascade_step(est, ref, self.g, self.integ, self.prev, self.filt, self.dt, self.out)

@@ -32,6 +32,10 @@ being trapezoidal and the velocities within limits) ``|dp_h| <= v_max_h dt``, ``
 
 Everything in :meth:`SetpointGenerator.update` is plain :mod:`math` on floats; shapely is only used to
 validate and pre-process the polygon and to clamp a position target into it (when the target is set).
+
+Files: this one holds the generator (targets, the step, yaw); :mod:`.guidance_envelope` P_env
+(:class:`Envelope`, importable from here too); :mod:`.guidance_polygon` the polygon walls of step 3 (a
+mixin); :mod:`.guidance_math` the braking bounds and the 2-D geometry they share.
 """
 
 from __future__ import annotations
@@ -39,27 +43,21 @@ from __future__ import annotations
 import logging
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field
 from typing import Any
-
-import shapely
-from shapely.geometry import Point, Polygon
-from shapely.geometry import box as shapely_box
-from shapely.geometry.polygon import orient
-from shapely.ops import nearest_points
 
 from taskflight.validate import finite as _finite
 from taskflight.validate import finite3 as _finite3
+
+from .guidance_envelope import Envelope, Vec3
+from .guidance_math import stop_bound, toward, wall_bound
+from .guidance_polygon import PolygonWalls
 
 __all__ = ["Envelope", "SetpointGenerator"]
 
 log = logging.getLogger(__name__)
 
-Vec3 = tuple[float, float, float]
-
 _INF = math.inf
 _TWO_PI = 2.0 * math.pi
-_TARGET_INSET = 1e-6  # m: a clamped target lies this far inside a polygon edge (float safety)
 _SNAP_EPS = 1e-9  # m (rad): slack of the arrival snap
 
 # P_t kinds
@@ -74,149 +72,7 @@ def _wrap(a: float) -> float:
     return (a + math.pi) % _TWO_PI - math.pi
 
 
-def _stop_bound(d: float, s: float, acc: float, dt: float, v_end2: float = 0.0) -> float:
-    """Largest speed ``s_new`` toward a point at distance ``d`` for the coming step (current speed ``s``)
-    such that, after the trapezoidal move of this step, decelerating at ``acc`` still reaches the point with
-    at most the speed ``sqrt(v_end2)``: the discrete form of ``sqrt(v_end^2 + 2 a d)``.
-
-    Solves ``s_new^2 - v_end^2 <= 2 acc (d - (s + s_new) dt / 2)``. When even stopping this step passes the
-    point, returns the speed that lands exactly on it (negative: turn back).
-    """
-    c0 = d - 0.5 * s * dt
-    k = v_end2 + 2.0 * acc * c0
-    if k >= 0.0:
-        adt = acc * dt
-        return 0.5 * (math.sqrt(adt * adt + 4.0 * k) - adt)
-    return 2.0 * d / dt - s
-
-
-def _wall_bound(d: float, s: float, acc: float, dt: float) -> float:
-    """Largest velocity component toward a boundary at distance ``d`` (current component ``s``) that still
-    lets P_d stop before it decelerating at ``acc``; never asks for more than a full braking step."""
-    sb = s - acc * dt
-    if d <= 0.0:  # on or beyond the boundary: never further out, brake as hard as allowed
-        return sb if sb > 0.0 else 0.0
-    b = _stop_bound(d, s, acc, dt)
-    return b if b > sb else sb
-
-
-@dataclass(frozen=True, eq=False)
-class Envelope:
-    """P_env of seed 000 Sec. IV-D: the positions, speeds, accelerations and yaw rates P_d may take.
-
-    Horizontal region: a ``box`` ``(north_min, north_max, east_min, east_max)`` or a ``polygon``, a sequence
-    of ``(north, east)`` vertices (shapely; holes are not supported), or both (their intersection), or
-    neither (unbounded). Vertically ``alt_floor`` <= altitude <= ``alt_ceiling``, in metres *up* relative to
-    the origin (altitude = -down). Speeds in m/s (horizontal norm; vertical up and down separately),
-    accelerations in m/s^2 (horizontal norm; vertical), yaw rate in rad/s and yaw acceleration in rad/s^2.
-
-    Raises:
-        ValueError: on an invalid configuration (min >= max, non-positive limits, invalid polygon).
-    """
-
-    box: Sequence[float] | None = None
-    polygon: Sequence[Sequence[float]] | None = None
-    alt_floor: float = -_INF
-    alt_ceiling: float = _INF
-    max_speed_h: float = 10.0
-    max_speed_up: float = 2.5
-    max_speed_down: float = 1.5
-    max_accel_h: float = 2.5
-    max_accel_v: float = 2.5
-    max_yaw_rate: float = math.radians(90.0)
-    max_yaw_accel: float = math.radians(270.0)
-    # derived, filled by __post_init__
-    north_min: float = field(init=False, default=-_INF)
-    north_max: float = field(init=False, default=_INF)
-    east_min: float = field(init=False, default=-_INF)
-    east_max: float = field(init=False, default=_INF)
-    shape: Polygon | None = field(init=False, default=None, repr=False)
-
-    def __post_init__(self) -> None:
-        set_ = object.__setattr__
-        for name in ("max_speed_h", "max_speed_up", "max_speed_down", "max_accel_h", "max_accel_v",
-                     "max_yaw_rate", "max_yaw_accel"):
-            v = _finite(getattr(self, name), name)
-            if v <= 0.0:
-                raise ValueError(f"{name}: must be > 0, got {v}")
-            set_(self, name, v)
-        lo = float(self.alt_floor)
-        hi = float(self.alt_ceiling)
-        if math.isnan(lo) or math.isnan(hi) or not lo < hi:
-            raise ValueError(f"alt_floor ({lo}) must be below alt_ceiling ({hi})")
-        set_(self, "alt_floor", lo)
-        set_(self, "alt_ceiling", hi)
-        if self.box is not None:
-            try:
-                b = tuple(float(x) for x in self.box)
-            except (TypeError, ValueError) as exc:
-                raise ValueError(f"box: expected 4 numbers, got {self.box!r}") from exc
-            if len(b) != 4 or any(math.isnan(x) for x in b) or not (b[0] < b[1] and b[2] < b[3]):
-                raise ValueError(f"box: expected (north_min, north_max, east_min, east_max), min < max: {b}")
-            set_(self, "box", b)
-            set_(self, "north_min", b[0])
-            set_(self, "north_max", b[1])
-            set_(self, "east_min", b[2])
-            set_(self, "east_max", b[3])
-        if self.polygon is not None:
-            try:
-                pts = tuple((float(n), float(e)) for n, e in self.polygon)
-            except (TypeError, ValueError) as exc:
-                raise ValueError(f"polygon: expected (north, east) vertices, got {self.polygon!r}") from exc
-            if len(pts) < 3 or not all(math.isfinite(c) for pt in pts for c in pt):
-                raise ValueError("polygon: need at least 3 finite (north, east) vertices")
-            poly = Polygon(pts)  # x = north, y = east
-            if not poly.is_valid or poly.area <= 0.0:
-                raise ValueError(f"polygon: invalid ({shapely.is_valid_reason(poly)})")
-            if self.box is not None:
-                clipped = poly.intersection(shapely_box(b[0], b[2], b[1], b[3]))
-                if not isinstance(clipped, Polygon) or clipped.is_empty:
-                    raise ValueError("polygon and box do not intersect in a single polygon")
-                poly = clipped
-            poly = orient(poly, 1.0)  # exterior counter-clockwise in (n, e)
-            set_(self, "polygon", pts)
-            set_(self, "shape", poly)
-            bn0, be0, bn1, be1 = poly.bounds
-            set_(self, "north_min", bn0)
-            set_(self, "north_max", bn1)
-            set_(self, "east_min", be0)
-            set_(self, "east_max", be1)
-
-    # ---------------------------------------------------------------------------- geometry queries
-    def contains(self, p_ned: Sequence[float], tol: float = 1e-9) -> bool:
-        """Whether ``p_ned`` lies in P_env (boundary included, within ``tol`` metres)."""
-        n, e, d = (float(x) for x in p_ned)
-        alt = -d
-        if not (self.alt_floor - tol <= alt <= self.alt_ceiling + tol):
-            return False
-        if self.shape is not None:
-            return bool(self.shape.distance(Point(n, e)) <= tol)
-        return (self.north_min - tol <= n <= self.north_max + tol
-                and self.east_min - tol <= e <= self.east_max + tol)
-
-    def nearest_inside(self, p_ned: Sequence[float]) -> tuple[Vec3, bool]:
-        """The point of P_env nearest to ``p_ned`` and whether ``p_ned`` was outside P_env."""
-        n, e, d = _finite3(p_ned, "p_ned")
-        outside = False
-        down_min, down_max = -self.alt_ceiling, -self.alt_floor
-        if d < down_min:
-            d, outside = down_min, True
-        elif d > down_max:
-            d, outside = down_max, True
-        if self.shape is None:
-            nc = min(max(n, self.north_min), self.north_max)
-            ec = min(max(e, self.east_min), self.east_max)
-            if nc != n or ec != e:
-                n, e, outside = nc, ec, True
-        elif not shapely.intersects_xy(self.shape, n, e):  # the boundary is inside
-            inner = self.shape.buffer(-_TARGET_INSET, join_style="mitre")
-            geom = inner if isinstance(inner, Polygon) and not inner.is_empty else self.shape
-            q = nearest_points(geom, Point(n, e))[0]
-            n, e, outside = float(q.x), float(q.y), True
-        return (n, e, d), outside
-
-
-class SetpointGenerator:
+class SetpointGenerator(PolygonWalls):
     """The setpoint generator of seed 000 Fig. 9: P_t -> P_d within P_env, one step of ``dt`` per update.
 
     Outputs (read after :meth:`update`): ``p``, ``v``, ``a`` (NED 3-tuples), ``yaw`` (rad, [-pi, pi)),
@@ -303,50 +159,9 @@ class SetpointGenerator:
             self._ae = self._ah / math.sqrt(2.0)
             self._nmin, self._nmax = env.north_min, env.north_max
             self._emin, self._emax = env.east_min, env.east_max
-        # beyond this distance no wall bound can bite (_wall_bound >= max speed): no need to look
+        # beyond this distance no wall bound can bite (wall_bound >= max speed): no need to look
         vh = self._vh + 0.5
         self._reach_h = vh * vh / (2.0 * self._ae) + vh * dt + 0.5
-
-    def _setup_polygon(self, poly: Polygon) -> None:
-        """Pre-compute the polygon edges for the pure-math per-step queries."""
-        if len(poly.interiors):
-            raise ValueError("polygon envelopes with holes are not supported")
-        coords = list(poly.exterior.coords)[:-1]  # counter-clockwise in (north, east)
-        pts = [c for i, c in enumerate(coords) if c != coords[i - 1]]
-        m = len(pts)
-        convex = []
-        kappa = 1.0
-        for i in range(m):
-            an, ae = pts[i - 1]
-            bn, be = pts[i]
-            cn, ce = pts[(i + 1) % m]
-            en, ee, fn, fe = bn - an, be - ae, cn - bn, ce - be
-            cross = en * fe - ee * fn
-            # left turn = convex corner. Two walls approached at once need a combined deceleration of
-            # a / cos(phi / 2), phi the angle between their normals (the turn angle): brake with less.
-            convex.append(cross > 0.0)
-            if cross > 0.0:
-                turn = math.atan2(cross, en * fn + ee * fe)
-                kappa = min(kappa, math.cos(0.5 * turn))
-        edges = []
-        for i in range(m):
-            an, ae = pts[i]
-            bn, be = pts[(i + 1) % m]
-            en, ee = bn - an, be - ae
-            l2 = en * en + ee * ee
-            ln = math.sqrt(l2)
-            # the region is on the left of each edge: the outward normal is on the right, (ee, -en)
-            edges.append((an, ae, en, ee, 1.0 / l2, ee / ln, -en / ln, convex[i], convex[(i + 1) % m]))
-        if kappa < 0.3:
-            log.warning("polygon envelope has very sharp corners: wall braking uses %.2f of max_accel_h",
-                        kappa)
-        self._edges = tuple(edges)
-        self._ae = self._ah * kappa
-        self._pref = (math.inf, math.inf)  # where the constraint distance _dref was measured
-        self._dref = -math.inf
-        self._dtrue = -math.inf  # distance to the boundary at _pref
-        self._near = False  # the walls were evaluated in this step
-        self._in_poly = False  # P_d known to be inside the polygon (else: test it)
 
     # ---------------------------------------------------------------------------------- targets P_t
     def reset(self, p: Sequence[float], v: Sequence[float] = (0.0, 0.0, 0.0), yaw: float = 0.0,
@@ -516,7 +331,7 @@ class SetpointGenerator:
                 if vend > 0.0 and dist <= 0.5 * (s_k + vend) * dt:
                     sd = vend  # passes the target this step
                 else:
-                    sd = _stop_bound(dist, s_k, acc, dt, vend * vend)
+                    sd = stop_bound(dist, s_k, acc, dt, vend * vend)
                     if sd > cap:
                         sd = cap
                 wn, we, wd = un * sd, ue * sd, ud * sd
@@ -562,8 +377,8 @@ class SetpointGenerator:
         reach = self._reach_v
         if d_floor < reach or d_ceil < reach:
             av = self._av
-            hi = _wall_bound(d_floor, vd, av, dt) if d_floor < reach else _INF
-            lo = -_wall_bound(d_ceil, -vd, av, dt) if d_ceil < reach else -_INF
+            hi = wall_bound(d_floor, vd, av, dt) if d_floor < reach else _INF
+            lo = -wall_bound(d_ceil, -vd, av, dt) if d_ceil < reach else -_INF
             if cd > hi:
                 cd, limited = hi, True
             if cd < lo:
@@ -585,10 +400,10 @@ class SetpointGenerator:
             d4 = pe - self._emin
             if d1 < reach or d2 < reach or d3 < reach or d4 < reach:
                 ae = self._ae
-                hn = _wall_bound(d1, vn, ae, dt) if d1 < reach else _INF
-                ln = -_wall_bound(d2, -vn, ae, dt) if d2 < reach else -_INF
-                he = _wall_bound(d3, ve, ae, dt) if d3 < reach else _INF
-                le = -_wall_bound(d4, -ve, ae, dt) if d4 < reach else -_INF
+                hn = wall_bound(d1, vn, ae, dt) if d1 < reach else _INF
+                ln = -wall_bound(d2, -vn, ae, dt) if d2 < reach else -_INF
+                he = wall_bound(d3, ve, ae, dt) if d3 < reach else _INF
+                le = -wall_bound(d4, -ve, ae, dt) if d4 < reach else -_INF
                 if not (ln <= cn <= hn and le <= ce <= he):
                     limited = True
                     # closest admissible point toward the candidate: from the clipped current velocity
@@ -597,7 +412,7 @@ class SetpointGenerator:
                     qe = min(max(ce, le), he)
                     s0n = min(max(vn, ln), hn)
                     s0e = min(max(ve, le), he)
-                    cn, ce = _toward(vn, ve, s0n, s0e, qn, qe, ahdt)
+                    cn, ce = toward(vn, ve, s0n, s0e, qn, qe, ahdt)
 
         # ---- 4. integrate (constant acceleration over the step)
         npn = pn + 0.5 * (vn + cn) * dt
@@ -674,7 +489,7 @@ class SetpointGenerator:
                 self.yaw_at_target = True
                 return
             sgn = 1.0 if err > 0.0 or (err == 0.0 and r >= 0.0) else -1.0
-            rd = sgn * min(self._yaw_rmax, _stop_bound(abs(err), r * sgn, self._ya, dt))
+            rd = sgn * min(self._yaw_rmax, stop_bound(abs(err), r * sgn, self._ya, dt))
         else:
             rd = self._yaw_rate_t
         dr = rd - r
@@ -685,230 +500,3 @@ class SetpointGenerator:
         rn = r + dr
         self.yaw = _wrap(y + 0.5 * (r + rn) * dt)
         self.yaw_rate = rn
-
-    # ------------------------------------------------------------------------------------ polygon
-    def _poly_limit(self, pn: float, pe: float, vn: float, ve: float, cn: float, ce: float,
-                    ) -> tuple[float, float, bool]:
-        """Bound the horizontal velocity candidate by the polygon walls within reach.
-
-        Each edge gives one constraint ``n . v <= wall_bound(d)``: inside the edge's slab and beyond a convex
-        vertex the edge's line (normal, line distance: exact for the convex parts), beyond a reflex vertex
-        the vertex itself (radial direction and distance). The constraint distances are 1-Lipschitz in p,
-        so far from every wall one distance measurement covers many steps.
-        """
-        reach = self._reach_h
-        v2 = vn * vn + ve * ve
-        if v2 > self._vh * self._vh:  # faster than the envelope (after a reset): look further
-            vv = math.sqrt(v2) + 1.0
-            reach = vv * vv / (2.0 * self._ae) + vv * self.dt + 1.0
-        rn, re_ = self._pref
-        if math.hypot(pn - rn, pe - re_) + reach < self._dref:
-            self._near = False
-            return cn, ce, False
-        dt = self.dt
-        ae = self._ae
-        cons = []
-        dcon = _INF
-        dtrue = _INF
-        known = self._in_poly  # P_d stays inside once it is: no crossing-number test needed
-        inside = known
-        near_n = near_e = 0.0
-        for an, aa, en, ee, il2, onn, one, conv_a, conv_b in self._edges:
-            wn, we = pn - an, pe - aa
-            if not known and (aa > pe) != (aa + ee > pe) and pn < an + (pe - aa) * en / ee:
-                inside = not inside  # crossing number (point in polygon)
-            t = (wn * en + we * ee) * il2
-            sd = wn * onn + we * one  # signed distance to the line, > 0 outside
-            if t < 0.0:
-                qn, qe, conv = -wn, -we, conv_a  # p -> vertex a
-                dist = math.sqrt(qn * qn + qe * qe)
-            elif t > 1.0:
-                qn, qe, conv = an + en - pn, aa + ee - pe, conv_b  # p -> vertex b
-                dist = math.sqrt(qn * qn + qe * qe)
-            else:
-                qn, qe, conv = -sd * onn, -sd * one, True  # p -> its projection on the edge
-                dist = -sd if sd < 0.0 else sd
-            if conv and sd <= 0.0:  # the edge's line (exact for the convex parts)
-                d, nn, ne = -sd, onn, one
-            elif dist > 1e-12:  # toward the nearest point of the edge (a reflex vertex, a far edge)
-                d, nn, ne = dist, qn / dist, qe / dist
-            else:
-                d, nn, ne = 0.0, onn, one
-            if dist < dtrue:
-                dtrue = dist
-                near_n, near_e = onn, one
-            if d < dcon:
-                dcon = d
-            if d < reach:
-                cons.append((nn, ne, d))
-        self._pref = (pn, pe)
-        self._near = True
-        self._dtrue = dtrue
-        inside = inside or dtrue <= 1e-9  # the boundary belongs to P_env
-        self._in_poly = inside
-        self._dref = dcon if inside else -_INF
-        if not inside:  # outside (after a reset or a new envelope): not further out through the nearest edge
-            cons = [(near_n, near_e, 0.0)]
-        elif not cons:
-            return cn, ce, False
-        ok = True
-        for i, (nn, ne, d) in enumerate(cons):
-            b = _wall_bound(d, vn * nn + ve * ne, ae, dt)
-            cons[i] = (nn, ne, b)
-            if nn * cn + ne * ce > b:
-                ok = False
-        if ok:
-            return cn, ce, False
-        ahdt = self._ahdt
-        # one wall (sliding along it): project onto its constraint line
-        q = _project_one(cons, cn, ce)
-        s0 = _project_one(cons, vn, ve)
-        if q is not None and s0 is not None:
-            cn, ce = _toward(vn, ve, s0[0], s0[1], q[0], q[1], ahdt)
-            return cn, ce, True
-        # feasible velocity polygon = big square clipped by the half-planes n.v <= b
-        big = max(self._vh, math.hypot(vn, ve), math.hypot(cn, ce)) + 1.0
-        vp = [(-big, -big), (big, -big), (big, big), (-big, big)]
-        for nn, ne, b in cons:
-            vp = _clip_halfplane(vp, nn, ne, b)
-            if not vp:
-                break
-        if not vp:  # infeasible (cannot happen from an admissible state): brake straight
-            sp = math.sqrt(v2)
-            if sp <= ahdt:
-                return 0.0, 0.0, True
-            k = 1.0 - ahdt / sp
-            return vn * k, ve * k, True
-        qn, qe = _nearest_in_convex(vp, cn, ce)
-        s0n, s0e = _nearest_in_convex(vp, vn, ve)
-        cn, ce = _toward(vn, ve, s0n, s0e, qn, qe, ahdt)
-        return cn, ce, True
-
-    def _inside(self, pn: float, pe: float) -> bool:
-        """Point in polygon (crossing number, boundary within 1e-9 m included), pure math."""
-        inside = False
-        dmin2 = _INF
-        for an, ae, en, ee, il2, *_ in self._edges:
-            be = ae + ee
-            if (ae > pe) != (be > pe) and pn < an + (pe - ae) * en / ee:
-                inside = not inside
-            wn, we = pn - an, pe - ae
-            t = (wn * en + we * ee) * il2
-            t = 0.0 if t < 0.0 else (1.0 if t > 1.0 else t)
-            wn -= t * en
-            we -= t * ee
-            d2 = wn * wn + we * we
-            if d2 < dmin2:
-                dmin2 = d2
-        return inside or dmin2 <= 1e-18
-
-    def _poly_clamp(self, pn: float, pe: float, npn: float, npe: float) -> tuple[float, float, bool]:
-        """Pull a new point that left the polygon (float residue) back onto its boundary."""
-        if not self._in_poly or self._inside(npn, npe):
-            return npn, npe, False
-        best = _INF
-        bn = be = 0.0
-        for an, ae, en, ee, il2, onn, one, *_ in self._edges:
-            t = ((npn - an) * en + (npe - ae) * ee) * il2
-            t = 0.0 if t < 0.0 else (1.0 if t > 1.0 else t)
-            qn, qe = an + t * en, ae + t * ee
-            dd = math.hypot(qn - npn, qe - npe)
-            if dd < best:
-                best, bn, be = dd, qn - onn * 1e-12, qe - one * 1e-12
-        self._note_clamp(best)
-        return bn, be, True
-
-
-def _toward(vn: float, ve: float, sn: float, se: float, qn: float, qe: float, r: float,
-            ) -> tuple[float, float]:
-    """From the admissible point ``s`` toward the admissible point ``q``, as far as stays within ``r`` of
-    the current velocity ``v`` (the acceleration bound). If ``s`` itself is out of reach (an infeasible
-    state), the point at ``r`` from ``v`` toward ``s``."""
-    wn, we = sn - vn, se - ve
-    w2 = wn * wn + we * we
-    r2 = r * r
-    if w2 > r2:
-        k = r / math.sqrt(w2)
-        return vn + k * wn, ve + k * we
-    if (qn - vn) ** 2 + (qe - ve) ** 2 <= r2:
-        return qn, qe
-    en, ee = qn - sn, qe - se
-    e2 = en * en + ee * ee  # > 0 here: q is out of reach, s is not
-    b = wn * en + we * ee
-    disc = b * b - e2 * (w2 - r2)
-    t = (-b + math.sqrt(disc if disc > 0.0 else 0.0)) / e2  # |w + t e| = r
-    if t < 0.0:
-        t = 0.0
-    elif t > 1.0:
-        t = 1.0
-    return sn + t * en, se + t * ee
-
-
-def _project_one(cons: list[tuple[float, float, float]], x: float, y: float) -> tuple[float, float] | None:
-    """``(x, y)`` if it satisfies all constraints ``n . v <= b``; its projection onto the line of the only
-    violated one if that satisfies the others; else None."""
-    viol = None
-    for c in cons:
-        if c[0] * x + c[1] * y > c[2]:
-            if viol is not None:
-                return None
-            viol = c
-    if viol is None:
-        return x, y
-    nn, ne, b = viol
-    k = nn * x + ne * y - b
-    x -= k * nn
-    y -= k * ne
-    for c in cons:
-        if c is not viol and c[0] * x + c[1] * y > c[2] + 1e-12:
-            return None
-    return x, y
-
-
-def _clip_halfplane(poly: list[tuple[float, float]], nn: float, ne: float, b: float,
-                    ) -> list[tuple[float, float]]:
-    """Sutherland-Hodgman: the part of a convex polygon with ``nn*x + ne*y <= b``."""
-    out: list[tuple[float, float]] = []
-    m = len(poly)
-    for i in range(m):
-        xa, ya = poly[i]
-        xb, yb = poly[(i + 1) % m]
-        fa = nn * xa + ne * ya - b
-        fb = nn * xb + ne * yb - b
-        if fa <= 0.0:
-            out.append((xa, ya))
-        if (fa < 0.0 < fb) or (fb < 0.0 < fa):
-            t = fa / (fa - fb)
-            out.append((xa + t * (xb - xa), ya + t * (yb - ya)))
-    return out
-
-
-def _nearest_in_convex(poly: list[tuple[float, float]], x: float, y: float) -> tuple[float, float]:
-    """The point of a convex polygon (any orientation) nearest to ``(x, y)``."""
-    m = len(poly)
-    if m == 1:
-        return poly[0]
-    sign = 0.0
-    inside = True
-    best = _INF
-    bx = by = 0.0
-    for i in range(m):
-        xa, ya = poly[i]
-        xb, yb = poly[(i + 1) % m]
-        ex, ey = xb - xa, yb - ya
-        cr = ex * (y - ya) - ey * (x - xa)
-        if cr != 0.0:
-            if sign == 0.0:
-                sign = cr
-            elif (cr > 0.0) != (sign > 0.0):
-                inside = False
-        l2 = ex * ex + ey * ey
-        t = 0.0 if l2 == 0.0 else ((x - xa) * ex + (y - ya) * ey) / l2
-        t = 0.0 if t < 0.0 else (1.0 if t > 1.0 else t)
-        qx, qy = xa + t * ex, ya + t * ey
-        d2 = (qx - x) ** 2 + (qy - y) ** 2
-        if d2 < best:
-            best, bx, by = d2, qx, qy
-    if inside and m >= 3:
-        return x, y
-    return bx, by

@@ -17,6 +17,10 @@ mode. As in ArduCopter, a failsafe does not switch a vehicle that is already lan
 armed vehicle still on the ground is disarmed instead. SmartRTL and DO_LAND_START options, which the
 model lacks, fall back to RTL; "terminate" falls back to LAND.
 
+Every timer here (FS_GCS_TIMEOUT, BATT_LOW_TIMER, the EKF check's second) counts simulated time, the
+vehicle clock, as ArduCopter SITL's ``AP_HAL::millis()`` does; the mission protocol's timeouts follow the
+same rule (``docs/conformance.md``, "Time bases").
+
 Deviation from ArduCopter's defaults: BATT_FS_LOW_ACT defaults to RTL and BATT_FS_CRT_ACT to LAND (the
 model's battery failsafe is on out of the box), and the voltage thresholds default to 3.5 V and 3.4 V
 per cell of the airframe's pack. SIM_BATT_CAP_AH (ArduPilot SITL's name) sets the simulated pack's
