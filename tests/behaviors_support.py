@@ -64,8 +64,8 @@ class World:
         return self.sim.state()
 
     def cycle(self) -> None:
+        """The updaters and the monitor cycle due now (one runner, as in the companion)."""
         self.layer.updaters.run_once(self.sim.t)
-        self.layer.step(self.sim.t)
 
     def run(self, seconds: float) -> None:
         for _ in range(round(seconds / self.sim.dt)):

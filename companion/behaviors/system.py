@@ -7,8 +7,9 @@ clock and a vehicle-state source, for tests):
   :class:`QueueBeliefUpdater` says who controls the vehicle),
 * the process manager with the bundled execution processes (:mod:`.services`),
 * the behavior coordinator with the catalog's execution controllers,
-* the *monitor thread*: at ``monitor_hz`` of the autopilot's clock it runs the coordinator's
-  performance monitoring and the running processes' periodic work,
+* the *monitor cycle*: at ``monitor_hz`` of the autopilot's clock the coordinator's performance
+  monitoring and the running processes' periodic work, run by the belief updaters' runner as one more
+  periodic job (one thread for both),
 * the flight log: every request, behavior start and termination and process start and stop as one
   JSON object per line (``log_path``), the input of ``taskflight behaviors timeline``.
 
@@ -101,14 +102,11 @@ class ExecutiveLayer:
         self.processes = ProcessManager(bundled_processes(queue, queue.envelope), now, sink=self.log)
         self.ctx = BehaviorContext(queue, self.beliefs, self.processes, now, vehicle)
         self.coordinator = BehaviorCoordinator(self.catalog, self.ctx, sink=self.log)
-        self.updaters = BeliefUpdaterRunner(self.beliefs, [QueueBeliefUpdater(queue), *(updaters or [])], now,
-                                            wall_until)
-        self._wall_until = wall_until
-        self._ready = ready or (lambda: True)
         self.period_s = 1.0 / monitor_hz
-        self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
         self.monitor_cycles = 0
+        jobs = [QueueBeliefUpdater(queue), *(updaters or []),
+                _MonitorCycle(self, self.period_s, ready or (lambda: True))]
+        self.updaters = BeliefUpdaterRunner(self.beliefs, jobs, now, wall_until)
 
     @classmethod
     def for_node(cls, node: QuadNode, **kw: Any) -> ExecutiveLayer:
@@ -120,15 +118,11 @@ class ExecutiveLayer:
 
     # --- lifecycle -------------------------------------------------------------------------------------
     def start(self) -> ExecutiveLayer:
+        """Start the one thread: the belief updaters and the monitor cycle, each at its own period."""
         self.updaters.start()
-        self._thread = threading.Thread(target=self._loop, name="behavior-monitor", daemon=True)
-        self._thread.start()
         return self
 
     def close(self) -> None:
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join(timeout=2.0)
         self.updaters.close()
         self.log.close()
 
@@ -140,29 +134,10 @@ class ExecutiveLayer:
 
     # --- one monitor cycle ---------------------------------------------------------------------------
     def step(self, now_s: float) -> None:
-        """Performance monitoring, defaults, the processes' periodic work (the monitor thread's cycle)."""
+        """Performance monitoring, defaults, the processes' periodic work (the monitor cycle)."""
         self.coordinator.monitor(now_s)
         self.processes.tick(now_s)
         self.monitor_cycles += 1
-
-    def _loop(self) -> None:
-        next_t: float | None = None
-        while not self._stop.is_set():
-            if not self._ready():
-                self._stop.wait(0.05)
-                continue
-            now = self.now()
-            if next_t is None or now - next_t > 5 * self.period_s or now < next_t - 1.0:
-                next_t = now
-            if now < next_t:
-                wait = self._wall_until(next_t) if self._wall_until is not None else next_t - now
-                self._stop.wait(min(max(wait, 0.0), 0.05))
-                continue
-            try:
-                self.step(now)
-            except Exception:
-                log.exception("behavior monitor cycle failed")
-            next_t += self.period_s
 
     # --- conveniences --------------------------------------------------------------------------------
     @property
@@ -174,3 +149,22 @@ class ExecutiveLayer:
     def status(self) -> dict[str, Any]:
         return {**self.coordinator.status(), "processes": self.processes.status(),
                 "monitor_cycles": self.monitor_cycles}
+
+
+class _MonitorCycle:
+    """The executive layer's monitor cycle as a periodic job of the updaters' runner (same thread, so a
+    cycle always sees the beliefs of the last completed update)."""
+
+    name = "behavior_monitor"
+
+    def __init__(self, layer: ExecutiveLayer, period_s: float, ready: Callable[[], bool]) -> None:
+        self.layer = layer
+        self.period_s = period_s
+        self.ready = ready
+
+    def update(self, memory: BeliefMemory, now_s: float) -> None:
+        if self.ready():
+            try:
+                self.layer.step(now_s)
+            except Exception:
+                log.exception("behavior monitor cycle failed")
