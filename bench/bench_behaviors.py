@@ -33,18 +33,13 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "tests"))
 
 import httpx  # noqa: E402
-from autopilot_support import arducopter_missing, start_autopilot  # noqa: E402
+from autopilot_support import start_autopilot  # noqa: E402
 from mavlink_support import wait_for  # noqa: E402
 
-from bench.common import machine, table  # noqa: E402
+from bench.common import add_autopilot_argument, chosen_autopilots, machine, pct, table  # noqa: E402
 from companion.behaviors.system import ExecutiveLayer  # noqa: E402
 from companion.control import ControlServer  # noqa: E402
 from companion.node import QuadNode  # noqa: E402
-
-
-def pct(values: list[float], q: float) -> float:
-    s = sorted(values)
-    return s[min(len(s) - 1, int(q * (len(s) - 1) + 0.5))] if s else float("nan")
 
 
 def mission() -> list[str]:
@@ -121,14 +116,9 @@ def main() -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--speedup", type=float, default=4.0, help="autopilot speed-up (1 = real time)")
     p.add_argument("--activations", type=int, default=126, help="at least this many accepted activations")
-    default = "model" if arducopter_missing() else "model,arducopter"
-    p.add_argument("--autopilot", default=default,
-                   help=f"comma-separated: model, arducopter (default {default}; ArduCopter SITL needs "
-                        "TASKFLIGHT_ARDUCOPTER)")
+    add_autopilot_argument(p)
     args = p.parse_args()
-    kinds = [k.strip() for k in args.autopilot.split(",") if k.strip()]
-    if "arducopter" in kinds and arducopter_missing():
-        p.error(str(arducopter_missing()))
+    kinds = chosen_autopilots(p, args)
     rows_tau, rows_wire = [], []
     with tempfile.TemporaryDirectory() as tmp:
         for kind in kinds:

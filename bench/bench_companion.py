@@ -27,18 +27,13 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "tests"))
 
 
-from autopilot_support import arducopter_missing, start_autopilot  # noqa: E402
+from autopilot_support import start_autopilot  # noqa: E402
 from companion_support import cmd  # noqa: E402
 from mavlink_support import wait_for  # noqa: E402
 
-from bench.common import machine, table  # noqa: E402
+from bench.common import add_autopilot_argument, chosen_autopilots, machine, pct, table  # noqa: E402
 from companion.node import QuadNode  # noqa: E402
 from taskflight.tracking import StreamRecorder  # noqa: E402
-
-
-def pct(values: list[float], q: float) -> float:
-    s = sorted(values)
-    return s[min(len(s) - 1, int(q * (len(s) - 1) + 0.5))] if s else float("nan")
 
 
 def sim_wait(node: QuadNode, seconds: float, speedup: float) -> None:
@@ -119,14 +114,9 @@ def main() -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--speedup", type=float, default=2.0, help="model speedup (1 = real time)")
     p.add_argument("--sample", type=float, default=10.0, help="seconds of autopilot time per rate sample")
-    default = "model" if arducopter_missing() else "model,arducopter"
-    p.add_argument("--autopilot", default=default,
-                   help=f"comma-separated: model, arducopter (default {default}; ArduCopter SITL needs "
-                        "TASKFLIGHT_ARDUCOPTER)")
+    add_autopilot_argument(p)
     args = p.parse_args()
-    kinds = [k.strip() for k in args.autopilot.split(",") if k.strip()]
-    if "arducopter" in kinds and arducopter_missing():
-        p.error(str(arducopter_missing()))
+    kinds = chosen_autopilots(p, args)
     rows_rate, rows_other = [], []
     with tempfile.TemporaryDirectory() as tmp:
         for kind, rate in itertools.product(kinds, (20.0, 50.0)):

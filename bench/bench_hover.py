@@ -28,7 +28,7 @@ from autopilot_model.flights import fly_square, takeoff
 from autopilot_model.physics.quadrotor import VX, VY
 from autopilot_model.vehicle import Vehicle
 from bench.bench_tracking import PROFILES
-from bench.common import machine, table
+from bench.common import machine, pct, table
 
 CONFIGS: dict[str, dict[str, float]] = {
     "filter off (before)": {"PSC_VELXY_FLTE": 0.0, "PSC_VELXY_FLTD": 0.0},
@@ -62,11 +62,6 @@ def hover_speeds(seed: int, params: dict[str, float], hover_s: float) -> list[fl
         v.run_for(0.02)
         out.append(math.hypot(x[VX], x[VY]))
     return out
-
-
-def pct(values: list[float], q: float) -> float:
-    s = sorted(values)
-    return s[min(len(s) - 1, int(q * len(s)))]
 
 
 def main() -> None:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import os
 import platform
 import sys
@@ -30,6 +31,32 @@ def table(headers: Sequence[str], rows: Sequence[Sequence[object]]) -> str:
            "|" + "|".join("-" * (w + 2) for w in widths) + "|"]
     out += ["| " + " | ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)) + " |" for r in cells]
     return "\n".join(out)
+
+
+def pct(values: Sequence[float], q: float) -> float:
+    """The ``q`` quantile (0..1) of ``values``, nearest rank (NaN when empty)."""
+    s = sorted(values)
+    return s[min(len(s) - 1, int(q * (len(s) - 1) + 0.5))] if s else float("nan")
+
+
+def add_autopilot_argument(p: argparse.ArgumentParser) -> None:
+    """``--autopilot model,arducopter`` (ArduCopter SITL by default when ``TASKFLIGHT_ARDUCOPTER`` is set)."""
+    from autopilot_support import arducopter_missing
+
+    default = "model" if arducopter_missing() else "model,arducopter"
+    p.add_argument("--autopilot", default=default,
+                   help=f"comma-separated: model, arducopter (default {default}; ArduCopter SITL needs "
+                        "TASKFLIGHT_ARDUCOPTER)")
+
+
+def chosen_autopilots(p: argparse.ArgumentParser, args: argparse.Namespace) -> list[str]:
+    """The autopilots ``--autopilot`` names (an error if ArduCopter SITL is asked for but missing)."""
+    from autopilot_support import arducopter_missing
+
+    kinds = [k.strip() for k in args.autopilot.split(",") if k.strip()]
+    if "arducopter" in kinds and arducopter_missing():
+        p.error(str(arducopter_missing()))
+    return kinds
 
 
 def _fmt(c: object) -> str:
