@@ -242,3 +242,52 @@ def test_a_vehicle_taken_over_interrupts_and_refuses_flight_behaviors() -> None:
     assert w.beliefs.holds("control(self, elsewhere)")
     w.queue.set_overridden(False)  # given back: hovering by default
     w.run_until(lambda: "KEEP_HOVERING" in w.active(), 2.0, "KEEP_HOVERING once given back")
+
+
+def test_flight_commands_of_the_executors_fig_11_to_13() -> None:
+    """The behaviors the TST executors ask for put seed 000's flight commands on the queue."""
+    from companion.flight import HeadingMode, HorizontalMode, VerticalMode
+
+    w = World()
+    assert w.activate("WAIT duration: 2").accepted  # a wait on the ground (Sec. VI-D)
+    (c,) = w.queue.commands
+    assert (c.horizontal.mode, c.vertical.mode, c.heading.mode) == (HorizontalMode.DNU, VerticalMode.DNU,
+                                                                     HeadingMode.DNU)
+    assert c.end.e_wait == 2.0
+    e = w.wait_ended("WAIT", 5)
+    assert e.cause.value == "goal_achieved" and 1.9 <= e.ended_at - e.started_at <= 2.2
+    w.take_off()
+    assert w.activate("GO_TO_POINT coordinate: (10, 0, 8) straight_line: no").accepted
+    (c,) = w.queue.commands
+    assert c.vertical.mode is VerticalMode.POS and c.heading.mode is HeadingMode.DNU  # Fig. 12b, II
+    assert c.end.e_h and c.end.e_v
+    w.wait_ended("GO_TO_POINT", 30)
+    assert w.activate("GO_TO_POINT coordinate: (0, 0, 6)").accepted
+    assert w.queue.commands[0].vertical.mode is VerticalMode.WITH_HOR  # Fig. 12b, I
+    w.wait_ended("GO_TO_POINT", 30)
+    assert w.activate("LAND coordinate: (5, 5)").accepted  # Fig. 13b: fly there, then land
+    fly, land = w.queue.commands
+    assert (fly.horizontal.north, fly.horizontal.east, fly.vertical.altitude) == (5.0, 5.0, 6.0)
+    assert land.vertical.allow_landing and land.horizontal.mode is HorizontalMode.DNU
+    assert w.wait_ended("LAND", 60).cause.value == "goal_achieved"
+    assert abs(w.pos_neu[0] - 5) < 0.1 and abs(w.pos_neu[1] - 5) < 0.1 and w.pos_neu[2] < 0.05
+
+
+def test_operator_break_in_with_the_joystick() -> None:
+    """Seed 000 Sec. VII: the operator breaks in and flies with the joystick; the flight resumes after."""
+    w = World()
+    w.take_off()
+    assert w.activate("FOLLOW_PATH path: ((20, 0, 5), (20, 20, 5))").accepted
+    w.run(3.0)
+    r = w.activate("REQUEST_OPERATOR_ASSISTANCE control: joystick", "operator")
+    assert r.accepted and w.queue.behaviour_id == "joystick"
+    for _ in range(40):  # it was flying north at speed: braking and turning are acceleration-limited
+        w.queue.push_external("ext_vel", (0.0, -2.0, 0.0, 0.0), 0.5)
+        w.run(0.1)
+    assert w.sim.state().v[1] < -1.5  # the operator flies west
+    where = w.pos_neu
+    assert w.coordinator.inhibit("REQUEST_OPERATOR_ASSISTANCE", "operator").accepted  # continue
+    assert w.queue.behaviour_id is None
+    assert w.wait_ended("FOLLOW_PATH", 60).cause.value == "goal_achieved"
+    assert where[1] < -1.0 and abs(w.pos_neu[0] - 20) < 0.1 and abs(w.pos_neu[1] - 20) < 0.1
+    assert step_violations(w.sim.setpoints, w.queue.limits) == []

@@ -16,9 +16,10 @@ from ._common import go_to, need_flying, reference_neu
 @register
 class GoToPoint(FlightBehavior):
     """Situation: flying. The trajectory planner checks the straight line inside the envelope; the
-    motion controller flies it. Goal: the command finished (the reference is there). Performance:
-    the catalog's time-out and progress window on the measured distance to the point. A point the
-    planner cannot reach ends the behavior at its first check with ``wrong_progress``."""
+    motion controller flies it (seed 000 Fig. 12b: ``straight_line`` yes: V_WithHor, no: V_Pos; Hd_DNU;
+    E_H and E_V). Goal: the command finished (the reference is there). Performance: the catalog's
+    time-out and progress window on the measured distance to the point. A point the planner cannot
+    reach ends the behavior at its first check with ``wrong_progress``."""
 
     behavior = "GO_TO_POINT"
 
@@ -29,7 +30,7 @@ class GoToPoint(FlightBehavior):
         planner = self.ctx.processes.get("trajectory_planner")
         assert isinstance(planner, TrajectoryPlanner)
         legs = planner.plan(reference_neu(self), [tuple(params["coordinate"])])
-        return [go_to(p, params.get("speed")) for p in legs]
+        return [go_to(p, params.get("speed"), params.get("straight_line", True)) for p in legs]
 
     def goal_distance(self, vehicle: VehicleState) -> float | None:
         return distance(vehicle.p, ned_of(self.params["coordinate"]))

@@ -17,13 +17,17 @@ from companion.flight import (
 )
 
 from ..controller import FlightBehavior, register
+from ..services import TrajectoryPlanner
+from ._common import go_to, reference_neu
 
 
 @register
 class Land(FlightBehavior):
     """Situation: ``flight_state(self, flying)`` (or taking off: a landing may always cut a take-off
-    short). Comes to rest, descends (allow landing; the link hands the touch-down to the autopilot's
-    LAND); goal achieved once the belief memory says ``flight_state(self, landed)``."""
+    short). Seed 000 Fig. 13b: where it is (H_DNU, V_Pos to the ground with allow landing, Hd_DNU; the
+    link hands the touch-down to the autopilot's LAND), or, with ``coordinate`` (north, east), first
+    a fly-to there at the current altitude. Goal achieved once the belief memory says
+    ``flight_state(self, landed)``."""
 
     behavior = "LAND"
 
@@ -36,9 +40,16 @@ class Land(FlightBehavior):
         return None
 
     def commands(self, params: Mapping[str, Any]) -> list[FlightCommand]:
-        return [FlightCommand(HorizontalChannel(HorizontalMode.DNU),
-                              VerticalChannel(VerticalMode.POS, altitude=0.0, allow_landing=True),
-                              HeadingChannel(HeadingMode.DNU), EndCondition(e_v=True))]
+        land = FlightCommand(HorizontalChannel(HorizontalMode.DNU),
+                             VerticalChannel(VerticalMode.POS, altitude=0.0, allow_landing=True),
+                             HeadingChannel(HeadingMode.DNU), EndCondition(e_v=True))
+        if "coordinate" not in params:
+            return [land]
+        here = reference_neu(self)  # seed 000 Fig. 13b: first fly there (at the current altitude)
+        target = (float(params["coordinate"][0]), float(params["coordinate"][1]), here[2])
+        planner = self.ctx.processes.get("trajectory_planner")
+        assert isinstance(planner, TrajectoryPlanner)
+        return [go_to(p) for p in planner.plan(here, [target])] + [land]
 
     def goal_reached(self) -> bool:
         return self.flight_state() == "landed"

@@ -15,7 +15,8 @@ from ._common import need_flying
 @register
 class RequestOperatorAssistance(BehaviorExecutionController):
     """Fig. 7: the execution controller pauses the flight behaviors (the queue's ``pause_direct`` with
-    the ``hover`` pause behaviour: the running command is interrupted, the vehicle holds), adds the
+    the ``control`` pause behaviour: ``hover``, the vehicle holds, or ``joystick``, the operator flies
+    it through the ``ext_vel`` stream: seed 000 Sec. VII's break-in), adds the
     belief ``waiting_for(self, operator)`` and the ``message``, and waits for the operator's
     confirmation (``user_confirm``), after which the paused command resumes and this behavior ends
     with ``goal_achieved``. Not in the flight maneuvers' mutually exclusive set: the paused flight
@@ -27,6 +28,7 @@ class RequestOperatorAssistance(BehaviorExecutionController):
     def __init__(self, *args: Any) -> None:
         super().__init__(*args)
         self._generation = 0
+        self.control = "hover"
 
     def situation(self, params: Mapping[str, Any]) -> str | None:
         if self.ctx.queue.behaviour_id is not None:
@@ -34,9 +36,10 @@ class RequestOperatorAssistance(BehaviorExecutionController):
         return need_flying(self)
 
     def on_start(self, params: Mapping[str, Any]) -> None:
+        self.control = str(params.get("control", "hover"))
         queue = self.ctx.queue
         try:
-            queue.pause_direct("hover")
+            queue.pause_direct(self.control)
         except QueueStateError as exc:
             raise StartError(str(exc)) from None
         self._generation = queue.status().generation
@@ -52,7 +55,7 @@ class RequestOperatorAssistance(BehaviorExecutionController):
         if value is not None:
             self.ctx.beliefs.remove(f'operator_message(self, "{_quoted(str(value))}")')
         queue = self.ctx.queue
-        if queue.behaviour_id == "hover" and queue.status().generation == self._generation:
+        if queue.behaviour_id == self.control and queue.status().generation == self._generation:
             with contextlib.suppress(QueueStateError):
                 queue.run()  # inhibited: give the flight behavior back
 
@@ -61,7 +64,7 @@ class RequestOperatorAssistance(BehaviorExecutionController):
         status = queue.status()
         if status.queue_system_status.name == "OVERRIDDEN":
             return Termination(TerminationCause.INTERRUPTED, "the vehicle was taken over")
-        if queue.behaviour_id == "hover":
+        if queue.behaviour_id == self.control:
             return None
         if status.generation != self._generation:
             return Termination(TerminationCause.INTERRUPTED, "a new flight behavior replaced the pause")
