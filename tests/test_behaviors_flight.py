@@ -136,7 +136,8 @@ def test_bad_requests_change_nothing(f: FlightSession) -> None:
         r = f.post("/behaviors/activate", body)
         assert r.status_code == 400 and fragment in r.json()["error"], (body, r.text)
     r = f.post("/behaviors/check", {"text": "GO_TO_POINT coordinate: (1, 2, 3)"})
-    assert r.status_code == 200 and r.json()["params"] == {"coordinate": [1.0, 2.0, 3.0]}
+    assert r.status_code == 200
+    assert r.json()["params"] == {"coordinate": [1.0, 2.0, 3.0], "straight_line": True}  # with the default
     r = f.http.get("/beliefs", params={"query": "flight_state(self, ?s"})
     assert r.status_code == 400 and "expected" in r.json()["error"]
     r = f.post("/beliefs", {"add": ["object(57, place)", "position(57, (3.0, 4.5, ?z))"]})
