@@ -216,3 +216,8 @@ def test_bad_camera_parameters_are_refused() -> None:
         DownwardCamera(sc, 60.0, BeliefMemory(), ScriptedVehicle(), max_range_m=0.0)
     with pytest.raises(ValueError):
         Scenario([SceneObject(1, "person", 0.0, 0.0), SceneObject(1, "car", 1.0, 1.0)])
+
+
+def test_the_example_scenario_loads() -> None:
+    sc = Scenario.load(Path(__file__).resolve().parents[1] / "mission_specs" / "scenario_example.yaml")
+    assert {o.id: o.cls for o in sc} == {7: "person", 8: "person", 12: "car"}

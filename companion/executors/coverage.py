@@ -46,6 +46,11 @@ from shapely.ops import unary_union
 
 from companion.executors.inside_route import InsideRouter
 
+__all__ = [
+    "Fov", "ScanPattern", "Sensor", "as_polygon", "coverage_fraction", "covered_area", "footprint",
+    "footprint_size", "fov_pair", "line_spacing", "scan_pattern", "scan_specs", "uncovered",
+]
+
 log = logging.getLogger(__name__)
 
 Point = tuple[float, float]

@@ -30,6 +30,8 @@ from collections.abc import Iterator, Sequence
 
 import numpy as np
 
+__all__ = ["order_segments", "order_waypoints", "path_length", "repeat", "segments"]
+
 Point = tuple[float, float]
 Segment = tuple[Point, Point]
 
