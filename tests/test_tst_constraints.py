@@ -106,6 +106,8 @@ def test_feasible_problem_fixes_free_parameters() -> None:
     p.variable("n3.altitude", lo=4, hi=20)  # free: middle of the interval
     p.variable("n5.altitude", lo=3)  # half-bounded: its bound
     p.variable("n6.altitude", value=7.5)  # given
+    p.variable("n7.altitude", lo=4, hi=16)  # nothing else on it: the middle, not a vertex
+    p.variable("n8.altitude", hi=25)
     p.variable("ceiling", value=12)
     p.add("n3.altitude <= ceiling", label="n3.altitude <= envelope ceiling 12 m")
     p.qualitative("n3.speed", SPEEDS)
@@ -117,6 +119,8 @@ def test_feasible_problem_fixes_free_parameters() -> None:
     assert sol.values["n3.altitude"] == pytest.approx(12)
     assert sol.values["n5.altitude"] == pytest.approx(3)
     assert sol.values["n6.altitude"] == 7.5
+    assert sol.values["n7.altitude"] == pytest.approx(10)
+    assert sol.values["n8.altitude"] == pytest.approx(25)
     assert sol.choices == {"n3.speed": "fast"}
     assert sol.values["n3.speed"] == 5.0
     assert sol.values["n3.duration"] == pytest.approx(500 / 5 + 4)
