@@ -139,6 +139,13 @@ def test_objective_and_prefer() -> None:
     assert p.solve(prefer="standard").choices == {"n1.speed": "standard", "n2.speed": "standard"}
     assert p.solve(prefer="min").choices == {"n1.speed": "slow", "n2.speed": "slow"}
     assert p.solve(objective={"n2.speed": -1}).choices["n2.speed"] == "fast"
+    free = ConstraintProblem()
+    free.variable("a", hi=3)
+    assert free.solve().message == "accepted"
+    sol = free.solve(objective={"a": -1})
+    assert sol.ok and sol.values["a"] == 3
+    sol = free.solve(objective={"a": 1})  # unbounded: no decision, and no conflict either
+    assert not sol.ok and sol.conflict == [] and sol.message.startswith("not decided: the solver stopped")
     with pytest.raises(ConstraintError, match="prefer 'warp'"):
         p.solve(prefer="warp")
     with pytest.raises(ConstraintError, match="objective: unknown variable 'nope'"):

@@ -290,14 +290,15 @@ class ConstraintProblem:
             for name, q in self._qualitative.items():
                 sol.choices[name] = max(q.binaries, key=lambda o, q=q: x[q.binaries[o]])
                 sol.values[name] = q.options[sol.choices[name]]
-            sol.message = "accepted: " + ", ".join(f"{k} = {v}" for k, v in sol.choices.items())
+            chosen = ", ".join(f"{k} = {v}" for k, v in sol.choices.items())
+            sol.message = f"accepted: {chosen}" if chosen else "accepted"
         elif res.status == 2:
             found = self._conflict()
             sol.conflict = [self._groups[i].label for i in found]
             sol.details = [self._groups[i].detail for i in found]
             sol.message = "rejected: " + "; ".join(sol.details)
         else:
-            sol.message = f"rejected: the solver stopped: {res.message}"
+            sol.message = f"not decided: the solver stopped (status {res.status}): {res.message}"
         sol.seconds = time.perf_counter() - t0
         log.info("constraint check of %d variables, %d constraints in %.1f ms: %s", len(self.variables),
                  len(self._groups), sol.seconds * 1e3, sol.message)
