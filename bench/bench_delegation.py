@@ -1,0 +1,124 @@
+"""Bench: delegation time for a 100-node tree (issue 10, seed 000 Sec. III-A).
+
+The constraint check of delegation (:mod:`companion.tst.constraints`) on a synthetic Task Specification
+Tree: a sequence node (S) with 99 leaves alternating *fly-to* and *scan-ground* (100 nodes). Each leaf
+has a qualitative speed (``slow | standard | fast`` mapped to 1 / 3 / 5 m/s; every fourth is given as
+``fast``), an altitude interval [2, 40] m under the envelope ceiling (a platform constraint, as
+``get_constraints()`` returns it), a path length (fly-to 50-300 m, scan-ground 400-1500 m) and its
+duration ``length / speed`` plus a hover time, all under one shared endurance constraint.
+
+Three cases, each built and solved (``solve(prefer="standard")``) ``--runs`` times (time: mean and max
+in ms):
+
+* feasible: the endurance is halfway between the flight at standard and at fast speed, so the solver
+  chooses which legs fly fast (as few as possible) and fixes every speed, altitude and duration;
+* altitude: one leaf's given altitude is above the ceiling; the conflict search names the two;
+* endurance: the endurance is shorter than the whole flight at fast speed; the conflict names the
+  endurance, the sum and every leaf's free speed set.
+"""
+
+from __future__ import annotations
+
+import argparse
+import random
+import statistics
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from bench.common import machine, table  # noqa: E402
+from companion.tst.constraints import ConstraintProblem, Solution  # noqa: E402
+
+SPEEDS = {"slow": 1.0, "standard": 3.0, "fast": 5.0}
+CEILING_M = 30.0
+HOVER_S = 5.0
+
+
+def leaves(nodes: int, seed: int) -> list[tuple[str, str, float]]:
+    """(node id, type, path length m) of the leaves of an S root: ``nodes - 1`` of them."""
+    rng = random.Random(seed)
+    out = []
+    for i in range(1, nodes):
+        kind = "fly-to" if i % 2 else "scan-ground"
+        length = rng.uniform(50, 300) if kind == "fly-to" else rng.uniform(400, 1500)
+        out.append((f"n{i}", kind, length))
+    return out
+
+
+def build(tree: list[tuple[str, str, float]], endurance_s: float, bad_altitude: bool) -> ConstraintProblem:
+    """The constraint problem of the tree and the platform (what delegation hands the solver)."""
+    p = ConstraintProblem()
+    p.variable("endurance_left", value=endurance_s, label=f"endurance_left {endurance_s:.0f} s",
+               reason="battery")
+    p.variable("ceiling", value=CEILING_M, label=f"envelope ceiling {CEILING_M:g} m")
+    for k, (node, kind, length) in enumerate(tree):
+        given = "fast" if k % 4 == 3 else None
+        p.qualitative(f"{node}.speed", SPEEDS, allowed=given, reason="max 5 m/s")
+        if bad_altitude and k == len(tree) // 2:
+            p.variable(f"{node}.altitude", value=35, label=f"{node}.altitude = 35 ({kind}, given)")
+        else:
+            p.variable(f"{node}.altitude", lo=2, hi=40)
+        p.add(f"{node}.altitude <= ceiling", label=f"{node}.altitude <= envelope ceiling")
+        p.duration_at_speed(f"{node}.duration", length, f"{node}.speed", extra_s=HOVER_S)
+    p.add(" + ".join(f"{n}.duration" for n, _, _ in tree) + " <= endurance_left",
+          label="sum of the durations <= endurance_left")
+    return p
+
+
+def run(tree: list[tuple[str, str, float]], endurance_s: float, bad_altitude: bool,
+        runs: int) -> tuple[list[float], list[float], Solution, ConstraintProblem]:
+    build_ms, solve_ms = [], []
+    sol = p = None
+    for _ in range(runs):
+        t0 = time.perf_counter()
+        p = build(tree, endurance_s, bad_altitude)
+        t1 = time.perf_counter()
+        sol = p.solve(prefer="standard")
+        t2 = time.perf_counter()
+        build_ms.append((t1 - t0) * 1e3)
+        solve_ms.append((t2 - t1) * 1e3)
+    assert sol is not None and p is not None
+    return build_ms, solve_ms, sol, p
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--nodes", type=int, default=100, help="nodes of the tree (an S root and its leaves)")
+    ap.add_argument("--runs", type=int, default=20)
+    ap.add_argument("--seed", type=int, default=0)
+    args = ap.parse_args()
+    tree = leaves(args.nodes, args.seed)
+    fast_s = sum(length / SPEEDS["fast"] + HOVER_S for _, _, length in tree)
+    standard_s = sum(length / SPEEDS["standard"] + HOVER_S for _, _, length in tree)
+    cases = [
+        ("feasible", (fast_s + standard_s) / 2, False),
+        ("altitude above ceiling", standard_s, True),
+        ("endurance exceeded", 0.95 * fast_s, False),
+    ]
+    rows = []
+    for name, endurance, bad_alt in cases:
+        b, s, sol, p = run(tree, endurance, bad_alt, args.runs)
+        total = [x + y for x, y in zip(b, s, strict=True)]
+        if sol.ok:
+            fast = sum(1 for c in sol.choices.values() if c == "fast")
+            result = f"accepted ({fast} of {len(sol.choices)} fast)"
+        else:
+            result = f"rejected ({len(sol.conflict)} constraints named)"
+        rows.append((name, len(p.variables), len(p.labels), statistics.mean(b), statistics.mean(s),
+                     max(s), statistics.mean(total), max(total), result))
+    print(f"# bench_delegation ({machine()})\n")
+    print(f"Constraint check of a {args.nodes}-node tree (S + {len(tree)} fly-to / scan-ground leaves), "
+          f"{args.runs} runs per case, times in ms\n")
+    print(table(["case", "variables", "constraints", "build mean", "solve mean", "solve max", "total mean",
+                 "total max", "result"], rows))
+    return 0
+
+
+if __name__ == "__main__":
+    start = time.monotonic()
+    code = main()
+    print(f"\n(wall {time.monotonic() - start:.0f} s)")
+    sys.exit(code)

@@ -1,0 +1,1 @@
+"""Task Specification Trees (seed 000 Sec. III)."""
