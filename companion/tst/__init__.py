@@ -10,5 +10,6 @@ Modules, one job each:
 * :mod:`companion.tst.tree`: ``TstNode`` (S, C, IF, WHILE and leaves), ids, walking, ``append_child``;
 * :mod:`companion.tst.spec`: the mission YAML / JSON format, validated with errors naming file, line, field;
 * :mod:`companion.tst.status`: ``NodeExecutionInfo`` (Fig. 4), ``NodeExecutionStatus`` (Fig. 5) and the
-  ``ExecutorLifecycle`` state machine (Fig. 3).
+  ``ExecutorLifecycle`` state machine (Fig. 3);
+* :mod:`companion.tst.composite`: the Fig. 5 status of S, C and IF nodes derived from their children.
 """
