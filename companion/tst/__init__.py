@@ -1,1 +1,18 @@
-"""Task Specification Trees (seed 000 Sec. III)."""
+"""Task Specification Trees (seed 000 Sec. III, Fig. 2-5): the tree, its parameters and constraints, the
+mission YAML format, and the executor execution information (Fig. 4) and status (Fig. 5).
+
+Modules, one job each:
+
+* :mod:`companion.tst.params`: parameter values and constraints (interval, qualitative values, linear
+  relation), geopoints and area polygons and their conversion to the local frame;
+* :mod:`companion.tst.task_types`: the registry ``TASK_TYPES`` of leaf task types and their parameters as
+  Fig. 11a-14a list them;
+* :mod:`companion.tst.tree`: ``TstNode`` (S, C, IF, WHILE and leaves), ids, walking, ``append_child``;
+* :mod:`companion.tst.spec`: the mission YAML / JSON format, validated with errors naming file, line, field;
+* :mod:`companion.tst.status`: ``NodeExecutionInfo`` (Fig. 4), ``NodeExecutionStatus`` (Fig. 5) and the
+  ``ExecutorLifecycle`` state machine (Fig. 3);
+* :mod:`companion.tst.composite`: the Fig. 5 status of S, C and IF nodes derived from their children;
+* :mod:`companion.tst.constraints` (with :mod:`~companion.tst.linear`, :mod:`~companion.tst.milp`,
+  :mod:`~companion.tst.conflict`): the consistency check of a tree's constraints (Sec. III-A) with a MILP
+  (scipy's HiGHS), fixing free parameters or naming the constraints in conflict.
+"""
