@@ -104,6 +104,8 @@ class ExecutiveLayer:
         self.coordinator = BehaviorCoordinator(self.catalog, self.ctx, sink=self.log)
         self.period_s = 1.0 / monitor_hz
         self.monitor_cycles = 0
+        #: called with the autopilot time at the end of every monitor cycle (the TST execution system)
+        self.cycle_listeners: list[Callable[[float], None]] = []
         jobs = [QueueBeliefUpdater(queue), *(updaters or []),
                 _MonitorCycle(self, self.period_s, ready or (lambda: True))]
         self.updaters = BeliefUpdaterRunner(self.beliefs, jobs, now, wall_until)
@@ -137,6 +139,8 @@ class ExecutiveLayer:
         """Performance monitoring, defaults, the processes' periodic work (the monitor cycle)."""
         self.coordinator.monitor(now_s)
         self.processes.tick(now_s)
+        for fn in list(self.cycle_listeners):
+            fn(now_s)
         self.monitor_cycles += 1
 
     # --- conveniences --------------------------------------------------------------------------------

@@ -33,8 +33,9 @@ values and constraints are those of :mod:`companion.tst.params` (``speed: "slow 
 Every problem is a :class:`~taskflight.yamlio.ConfigError` ``file:line: field: reason``: unknown keys, an
 unknown node type, a parameter unknown to the task type, a missing required parameter, a bad geopoint, a
 control node without children, IF/WHILE without a condition or with a malformed one
-(:func:`companion.behaviors.belief_syntax.parse_query`), and duplicate ids. JSON bodies (the companion's
-``POST /mission``) go through :func:`mission_from_dict` and get the same checks without line numbers.
+(:func:`companion.tst.conditions.parse_condition`: a belief query, or ``not`` a query), and duplicate
+ids. JSON bodies (the companion's ``POST /mission``) go through :func:`mission_from_dict` and get the
+same checks without line numbers.
 """
 
 from __future__ import annotations
@@ -45,7 +46,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from companion.behaviors.belief_syntax import BeliefError, parse_query
+from companion.behaviors.belief_syntax import BeliefError
+from companion.tst.conditions import parse_condition
 from companion.tst.params import ParamError
 from companion.tst.task_types import TASK_TYPES
 from companion.tst.tree import CONDITIONAL_TYPES, CONTROL_TYPES, TreeError, TstNode, known_types
@@ -149,7 +151,7 @@ class _Builder:
             raise f.error(None, f"a {node_type} node needs a condition (a belief query)")
         text = f.string("condition")
         try:
-            parse_query(text)
+            parse_condition(text)
         except BeliefError as exc:
             raise f.error("condition", str(exc)) from None
         return text

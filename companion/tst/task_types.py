@@ -182,6 +182,14 @@ def _land_check(p: dict[str, Any]) -> None:
         raise ParamError("given, but land_at_current_position_flag is true", "position")
 
 
+def _hover_check(p: dict[str, Any]) -> None:
+    over = p.get("over")
+    if over is not None and not (isinstance(over, str) and over.startswith("?") and over[1:].isidentifier()):
+        raise ParamError("expected a condition's variable such as ?x", "over")
+    if over is not None and "position" in p:
+        raise ParamError("give position or over, not both", "over")
+
+
 _WAYPOINT_ONLY = ("waypoints", "loiter_mode", "segment_flag", "any_order_flag")
 
 
@@ -286,7 +294,10 @@ HOVER = TaskType(
     (
         ParamSpec("duration", "float", "Seconds to stay; absent: until enough.", unit="s", minimum=0.0),
         ParamSpec("position", "geopoint", "Where to hover; absent: where the platform is."),
+        ParamSpec("over", "string", "Hover above the object bound to this variable by the enclosing IF or "
+                  "WHILE condition (e.g. ?x, with position(?x, ...) in the beliefs; ours)."),
     ),
+    check=lambda p: _hover_check(p),
 )
 
 REQUEST_OPERATOR_ASSISTANCE = TaskType(

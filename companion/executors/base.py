@@ -1,0 +1,239 @@
+"""The platform-specific TST executor (seed 000 Sec. III-A, Fig. 3-5) over the behavior coordinator.
+
+A :class:`TstExecutor` runs one leaf of a delegated tree. It never talks to the queue or the link: it is
+the *mission requester* of the behavior coordinator (seed 001), and the behaviors put the flight
+commands of seed 000 Fig. 11-14 on the queue. Its Fig. 5 status is an
+:class:`~companion.tst.status.ExecutorLifecycle` with the task type's Fig. 4 flags; the requests map
+to behaviors:
+
+=====================  ===========================================================================
+``start()``            activate the task's behavior (``activation()``), mission requester; a
+                       rejection fails the node with the coordinator's reason
+``pause_requested()``  the operator's break-in: REQUEST_OPERATOR_ASSISTANCE with ``control:
+                       joystick`` (or ``hover``), operator requester: the queue pauses the running
+                       command and the operator's stick (``ext_vel``) flies the vehicle
+``continue_requested`` inhibit that break-in: the paused command resumes where it stopped
+``enough_requested()`` end the task as done: the break-in (if any) and the behavior are inhibited,
+                       the node succeeds, KEEP_HOVERING holds until the next node
+``abort()``            the same, but the node is aborted
+=====================  ===========================================================================
+
+``tick(now)`` follows the behavior: ``goal_achieved`` succeeds the node; ``time_out``,
+``wrong_progress`` or an interruption it did not ask for (an emergency LAND) fail it with the cause. A
+break-in the operator ends with ``user_confirm`` continues the node.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, ClassVar
+
+from companion.tst.plan import NodePlan
+from companion.tst.status import (
+    ExecutionRequestError,
+    ExecutorLifecycle,
+    NodeExecutionStatus,
+    execution_info,
+)
+
+if TYPE_CHECKING:
+    from companion.behaviors.coordinator import BehaviorCoordinator, Ended
+    from companion.behaviors.system import ExecutiveLayer
+    from companion.tst.tree import TstNode
+
+log = logging.getLogger(__name__)
+
+BREAK_IN = "REQUEST_OPERATOR_ASSISTANCE"
+
+
+@dataclass
+class ExecContext:
+    """What executors use: the executive layer, the mission's event sink, the condition bindings."""
+
+    layer: ExecutiveLayer
+    mark: Callable[..., None] = lambda event, **fields: None
+    break_in_control: str = "joystick"
+    bindings: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def coordinator(self) -> BehaviorCoordinator:
+        return self.layer.coordinator
+
+    def now(self) -> float:
+        return self.layer.now()
+
+
+_EXECUTORS: dict[str, type[TstExecutor]] = {}
+
+
+def executor(cls: type[TstExecutor]) -> type[TstExecutor]:
+    """Class decorator: the platform's executor for ``cls.task``."""
+    _EXECUTORS[cls.task] = cls
+    return cls
+
+
+def executor_for(task: str) -> type[TstExecutor] | None:
+    from . import leaves, scan_ground  # noqa: F401  (register the bundled executors)
+
+    return _EXECUTORS.get(task)
+
+
+def supported_tasks() -> list[str]:
+    executor_for("")
+    return sorted(_EXECUTORS)
+
+
+class TstExecutor:
+    """One leaf's executor (see module docstring). Subclasses give ``task`` and :meth:`activation`."""
+
+    task: ClassVar[str] = ""
+
+    def __init__(self, node: TstNode, plan: NodePlan, ctx: ExecContext) -> None:
+        self.node = node
+        self.plan = plan
+        self.ctx = ctx
+        self.lifecycle = ExecutorLifecycle(execution_info(node.type), node.id or node.type)
+        self.activation_id: str | None = None
+        self.behavior: str | None = None
+        self.break_in_id: str | None = None
+        self._own_ends: set[str] = set()  # activations we ended ourselves (enough, abort, continue)
+
+    # --- what a subclass says -------------------------------------------------------------------------
+    def activation(self) -> str:
+        """The behavior activation (text form) that performs the task."""
+        raise NotImplementedError
+
+    def progress(self) -> dict[str, Any]:
+        return {}
+
+    def on_start(self) -> None:
+        """Before the behavior is asked for (e.g. the camera labels its results)."""
+
+    def on_end(self) -> None:
+        """After the node finished, whichever way."""
+
+    # --- Fig. 3 ------------------------------------------------------------------------------------------
+    @property
+    def status(self) -> NodeExecutionStatus:
+        return self.lifecycle.status
+
+    @property
+    def finished(self) -> bool:
+        return self.lifecycle.status.finished
+
+    def prepare(self) -> NodeExecutionStatus:
+        return self.lifecycle.prepare()
+
+    def start(self) -> NodeExecutionStatus:
+        if not self.lifecycle.status.active:
+            self.prepare()
+        self.lifecycle.start()
+        try:
+            self.on_start()
+        except ValueError as exc:
+            self._fail(str(exc))
+            return self.status
+        self._ask(self.activation())
+        self.ctx.mark("node_started", node=self.node.id, task=self.task, activation=self.activation_id)
+        return self.status
+
+    def _ask(self, text: str) -> bool:
+        result = self.ctx.coordinator.activate(text, "mission")
+        if not result.accepted:
+            self._fail(f"{text}: {result.reason}")
+            return False
+        self.activation_id, self.behavior = result.activation_id, result.behavior
+        return True
+
+    def tick(self, now_s: float) -> None:
+        if self.finished or not self.status.executing:
+            return
+        if self.break_in_id is not None:
+            ended = self._ended(self.break_in_id)
+            if ended is not None:  # the operator confirmed on the queue: the node goes on
+                self.break_in_id = None
+                if self.status.paused:
+                    self.lifecycle.continue_requested()
+                    self.ctx.mark("node_continued", node=self.node.id, by="operator confirmation")
+        if self.activation_id is None:
+            return
+        ended = self._ended(self.activation_id)
+        if ended is None or self.activation_id in self._own_ends:
+            return
+        self.on_behavior_end(ended)
+
+    def on_behavior_end(self, ended: Ended) -> None:
+        """The behavior ended by itself: success or failure (override to chain behaviors)."""
+        if ended.cause.value == "goal_achieved":
+            if self.status.paused:
+                self.lifecycle.continue_requested()
+            self.lifecycle.succeed()
+            self._finished("node_succeeded")
+        else:
+            detail = f": {ended.detail}" if ended.detail else ""
+            self._fail(f"{ended.behavior} {ended.cause.value}{detail}")
+
+    # --- the execution system's requests ----------------------------------------------------------------
+    def pause_requested(self, control: str | None = None) -> NodeExecutionStatus:
+        self.lifecycle.pause_requested()
+        control = control or self.ctx.break_in_control
+        result = self.ctx.coordinator.activate(f"{BREAK_IN} control: {control}", "operator")
+        if not result.accepted:
+            self.lifecycle.continue_requested()
+            raise ExecutionRequestError(f"{self.node.id}: pause refused: {result.reason}")
+        self.break_in_id = result.activation_id
+        self.ctx.mark("node_paused", node=self.node.id, control=control, activation=self.break_in_id)
+        return self.status
+
+    def continue_requested(self) -> NodeExecutionStatus:
+        self.lifecycle.continue_requested()
+        self._end_break_in()
+        self.ctx.mark("node_continued", node=self.node.id, by="continue")
+        return self.status
+
+    def enough_requested(self) -> NodeExecutionStatus:
+        self.lifecycle.enough_requested()
+        self._stop_behavior()
+        self._finished("node_enoughed")
+        return self.status
+
+    def abort(self, reason: str = "") -> NodeExecutionStatus:
+        self.lifecycle.abort(reason)
+        self._stop_behavior()
+        self._finished("node_aborted", reason=reason)
+        return self.status
+
+    # --- helpers ---------------------------------------------------------------------------------------
+    def _ended(self, activation_id: str) -> Ended | None:
+        ended = self.ctx.coordinator.ended
+        return next((e for e in reversed(ended) if e.activation_id == activation_id), None)
+
+    def _end_break_in(self) -> None:
+        if self.break_in_id is not None:
+            self._own_ends.add(self.break_in_id)
+            if self._ended(self.break_in_id) is None:
+                self.ctx.coordinator.inhibit(self.break_in_id, "operator")
+            self.break_in_id = None
+
+    def _stop_behavior(self) -> None:
+        self._end_break_in()
+        if self.activation_id is not None:
+            self._own_ends.add(self.activation_id)
+            act = self.ctx.coordinator.activation(self.behavior or "")
+            if act is not None and act.activation_id == self.activation_id:
+                self.ctx.coordinator.inhibit(self.activation_id, "mission")
+
+    def _fail(self, reason: str) -> None:
+        self._end_break_in()
+        self.lifecycle.fail(reason)
+        self._finished("node_failed", reason=reason)
+
+    def _finished(self, event: str, **fields: Any) -> None:
+        self.on_end()
+        self.ctx.mark(event, node=self.node.id, **fields)
+        log.info("%s %s: %s", self.task, self.node.id, self.status.state)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"activation_id": self.activation_id, "behavior": self.behavior, **self.progress()}
