@@ -35,7 +35,8 @@ class Mission:
     def __init__(self, text: str, plans: list[NodePlan], world: World | None = None) -> None:
         self.w = world or World()
         self.events: list[tuple[float, str, dict[str, Any]]] = []
-        self.ts = TstExecutionSystem(self.w.layer, mark=lambda e, **f: self.events.append((self.w.sim.t, e, f)))
+        self.ts = TstExecutionSystem(self.w.layer,
+                                     mark=lambda e, **f: self.events.append((self.w.sim.t, e, f)))
         self.w.layer.cycle_listeners.append(self.ts.tick)
         self.ts.load(mission_from_yaml(text, "m.yaml"), {p.node_id: p for p in plans})
 
