@@ -42,7 +42,7 @@ class SimBeliefs(BeliefUpdater):
 
 class World:
     def __init__(self, catalog: BehaviorCatalog | str | None = None, envelope: Envelope | None = None,
-                 frozen: bool = False) -> None:
+                 frozen: bool = False, scenario: Any = None) -> None:
         if isinstance(catalog, str):
             catalog = catalog_from_yaml(catalog, "test_catalog.yaml")
         self.queue = CommandQueue(Limits(), envelope)
@@ -51,7 +51,8 @@ class World:
         self.frozen = frozen  # the vehicle does not follow (measured state stays where it was)
         self._frozen_state = None
         self.layer = ExecutiveLayer(self.queue, lambda: self.sim.t, self.vehicle,
-                                    catalog=catalog or load_catalog(), updaters=[SimBeliefs(self)])
+                                    catalog=catalog or load_catalog(), updaters=[SimBeliefs(self)],
+                                    scenario=scenario)
         self.coordinator = self.layer.coordinator
         self.beliefs = self.layer.beliefs
         self.cycle()

@@ -42,7 +42,7 @@ def test_bundled_catalog_loads() -> None:
             "FOLLOW_EXTERNAL_VELOCITY", "REQUEST_OPERATOR_ASSISTANCE", "SELF_LOCALIZE"} <= set(c.names())
     assert c.incompatible("LAND", "GO_TO_POINT") and not c.incompatible("LAND", "REQUEST_OPERATOR_ASSISTANCE")
     assert c.required_before("GO_TO_POINT") == {"SELF_LOCALIZE"}
-    assert [d.behavior for d in c.defaults()] == ["SELF_LOCALIZE", "KEEP_HOVERING"]
+    assert [d.behavior for d in c.defaults()] == ["SELF_LOCALIZE", "KEEP_HOVERING", "WATCH_GROUND"]
     assert c.priority("emergency") > c.priority("operator") > c.priority("mission") > c.priority("default")
     assert c.get("GO_TO_POINT").timeout_s == 120
 

@@ -12,7 +12,7 @@ from companion.flight.simulate import step_violations
 
 def test_fig6_two_requesters_default_hovering_and_priority() -> None:
     w = World()
-    assert w.active() == {"SELF_LOCALIZE": "default"}  # recurrent default, once localized
+    assert w.active() == {"SELF_LOCALIZE": "default", "WATCH_GROUND": "default"}  # recurrent defaults
     assert w.activate("TAKE_OFF altitude: 5").accepted
     assert w.wait_ended("TAKE_OFF", 30).cause.value == "goal_achieved"
     w.run_until(lambda: "KEEP_HOVERING" in w.active(), 2.0, "KEEP_HOVERING started by default")
@@ -28,14 +28,14 @@ def test_fig6_two_requesters_default_hovering_and_priority() -> None:
     again = w.activate("GO_TO_POINT coordinate: (10, 0, 5)")
     assert not again.accepted
     assert "LAND" in again.reason and "emergency" in again.reason
-    assert w.active() == {"SELF_LOCALIZE": "default", "LAND": "emergency"}
+    assert w.active() == {"SELF_LOCALIZE": "default", "WATCH_GROUND": "default", "LAND": "emergency"}
     assert w.wait_ended("LAND", 30).cause.value == "goal_achieved"
     w.run(1.0)
-    assert w.active() == {"SELF_LOCALIZE": "default"}  # landed: no KEEP_HOVERING
+    assert w.active() == {"SELF_LOCALIZE": "default", "WATCH_GROUND": "default"}  # landed: no KEEP_HOVERING
     assert step_violations(w.sim.setpoints, w.queue.limits) == []
     events = [(r["event"], r.get("behavior")) for r in w.layer.log.records if r["type"] == "behavior"]
-    assert events[:4] == [("started", "SELF_LOCALIZE"), ("started", "TAKE_OFF"), ("terminated", "TAKE_OFF"),
-                          ("started", "KEEP_HOVERING")]
+    assert events[:5] == [("started", "SELF_LOCALIZE"), ("started", "WATCH_GROUND"), ("started", "TAKE_OFF"),
+                          ("terminated", "TAKE_OFF"), ("started", "KEEP_HOVERING")]
 
 
 def test_situation_conditions_from_beliefs() -> None:
@@ -47,7 +47,7 @@ def test_situation_conditions_from_beliefs() -> None:
     w.take_off()
     r = w.activate("TAKE_OFF")
     assert not r.accepted and "landed" in r.reason
-    assert w.active() == {"SELF_LOCALIZE": "default", "KEEP_HOVERING": "default"}
+    assert w.active() == {"SELF_LOCALIZE": "default", "WATCH_GROUND": "default", "KEEP_HOVERING": "default"}
 
 
 def test_precedence_needs_self_localize_and_protects_it() -> None:

@@ -114,7 +114,8 @@ def test_emergency_land_preempts_a_mission_go_to_point(f: FlightSession) -> None
     assert end["cause"] == "goal_achieved", end
     wait_for(lambda: not f.armed(), f.wall(30), "disarmed after landing")
     assert f.alt() < 0.5
-    wait_for(lambda: set(active(f)) == {"SELF_LOCALIZE"}, f.wall(3), "no flight behavior on the ground")
+    wait_for(lambda: set(active(f)) == {"SELF_LOCALIZE", "WATCH_GROUND"}, f.wall(3),
+             "no flight behavior on the ground")
 
 
 def test_unreachable_point_never_hangs(f: FlightSession) -> None:

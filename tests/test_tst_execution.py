@@ -12,6 +12,7 @@ import pytest
 from behaviors_support import World
 
 from companion.flight.simulate import step_violations
+from companion.sensing.scenario import Scenario
 from companion.tst.execution import TstExecutionSystem
 from companion.tst.plan import NodePlan
 from companion.tst.spec import mission_from_yaml
@@ -158,19 +159,19 @@ def test_while_and_if_over_camera_beliefs() -> None:
              NodePlan("scan", "scan-ground", waypoints_neu=list(SQUARE), speed_m_s=2.0),
              NodePlan("over", "hover", duration_s=2.0), NodePlan("ask", "request-operator-assistance"),
              NodePlan("land", "land")]
-    m = Mission(WHILE_IF, plans)
+    # a person beside the third leg of the scan, seen by the simulated downward camera (60 degrees)
+    scenario = Scenario.from_text("objects: [{id: 7, class: person, position: [10.8, 8.0]}]", "s.yaml")
+    m = Mission(WHILE_IF, plans, World(scenario=scenario))
     m.ts.start()
-    m.w.run_until(lambda: m.node("scan").get("progress", {}).get("waypoint", 0) >= 3, 60, "scanning")
+    m.w.run_until(lambda: m.ts.active_node() in ("over", "ask"), 90, "the loop ended, the IF took its branch")
     assert m.node("search")["progress"]["iteration"] == 1
-    m.w.beliefs.add("object(7, person)")  # the camera sees a person (the camera has its own tests)
-    m.w.beliefs.add("position(7, (12.0, 9.0, 0.0))")
-    m.w.beliefs.add("visible(7)")
-    m.w.run_until(lambda: m.ts.active_node() in ("over", "ask"), 10, "the loop ended, the IF took its branch")
-    assert m.node("scan")["state"] == "succeeded"  # enoughed by the WHILE
+    assert m.node("scan")["state"] == "succeeded"  # enoughed by the WHILE once the person was seen
+    assert m.node("scan")["progress"]["waypoint"] == 4  # on the third leg
     assert m.node("found")["progress"]["branch"] == "then"
+    assert [d.object_id for d in m.w.layer.camera.detections] == [7]
     m.w.run_until(lambda: m.ts.active_node() == "ask", 30, "above the person, asking")
-    assert abs(m.w.pos_neu[0] - 12) < 0.1 and abs(m.w.pos_neu[1] - 9) < 0.1
+    assert abs(m.w.pos_neu[0] - 10.8) < 0.1 and abs(m.w.pos_neu[1] - 8) < 0.1
     assert m.w.beliefs.holds("waiting_for(self, operator)")
     m.w.queue.user_confirm()  # the operator answers
     assert m.run_until_done() == "succeeded"
-    assert m.w.pos_neu[2] < 0.05 and abs(m.w.pos_neu[0] - 12) < 0.1
+    assert m.w.pos_neu[2] < 0.05 and abs(m.w.pos_neu[0] - 10.8) < 0.1

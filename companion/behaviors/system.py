@@ -5,7 +5,8 @@ clock and a vehicle-state source, for tests):
 
 * the belief memory and its updaters (the common belief updater reads the link's mirror; the
   :class:`QueueBeliefUpdater` says who controls the vehicle),
-* the process manager with the bundled execution processes (:mod:`.services`),
+* the process manager with the bundled execution processes (:mod:`.services`) and the simulated
+  downward camera (:mod:`companion.sensing.camera`; a ``scenario`` of objects to see, none by default),
 * the behavior coordinator with the catalog's execution controllers,
 * the *monitor cycle*: at ``monitor_hz`` of the autopilot's clock the coordinator's performance
   monitoring and the running processes' periodic work, run by the belief updaters' runner as one more
@@ -27,6 +28,8 @@ from typing import IO, TYPE_CHECKING, Any
 
 from companion.flight.queue import CommandQueue
 from companion.flight.setpoint import VehicleState
+from companion.sensing.camera import DownwardCamera
+from companion.sensing.scenario import Scenario
 
 from .beliefs import BeliefMemory
 from .catalog import BehaviorCatalog, load_catalog
@@ -42,6 +45,8 @@ if TYPE_CHECKING:
 log = logging.getLogger(__name__)
 
 DEFAULT_MONITOR_HZ = 20.0
+#: the simulated downward camera's field of view (degrees, square)
+DEFAULT_CAMERA_FOV_DEG = 60.0
 
 
 class QueueBeliefUpdater(BeliefUpdater):
@@ -91,7 +96,8 @@ class ExecutiveLayer:
                  vehicle: Callable[[], VehicleState | None], *, catalog: BehaviorCatalog | None = None,
                  updaters: list[Any] | None = None, wall_until: Callable[[float], float] | None = None,
                  ready: Callable[[], bool] | None = None, log_path: str | Path | None = None,
-                 monitor_hz: float = DEFAULT_MONITOR_HZ) -> None:
+                 monitor_hz: float = DEFAULT_MONITOR_HZ, scenario: Scenario | None = None,
+                 camera_fov_deg: float = DEFAULT_CAMERA_FOV_DEG) -> None:
         if not 1.0 <= monitor_hz <= 100.0:
             raise ValueError(f"monitor rate {monitor_hz:g} Hz outside 1..100 Hz")
         self.queue = queue
@@ -99,7 +105,9 @@ class ExecutiveLayer:
         self.catalog = catalog or load_catalog()
         self.log = FlightLog(log_path)
         self.beliefs = BeliefMemory()
-        self.processes = ProcessManager(bundled_processes(queue, queue.envelope), now, sink=self.log)
+        self.camera = DownwardCamera(scenario or Scenario(), camera_fov_deg, self.beliefs, vehicle)
+        self.processes = ProcessManager([*bundled_processes(queue, queue.envelope), self.camera], now,
+                                        sink=self.log)
         self.ctx = BehaviorContext(queue, self.beliefs, self.processes, now, vehicle)
         self.coordinator = BehaviorCoordinator(self.catalog, self.ctx, sink=self.log)
         self.period_s = 1.0 / monitor_hz
