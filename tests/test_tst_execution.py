@@ -175,3 +175,30 @@ def test_while_and_if_over_camera_beliefs() -> None:
     m.w.queue.user_confirm()  # the operator answers
     assert m.run_until_done() == "succeeded"
     assert m.w.pos_neu[2] < 0.05 and abs(m.w.pos_neu[0] - 10.8) < 0.1
+
+
+def test_concurrent_node_runs_a_wait_beside_an_operator_request() -> None:
+    text = """
+mission: c
+tree:
+  type: S
+  children:
+    - {type: take-off, id: to}
+    - type: C
+      id: both
+      children:
+        - {type: wait, id: w, params: {duration: 3}}
+        - {type: request-operator-assistance, id: ask, params: {message: "ready?"}}
+    - {type: land, id: land}
+"""
+    m = Mission(text, [NodePlan("to", "take-off", altitude_m=3.0), NodePlan("w", "wait", duration_s=3.0),
+                       NodePlan("ask", "request-operator-assistance"), NodePlan("land", "land")])
+    m.ts.start()
+    m.w.run_until(lambda: m.node("both")["state"] == "executing", 30, "the C node")
+    assert m.node("w")["state"] == "executing" and m.node("ask")["state"] == "executing"  # together
+    m.w.run(5.0)  # the request pauses the wait's command: E_Wait does not run out meanwhile
+    assert m.node("w")["state"] == "executing"
+    m.w.queue.user_confirm()
+    m.w.run_until(lambda: m.node("both")["state"] == "succeeded", 10, "both children done")
+    assert m.node("ask")["state"] == "succeeded" and m.node("w")["state"] == "succeeded"
+    assert m.run_until_done() == "succeeded"
