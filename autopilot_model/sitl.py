@@ -56,9 +56,12 @@ class Sitl:
                  seed: int | None = 0, persist: bool = True) -> None:
         from autopilot_model.mavlink.endpoint import MavlinkEndpoint
         from autopilot_model.mavlink.guided import GuidedTargetsProtocol
+        from autopilot_model.mavlink.pilot import PilotLink
         from autopilot_model.mavlink.telemetry import VehicleTelemetry
         from autopilot_model.mavlink.vehicle_commands import VehicleCommands
         from autopilot_model.modules.flight_modes import FlightModes
+        from autopilot_model.modules.pilot_modes import PilotModes
+        from autopilot_model.modules.rc_input import RcInput
         from autopilot_model.vehicle import DEFAULT_HOME, DEFAULT_MODULES, Vehicle
 
         self.instance = instance
@@ -80,6 +83,10 @@ class Sitl:
         self.telemetry = VehicleTelemetry(self.endpoint, self.modes)
         self.commands = VehicleCommands(self.endpoint, self.modes)
         self.guided = GuidedTargetsProtocol(self.endpoint, self.modes)
+        self.rc = RcInput(v)
+        self.modes.pilot = PilotModes(self.modes, self.rc)
+        self.modes.pilot.announce = self.endpoint.statustext
+        self.pilot_link = PilotLink(self.endpoint, self.rc)
         selected = ["flight_modes", "mavlink"]
         selected += self._wire_missions_and_safety()
         for name in v.params.unknown_saved():
@@ -110,7 +117,7 @@ class Sitl:
                                         | m.MAV_PROTOCOL_CAPABILITY_MISSION_RALLY)
         self.telemetry.critical = lambda: bool(
             self.safety.gcs_failsafe or self.safety.battery_level or self.safety.fence_breached
-            or self.safety.ekf_failsafe)
+            or self.safety.ekf_failsafe or self.rc.failsafe)
         self.telemetry.fence_state = lambda: (
             bool(v.params.get("FENCE_ENABLE")) if "FENCE_ENABLE" in v.params else False,
             bool(self.safety.fence_breached))

@@ -124,6 +124,9 @@ class Vehicle:
         self.mixer = Mixer(self.world.mx, self.world.my, self.world.spin, af.torque_ratio, af.thrust_max,
                            af.spin_armed)
         self.nav = Navigator(self)
+        self.lean: tuple[float, float, float | None] | None = None
+        """The pilot's lean as accelerations (north, east, down or None: P_d's), set by the pilot modes
+        (:mod:`autopilot_model.modules.pilot_modes`); None: the controller follows P_d."""
 
         # --- module functions (the registry the schedule binds to)
         self.register("imu.periodic", self.imu.periodic)
@@ -226,7 +229,19 @@ class Vehicle:
             self.control.reset()
             return
         g = self.guidance
-        self.control.step(self.estimator.est, g.p, g.v, g.a, g.yaw, g.yaw_rate)
+        lean = self.lean
+        if lean is None:
+            self.control.step(self.estimator.est, g.p, g.v, g.a, g.yaw, g.yaw_rate)
+            return
+        # the pilot's lean angles (pilot_modes): a horizontal acceleration with no horizontal feedback,
+        # and in STABILIZE the collective as a vertical acceleration with no vertical feedback either
+        e = self.estimator.est
+        an, ae, ad = lean
+        if ad is None:
+            self.control.step(e, (e[0], e[1], g.p[2]), (e[3], e[4], g.v[2]), (an, ae, g.a[2]), g.yaw,
+                              g.yaw_rate)
+        else:
+            self.control.step(e, (e[0], e[1], e[2]), (e[3], e[4], e[5]), (an, ae, ad), g.yaw, g.yaw_rate)
 
     def _mixer_periodic(self) -> None:
         self.mixer.step(self.control.out, self.nav.armed, self.nav.spooled, self.world.cmd)

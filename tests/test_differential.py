@@ -52,9 +52,8 @@ CHECKS: dict[str, tuple[str, Callable[[dict[str, Any]], bool]]] = {
     "request_home": ("ACCEPTED, then HOME_POSITION", lambda o: o["request_home"] == ACCEPTED),
     "home_xyz": ("x, y, z = 0", lambda o: o["home_xyz"] == (0.0, 0.0, 0.0)),
     "home_q": ("q = NaN", lambda o: o["home_q_nan"]),
-    "param_names": ("all of differential_support.PARAMS but PILOT_TKOFF_ALT on the model",
-                    lambda o: all(o["params"][n] is not None for n in o["params"]
-                                  if n not in OLD_PARAMS and n != "PILOT_TKOFF_ALT")),
+    "param_names": ("all of differential_support.PARAMS",
+                    lambda o: all(o["params"][n] is not None for n in o["params"] if n not in OLD_PARAMS)),
     "old_param_names": ("SYSID_THISMAV, SYSID_MYGCS unknown",
                         lambda o: all(o["params"][n] is None for n in OLD_PARAMS)),
     "param_defaults": ("GUID_TIMEOUT 3, FS_GCS_ENABLE 0, FS_GCS_TIMEOUT 5, DISARM_DELAY 10, LAND_SPEED 50, "

@@ -71,6 +71,10 @@ class VehicleCommands:
                 return ACCEPTED, None
             if not force and not self.modes.allows_arming():
                 return FAILED, f"Arm: Mode {self.modes.name} not armable"
+            pilot = self.modes.pilot
+            why = None if force or pilot is None else pilot.arm_refusal(self.modes.mode)
+            if why:
+                return FAILED, why
             return _result(nav.arm(force=force))
         if p1 == 0:
             return _result(nav.disarm(force=force))

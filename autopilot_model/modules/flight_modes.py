@@ -1,7 +1,8 @@
 """ArduCopter flight modes on top of the Navigator (navigation task group).
 
-Modes are ArduCopter's ``custom_mode`` numbers. There is no RC link in the model, so the pilot-driven
-modes hold still instead of following sticks:
+Modes are ArduCopter's ``custom_mode`` numbers. The pilot-driven modes (STABILIZE, ALT_HOLD, LOITER,
+POSHOLD) fly the RC sticks once RC has been seen (RC_CHANNELS_OVERRIDE, MANUAL_CONTROL:
+:mod:`.pilot_modes`); before that they hold still:
 
 ==========  ===  ===========================================================================
 STABILIZE    0   level, zero velocity demand (no position hold: it drifts with estimator error)
@@ -11,6 +12,7 @@ GUIDED       4   targets from the ground station / companion (:class:`GuidedTarg
 LOITER       5   hold position
 RTL          6   climb to RTL_ALT if lower, fly home, descend and land (RTL_ALT_FINAL = 0)
 LAND         9   land where it is; stays in LAND after touchdown and disarm, as ArduCopter does
+POSHOLD     16   as LOITER without a pilot; with one: lean angles, braking to a hold when sticks centre
 BRAKE       17   stop as fast as the envelope allows and hold
 ==========  ===  ===========================================================================
 
@@ -50,13 +52,15 @@ GUIDED = 4
 LOITER = 5
 RTL = 6
 LAND = 9
+POSHOLD = 16
 BRAKE = 17
 
 MODE_NAMES: dict[int, str] = {STABILIZE: "STABILIZE", ALT_HOLD: "ALT_HOLD", AUTO: "AUTO", GUIDED: "GUIDED",
-                              LOITER: "LOITER", RTL: "RTL", LAND: "LAND", BRAKE: "BRAKE"}
+                              LOITER: "LOITER", RTL: "RTL", LAND: "LAND", POSHOLD: "POSHOLD",
+                              BRAKE: "BRAKE"}
 MODE_NUMBERS: dict[str, int] = {v: k for k, v in MODE_NAMES.items()}
 #: Modes ArduCopter lets a ground station arm in (AUTO, RTL, LAND, BRAKE refuse arming).
-ARMABLE = frozenset({STABILIZE, ALT_HOLD, GUIDED, LOITER})
+ARMABLE = frozenset({STABILIZE, ALT_HOLD, GUIDED, LOITER, POSHOLD})
 #: Modes in which a take-off command is accepted (ArduCopter: modes with a navigating user take-off).
 TAKEOFF_MODES = frozenset({GUIDED, LOITER})
 #: Modes in which MAV_CMD_DO_PAUSE_CONTINUE applies.
@@ -401,6 +405,7 @@ class FlightModes:
         self.speed_override_h: float | None = None  # DO_CHANGE_SPEED (m/s), until the next mode change
         self._rtl_stage = RTL_CLIMB
         self._listeners: list[ModeListener] = []
+        self.pilot: Any = None  # the pilot-driven modes (pilot_modes.PilotModes), set by the Sitl wiring
 
     # --- listeners -----------------------------------------------------------------------------
     def on_mode_change(self, callback: ModeListener) -> None:
@@ -442,6 +447,8 @@ class FlightModes:
         self.speed_override_h = None
         if mode != GUIDED:
             self.guided.reset()
+        if self.pilot is not None:
+            self.pilot.enter(mode)
         log.info("mode %s -> %s %s", mode_name(old), mode_name(mode), reason)
         for cb in list(self._listeners):
             cb(old, mode, reason)
@@ -466,6 +473,7 @@ class FlightModes:
         return True, ""
 
     _enter_brake = _enter_loiter
+    _enter_poshold = _enter_loiter
 
     def _enter_land(self) -> tuple[bool, str]:
         if self.in_air():
@@ -549,6 +557,8 @@ class FlightModes:
     # --- periodic (navigation group) -----------------------------------------------------------
     def update(self) -> None:
         mode = self.mode
+        if self.pilot is not None:
+            self.pilot.update(self.v.step_of("flight_modes.update"))
         if mode == GUIDED:
             if not self.paused:
                 self.guided.update()
