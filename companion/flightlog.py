@@ -30,8 +30,9 @@ companion follows; positions local NED metres, angles radians)::
   (:func:`companion.flight.codec.command_to_dict`).
 * ``setpoint``: ``key`` is null while the queue holds without a command; ``m`` / ``mv`` the mirrored
   LOCAL_POSITION_NED at the tick and ``m_age`` how much older than ``t`` it is (null before the
-  first); ``node`` the active TST node (the execution system's callable); ``extra`` whatever the
-  ``extra`` callable returned (left out when empty).
+  first; slightly negative when a sample newer than the tick's scheduled time has already arrived);
+  ``node`` the active TST node (the execution system's callable); ``extra`` whatever the ``extra``
+  callable returned (left out when empty).
 * ``position``: the autopilot's own report, stamped by its ``time_boot_ms``, also while nothing is
   streamed (the autopilot's take-off, LAND), so the actual path is complete.
 * ``event``: written by :meth:`FlightRecorder.mark` for the execution system. Names used by the

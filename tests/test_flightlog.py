@@ -9,7 +9,10 @@ UDP) is logged, drawn and tabulated, with its tracking figure in decimetres.
 from __future__ import annotations
 
 import json
+import math
+import tempfile
 import threading
+import time
 from pathlib import Path
 from types import SimpleNamespace
 from typing import Any
@@ -20,7 +23,8 @@ from companion.flight.codec import command_from_dict
 from companion.flight.qapi import QueuedCommand
 from companion.flight.setpoint import Setpoint, SetpointKind
 from companion.flightlog import FlightLogError, FlightRecorder, read_flight_log
-from companion.mission_report import fig16b_table, points, segments, table_markdown, tracking
+from companion.mission_report import Point, fig16b_table, points, segments, table_markdown, tracking
+from companion.mission_report.figure import label_groups
 from taskflight.cli import main
 
 TAKEOFF = {"h": "DNU", "v": "POS", "hd": "DNU", "end": ["e_v"], "take_off": True}
@@ -85,6 +89,9 @@ def test_synthetic_mission_gives_the_fig16b_table() -> None:
         ("land", "p6-p7", "DNU", "Pos", "DNU", "E_V", "Allow landing"),
     ]
     assert rows[1]["commands"] == ["c2", "c3", "c4", "c5"]  # four waypoints, one row (paper: p1-p5)
+    assert rows[1]["tracking"].h_max_cm == pytest.approx(10.0) and rows[2]["tracking"].compared == 0
+    with_tracking = table_markdown(rows, with_tracking=True)
+    assert "| take-off | p0-p1 | DNU | Pos | DNU | E_V | Takeoff | 10.0 / 10.0 | 5.0 / 5.0 |" in with_tracking
     md = table_markdown(rows)
     assert md.splitlines()[0].startswith("| TST Executor | Segment endpoints | Horizontal")
     assert "| scan-ground (paused/enoughed) | p4-p5 | ExtVel |" in md
@@ -97,6 +104,13 @@ def test_points_are_the_handovers_with_start_and_touchdown() -> None:
     assert (pts[0].north, pts[0].east) == (-1.0, -1.0)  # on the ground before the first setpoint
     assert (pts[-1].north, pts[-1].east) == (4.5, 4.5)  # the last report, after touch-down
     assert pts[1].t == pytest.approx(2.0)  # the first scan setpoint: 20 take-off setpoints at 20 Hz from t=1
+
+
+def test_points_at_one_spot_share_a_label() -> None:
+    pts = [Point(0, 0.0, 0.0, 0.0), Point(1, 1.0, 0.1, 0.0), Point(2, 2.0, 10.0, 0.0),
+           Point(3, 3.0, 0.0, 0.2)]
+    assert label_groups(pts, extent=20.0) == [((0.0, 0.0), "p0, p1, p3"), ((10.0, 0.0), "p2")]
+    assert len(label_groups(pts, extent=2.0)) == 4  # a small plot: 0.1 m apart is far enough
 
 
 def test_a_sliver_and_a_hold_do_not_make_rows() -> None:
@@ -229,3 +243,120 @@ def test_recorder_is_thread_safe(tmp_path: Path) -> None:
     records = read_flight_log(tmp_path / "f.jsonl")  # every line whole
     assert len(records) == 1 + 4 * 600 == rec.records_written
     assert all(r["node"] is None for r in records if r["type"] == "setpoint")
+
+
+# --- a real short flight ---------------------------------------------------------------------------------
+SPEEDUP = 5.0  # the demo's default: the companion ticks on time, so the tracking figure is the vehicle's own
+
+
+def _until(pred: Any, wall_s: float, what: str, poll_s: float = 0.01) -> None:
+    deadline = time.monotonic() + wall_s
+    while not pred():
+        assert time.monotonic() < deadline, f"gave up waiting for {what}"
+        time.sleep(poll_s)
+
+
+def _cmd(h: dict[str, Any], v: dict[str, Any], end: dict[str, Any], hd: dict[str, Any] | None = None) -> Any:
+    return command_from_dict({"horizontal": h, "vertical": v, "heading": hd or {"mode": "DNU"}, "end": end})
+
+
+def test_real_flight_is_logged_drawn_and_tabulated(tmp_path: Path,
+                                                    capsys: pytest.CaptureFixture[str]) -> None:
+    """Take-off, a two-waypoint "scan", a joystick break-in (ExtVel, ended by user_confirm), one more scan
+    waypoint, a fly-to and a landing on the bundled model over loopback UDP; this test's own ``mark`` calls
+    stand in for the TST execution system (driven by the queue's STARTED / FINISHED events, in the tick
+    thread, as the execution system would be)."""
+    from companion.flight.events import EventKind
+    from companion.node import QuadNode
+    from taskflight.demo import _free_udp_port, _landed_and_disarmed, _model_arguments, _ready
+    from taskflight.sitlproc import ModelProcess
+
+    wp = {"mode": "POS", "speed": 3.0}
+    alt4 = {"mode": "WITH_HOR", "altitude": 4.0}
+    commands = [_cmd({"mode": "DNU"}, {"mode": "POS", "altitude": 4.0, "take_off": True}, {"e_v": True}),
+                _cmd({**wp, "north": 10.0, "east": 0.0}, alt4, {"e_h": True}),
+                _cmd({**wp, "north": 10.0, "east": 8.0}, alt4, {"e_h": True}),
+                _cmd({"mode": "EXT_VEL"}, {"mode": "EXT_VEL"}, {"e_user": True}, {"mode": "EXT_VEL"}),
+                _cmd({**wp, "north": 4.0, "east": 8.0}, alt4, {"e_h": True}),
+                _cmd({**wp, "north": 0.0, "east": 0.0}, {"mode": "POS", "altitude": 4.0},
+                     {"e_h": True, "e_v": True}, {"mode": "FLIGHT_DIR"}),
+                _cmd({"mode": "DNU"}, {"mode": "POS", "altitude": 0.0, "speed": 0.8, "allow_landing": True},
+                     {"e_v": True})]
+    nodes = ["n1", "n2", "n2", "n2", "n2", "n3", "n4"]
+    log_path = tmp_path / "flight.jsonl"
+    port = _free_udp_port()
+    with tempfile.TemporaryDirectory(prefix="taskflight-flightlog-") as state:
+        model_args = SimpleNamespace(seed=1, airframe=None, modules=None, sensors="indoor", truth=False)
+        with ModelProcess(_model_arguments(model_args, state, port, SPEEDUP)):
+            node = QuadNode(f"udpout:127.0.0.1:{port}", rate_hz=20.0)
+            active: list[str | None] = [None]
+            rec = FlightRecorder(node, log_path, lambda: active[0])
+            node_of: dict[int, str] = {}
+            joystick: list[int] = []
+
+            def on_event(e: Any) -> None:  # the execution system's part
+                if e.kind is EventKind.STARTED and e.command_id in node_of:
+                    new = node_of[e.command_id]
+                    if new != active[0]:
+                        if active[0] is not None:
+                            rec.mark("node_finished", node=active[0])
+                        active[0] = new
+                        rec.mark("node_started", node=new)
+                    if e.command_id in joystick:
+                        rec.mark("break_in_start", node=new)
+                elif e.kind is EventKind.FINISHED and e.command_id in joystick:
+                    rec.mark("break_in_end", node=active[0], outcome="continued")
+
+            try:
+                node.start()
+                _until(lambda: _ready(node.link.mirror.snapshot()) and node.clock.synced, 60, "pre-arm")
+                rec.mark("plan", area_ne=[[-1, -1], [-1, 9], [11, 9], [11, -1]],
+                         waypoints_neu=[[10, 0, 4], [10, 8, 4], [4, 8, 4]],
+                         nodes=[{"id": "n1", "type": "take-off"}, {"id": "n2", "type": "scan-ground"},
+                                {"id": "n3", "type": "fly-to"}, {"id": "n4", "type": "land"}])
+                node.queue.events.subscribe(on_event)
+                ids = node.add_commands(commands)
+                node_of.update(zip(ids, nodes, strict=True))
+                joystick.append(ids[3])
+                node.run()
+                assert node.queue.events.wait_for(ids[3], {EventKind.STARTED}, 60 / SPEEDUP + 30) is not None
+                t_end = node.clock.now() + 3.0
+                while node.clock.now() < t_end:  # the operator's joystick: 1.5 m/s east, 10 Hz
+                    node.push_external("ext_vel", [0.0, 1.5, 0.0, 0.0], 1.0)
+                    t_next = node.clock.now() + 0.1
+                    _until(lambda: node.clock.now() >= t_next, 5, "0.1 s")  # noqa: B023
+                node.user_confirm()
+                done = node.queue.events.wait_for(ids[-1], {EventKind.FINISHED}, 60 / SPEEDUP + 30)
+                assert done is not None, "the landing did not finish"
+                _until(lambda: _landed_and_disarmed(node.link.mirror.snapshot()), 60 / SPEEDUP + 20,
+                       "landed and disarmed")
+            finally:
+                rec.close()
+                node.close()
+    records = read_flight_log(log_path)
+    rows = fig16b_table(records)
+    got = [(r["TST Executor"], r["Horizontal"], r["Vertical"], r["Heading"], r["End condition"], r["Flags"])
+           for r in rows]
+    assert got == [("take-off", "DNU", "Pos", "DNU", "E_V", "Takeoff"),
+                   ("scan-ground", "Pos", "WithHor", "DNU", "E_H", "-"),
+                   ("scan-ground (paused)", "ExtVel", "ExtVel", "ExtVel", "E_User", "-"),
+                   ("scan-ground", "Pos", "WithHor", "DNU", "E_H", "-"),
+                   ("fly-to", "Pos", "Pos", "FlightDir", "E_H, E_V", "-"),
+                   ("land", "DNU", "Pos", "DNU", "E_V", "Allow landing")], table_markdown(rows)
+    assert [r["Segment endpoints"] for r in rows] == [f"p{i}-p{i + 1}" for i in range(6)]
+    assert len(rows[1]["commands"]) == 2
+    pts = points(records)
+    assert math.hypot(pts[2].north - 10.0, pts[2].east - 8.0) < 0.5  # the break-in began at waypoint 2
+    assert pts[3].east - pts[2].east > 2.0  # the joystick moved it east (1.5 m/s for 3 s)
+    assert math.hypot(pts[-1].north, pts[-1].east) < 1.0  # landed at the fly-to's point
+    sps = [r for r in records if r["type"] == "setpoint"]
+    ages = [r["m_age"] for r in sps[5:] if r["m"] is not None]
+    assert len(ages) == len(sps) - 5 and all(-0.3 < a < 0.5 for a in ages), (min(ages), max(ages))
+    tr = tracking(records)
+    assert tr.compared > 200, tr
+    assert tr.h_rms_cm < 50 and tr.v_rms_cm < 50, tr.lines()
+    png = tmp_path / "fig16a.png"
+    md = tmp_path / "fig16b.md"
+    assert main(["mission", "plot", str(log_path), "--out", str(png), "--table", str(md)]) == 0
+    assert png.read_bytes()[:4] == b"\x89PNG"
+    assert "scan-ground (paused)" in capsys.readouterr().out

@@ -22,6 +22,8 @@ def add_mission_plot_arguments(subparsers: Any) -> argparse.ArgumentParser:
     p.add_argument("--title", default=None, help="the figure's title")
     p.add_argument("--with-takeoff", action="store_true",
                    help="count the take-off and landing setpoints in the tracking figures too")
+    p.add_argument("--segment-tracking", action="store_true",
+                   help="add each segment's tracking error (max / RMS, cm) to the table")
     p.set_defaults(mission_handler=run_mission_plot)
     return p
 
@@ -46,7 +48,7 @@ def run_mission_plot(args: argparse.Namespace) -> int:
     except OSError as exc:
         print(f"taskflight mission plot: error: {exc}", file=sys.stderr)
         return 2
-    table = table_markdown(fig16b_table(records))
+    table = table_markdown(fig16b_table(records), with_tracking=args.segment_tracking)
     if args.table:
         Path(args.table).write_text(table, encoding="utf-8")
     tr = tracking(records, skip_takeoff=not args.with_takeoff)

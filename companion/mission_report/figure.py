@@ -12,10 +12,11 @@ log without one still gets its setpoints, path and points.
 from __future__ import annotations
 
 import logging
+import math
 from pathlib import Path
 from typing import Any
 
-from .segments import Segment, of_type, plan_of, points, segments
+from .segments import Point, Segment, of_type, plan_of, points, segments
 
 log = logging.getLogger(__name__)
 
@@ -31,6 +32,27 @@ def measured_path(records: list[dict[str, Any]]) -> list[tuple[float, float]]:
     if pos:
         return [(r["p"][0], r["p"][1]) for r in pos]
     return [(r["m"][0], r["m"][1]) for r in of_type(records, "setpoint") if r.get("m") is not None]
+
+
+def label_groups(pts: list[Point], extent: float,
+                 share: float = 0.03) -> list[tuple[tuple[float, float], str]]:
+    """Points closer than ``share`` of the plot's ``extent`` share one label ("p0, p1, p6"), so labels at
+    the take-off / landing spot do not overprint each other; each group at its first point."""
+    groups: list[tuple[tuple[float, float], list[str]]] = []
+    for pt in pts:
+        for (north, east), labels in groups:
+            if math.hypot(pt.north - north, pt.east - east) <= share * extent:
+                labels.append(pt.label)
+                break
+        else:
+            groups.append(((pt.north, pt.east), [pt.label]))
+    return [(where, ", ".join(labels)) for where, labels in groups]
+
+
+def _extent(ax: Any) -> float:
+    ax.relim()
+    (x0, y0), (x1, y1) = ax.dataLim.get_points()
+    return max(x1 - x0, y1 - y0, 1.0)
 
 
 def plot_fig16a(records: list[dict[str, Any]], out_png: str | Path, title: str | None = None,
@@ -61,9 +83,9 @@ def plot_fig16a(records: list[dict[str, Any]], out_png: str | Path, title: str |
         if path:
             ax.plot([p[1] for p in path], [p[0] for p in path], color=PATH_COLOR, lw=1.0, alpha=0.85,
                     label="actual path")
-        for pt in points(records, segs):
-            ax.plot(pt.east, pt.north, "k.", ms=6)
-            ax.annotate(pt.label, (pt.east, pt.north), textcoords="offset points", xytext=(5, 5), fontsize=9,
+        for (north, east), label in label_groups(points(records, segs), _extent(ax)):
+            ax.plot(east, north, "k.", ms=6)
+            ax.annotate(label, (east, north), textcoords="offset points", xytext=(5, 5), fontsize=9,
                         fontweight="bold")
         ax.set_aspect("equal", adjustable="datalim")
         ax.set_xlabel("east (m)")
@@ -72,7 +94,7 @@ def plot_fig16a(records: list[dict[str, Any]], out_png: str | Path, title: str |
         ax.set_title(title or "Position and its setpoints during the mission (seed 000 Fig. 16a)",
                      fontsize=10)
         if ax.get_legend_handles_labels()[0]:
-            ax.legend(loc="best", fontsize=8)
+            ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False)
         out = Path(out_png)
         fig.savefig(out, format="png", bbox_inches="tight")
     finally:

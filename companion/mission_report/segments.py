@@ -255,8 +255,9 @@ def points(records: list[dict[str, Any]], segs: list[Segment] | None = None) -> 
 
 # --- the table ----------------------------------------------------------------------------------------
 def fig16b_table(records: list[dict[str, Any]], min_setpoints: int = 3) -> list[dict[str, Any]]:
-    """One row per segment with Fig. 16b's columns (:data:`TABLE_COLUMNS`), plus ``node``, ``t0``, ``t1``
-    and ``commands`` (the command keys of the segment)."""
+    """One row per segment with Fig. 16b's columns (:data:`TABLE_COLUMNS`), plus ``node``, ``t0``, ``t1``,
+    ``commands`` (the command keys of the segment) and ``tracking`` (its :class:`MissionTracking`, all of
+    its position setpoints)."""
     segs = segments(records, min_setpoints)
     pts = points(records, segs)
     rows: list[dict[str, Any]] = []
@@ -270,35 +271,49 @@ def fig16b_table(records: list[dict[str, Any]], min_setpoints: int = 3) -> list[
                      "Horizontal": MODE_NAMES.get(h, h), "Vertical": MODE_NAMES.get(v, v),
                      "Heading": MODE_NAMES.get(hd, hd), "End condition": ", ".join(ends) or "-",
                      "Flags": ", ".join(flags) or "-", "node": s.node, "t0": s.t0, "t1": s.t1,
-                     "commands": list(s.command_keys)})
+                     "commands": list(s.command_keys),
+                     "tracking": tracking(records, skip_takeoff=False, span=(s.i0, s.i1))})
     return rows
 
 
-def table_markdown(rows: list[dict[str, Any]]) -> str:
-    """Fig. 16b as a Markdown table."""
-    lines = ["| " + " | ".join(TABLE_COLUMNS) + " |", "|" + "---|" * len(TABLE_COLUMNS)]
-    lines += ["| " + " | ".join(str(r[c]) for c in TABLE_COLUMNS) + " |" for r in rows]
+def table_markdown(rows: list[dict[str, Any]], with_tracking: bool = False) -> str:
+    """Fig. 16b as a Markdown table; ``with_tracking`` adds each segment's horizontal and vertical
+    tracking error, max / RMS in cm, of its position setpoints (take-off and landing included: a row
+    shows what happened in it)."""
+    columns = [*TABLE_COLUMNS, *(("H max / RMS (cm)", "V max / RMS (cm)") if with_tracking else ())]
+    lines = ["| " + " | ".join(columns) + " |", "|" + "---|" * len(columns)]
+    for r in rows:
+        cells = [str(r[c]) for c in TABLE_COLUMNS]
+        if with_tracking:
+            tr: MissionTracking = r["tracking"]
+            cells += ["-" if not tr.compared else f"{tr.h_max_cm:.1f} / {tr.h_rms_cm:.1f}",
+                      "-" if not tr.compared else f"{tr.v_max_cm:.1f} / {tr.v_rms_cm:.1f}"]
+        lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
 
 
 # --- tracking ------------------------------------------------------------------------------------------
-def tracking(records: list[dict[str, Any]], skip_takeoff: bool = True) -> MissionTracking:
+def tracking(records: list[dict[str, Any]], skip_takeoff: bool = True,
+             span: tuple[int, int] | None = None) -> MissionTracking:
     """Horizontal and vertical max / RMS (cm) of the measured position against the streamed position
-    setpoints (module docstring). The measured positions are the ``position`` records (by
-    ``time_boot_ms``); a log without them uses the setpoint records' mirrored position at ``t - m_age``."""
+    setpoints (module docstring), of setpoints ``span`` = (i0, i1) inclusive only if given (a segment).
+    The measured positions are the ``position`` records (by ``time_boot_ms``); a log without them uses
+    the setpoint records' mirrored position at ``t - m_age``."""
     commands = {r["key"]: r for r in of_type(records, "command") if r.get("key") is not None}
     compared: list[tuple[float, tuple[float, float, float]]] = []
     excluded = 0
     samples: list[tuple[float, float, float, float]] = []
-    for sp in of_type(records, "setpoint"):
+    for i, sp in enumerate(of_type(records, "setpoint")):
+        if sp.get("m") is not None and sp.get("m_age") is not None:
+            samples.append((float(sp["t"]) - float(sp["m_age"]), *sp["m"]))
+        if span is not None and not span[0] <= i <= span[1]:
+            continue
         cmd = commands.get(sp.get("key")) or {}
         phase = bool(cmd.get("take_off") or cmd.get("allow_landing"))
         if sp.get("kind") != "POSITION" or (skip_takeoff and phase):
             excluded += 1
         else:
             compared.append((float(sp["t"]), tuple(sp["p"])))  # type: ignore[arg-type]
-        if sp.get("m") is not None and sp.get("m_age") is not None:
-            samples.append((float(sp["t"]) - float(sp["m_age"]), *sp["m"]))
     positions = [(float(r["t"]), *r["p"]) for r in of_type(records, "position")] or samples
     tr = tracking_error(compared, positions)  # type: ignore[arg-type]
     return MissionTracking(tr.compared, tr.skipped, excluded, tr.h_max * 100, tr.h_rms * 100, tr.v_max * 100,
