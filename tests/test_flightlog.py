@@ -360,3 +360,13 @@ def test_real_flight_is_logged_drawn_and_tabulated(tmp_path: Path,
     assert main(["mission", "plot", str(log_path), "--out", str(png), "--table", str(md)]) == 0
     assert png.read_bytes()[:4] == b"\x89PNG"
     assert "scan-ground (paused)" in capsys.readouterr().out
+
+
+def test_companion_takes_a_flight_log_option() -> None:
+    from taskflight.cli import build_parser
+
+    args = build_parser().parse_args(["companion", "--autopilot", "udpout:127.0.0.1:14550",
+                                      "--flight-log", "flight.jsonl"])
+    assert args.flight_log == "flight.jsonl"
+    without = build_parser().parse_args(["companion", "--autopilot", "udpout:127.0.0.1:14550"])
+    assert without.flight_log is None
