@@ -57,6 +57,9 @@ def add_companion_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--behavior-log", default=None, metavar="FILE",
                         help="append behavior and process events as JSON lines (for 'taskflight behaviors "
                              "timeline')")
+    parser.add_argument("--flight-log", default=None, metavar="FILE",
+                        help="write the flight log (JSON lines: setpoints, measured positions, commands, "
+                             "mission events; for 'taskflight mission plot')")
     parser.add_argument("--commands", default=None, metavar="YAML", help="flight commands to queue at start")
     parser.add_argument("--run", action="store_true", help="run the queue at start")
 
@@ -93,7 +96,12 @@ def run_companion(args: argparse.Namespace) -> int:
     stop = stop_on_signals()
     server = None
     layer = None
+    recorder = None
     try:
+        if args.flight_log:
+            from companion.flightlog import FlightRecorder
+
+            recorder = FlightRecorder(node, args.flight_log)  # the execution system sets .active_node
         node.start()
         if behavior_catalog is not None:
             layer = ExecutiveLayer.for_node(node, catalog=behavior_catalog,
@@ -116,4 +124,6 @@ def run_companion(args: argparse.Namespace) -> int:
         if layer is not None:
             layer.close()
         node.close()
+        if recorder is not None:
+            recorder.close()
     return 0

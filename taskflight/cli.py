@@ -33,6 +33,10 @@ def _cmd_behaviors(args: argparse.Namespace) -> int:
     return args.behaviors_handler(args)
 
 
+def _cmd_mission(args: argparse.Namespace) -> int:
+    return args.mission_handler(args)
+
+
 def _cmd_behaviors_timeline(args: argparse.Namespace) -> int:
     from companion.behaviors.timeline import TimelineError, run_timeline
 
@@ -86,6 +90,13 @@ def build_parser() -> argparse.ArgumentParser:
     bp = sub.add_parser("behaviors", help="the executive layer: behaviors, beliefs, processes (seed 001)")
     add_behaviors_arguments(bp)
     handlers["behaviors"] = _cmd_behaviors
+
+    mp = sub.add_parser("mission", help="the mission layer: TST missions and their flight logs (seed 000)")
+    msub = mp.add_subparsers(dest="mission_command", required=True, metavar="SUBCOMMAND")
+    from companion.mission_report.cli import add_mission_plot_arguments
+
+    add_mission_plot_arguments(msub)
+    handlers["mission"] = _cmd_mission
 
     parser.set_defaults(_handlers=handlers)
     return parser

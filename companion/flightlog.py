@@ -1,0 +1,258 @@
+"""The companion's flight log (``--flight-log FILE``): what Fig. 16 of seed 000 is drawn from.
+
+Seed 000 Sec. VII shows one scan-and-search flight twice: Fig. 16a the picture (the area, the scan
+pattern, the position setpoints P_d, the actual path, the points p0..p12 where the executing flight
+command changes) and Fig. 16b the table of segments (the TST executor, the segment endpoints, the
+H / V / Hd channel modes, the end condition, the take-off / allow-landing flags); the text gives the
+tracking error (horizontal and vertical, "excluding takeoff"). :class:`FlightRecorder` writes
+everything those need, as JSON lines, while the companion flies; :mod:`companion.mission_report`
+draws and tabulates it.
+
+Record types (one JSON object per line; ``t`` is always autopilot time in seconds, the clock the
+companion follows; positions local NED metres, angles radians)::
+
+    {"type": "header", "t": 12.0, "format": "taskflight-flight-log", "version": 1, "rate_hz": 20.0}
+    {"type": "command", "t": 14.05, "key": "c17", "command_id": 17, "behaviour_id": null,
+     "h": "POS", "v": "WITH_HOR", "hd": "FLIGHT_DIR", "end": ["e_h"], "e_wait": null,
+     "take_off": false, "allow_landing": false, "spec": {...}}          # once per command key
+    {"type": "setpoint", "t": 14.10, "key": "c17", "command_id": 17, "behaviour_id": null,
+     "node": "n3", "kind": "POSITION", "p": [n, e, d], "v": [vn, ve, vd], "yaw": 0.0,
+     "m": [n, e, d], "mv": [vn, ve, vd], "m_age": 0.03, "mode": "GUIDED", "armed": true,
+     "landed": false, "extra": {...}}                                   # one per streamed setpoint
+    {"type": "position", "t": 14.12, "p": [n, e, d], "v": [vn, ve, vd]}  # each LOCAL_POSITION_NED
+    {"type": "event", "t": 30.5, "event": "break_in_start", "node": "n3", ...}   # mark(event, ...)
+
+* ``command`` describes the flight command producing the setpoints: ``key`` is ``c<command_id>``
+  for a queued command, ``b:<behaviour_id>`` for a pause behaviour of the queue (seed 000 Sec. V:
+  e.g. ``joystick``, all channels ExtVel), whose first command is described (``n_commands`` says how
+  many it has). ``end`` lists the raised flags of the end condition (Fig. 8: e_h, e_v, e_hd, e_any,
+  e_user), ``e_wait`` its timeout; ``spec`` is the full command
+  (:func:`companion.flight.codec.command_to_dict`).
+* ``setpoint``: ``key`` is null while the queue holds without a command; ``m`` / ``mv`` the mirrored
+  LOCAL_POSITION_NED at the tick and ``m_age`` how much older than ``t`` it is (null before the
+  first; slightly negative when a sample newer than the tick's scheduled time has already arrived);
+  ``node`` the active TST node (the execution system's callable); ``extra`` whatever the ``extra``
+  callable returned (left out when empty).
+* ``position``: the autopilot's own report, stamped by its ``time_boot_ms``, also while nothing is
+  streamed (the autopilot's take-off, LAND), so the actual path is complete.
+* ``event``: written by :meth:`FlightRecorder.mark` for the execution system. Names used by the
+  report: ``plan`` (``area_ne`` [[n, e], ...], ``waypoints_neu`` [[n, e, up], ...], ``nodes``
+  [{"id", "type"}, ...]); ``node_started`` / ``node_finished`` / ``node_paused`` /
+  ``node_continued`` / ``node_enoughed`` / ``node_aborted`` (``node``); ``break_in_start`` /
+  ``break_in_end`` (``node``; the end with ``outcome`` continued | enoughed | aborted);
+  ``detection`` (e.g. ``object``, ``position``). Other names are kept and ignored by the report.
+
+:func:`read_flight_log` reads a log back; a line that is not a JSON object with ``type`` and a
+numeric ``t`` is a :class:`FlightLogError` naming the file and line.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+import threading
+from collections.abc import Callable
+from pathlib import Path
+from typing import IO, TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from companion.flight.commands import FlightCommand
+    from companion.flight.setpoint import Setpoint
+    from companion.link.setpoints import TargetFields
+    from companion.node import QuadNode
+
+log = logging.getLogger(__name__)
+
+FORMAT = "taskflight-flight-log"
+VERSION = 1
+RECORD_TYPES = frozenset({"header", "command", "setpoint", "position", "event"})
+_RESERVED = frozenset({"t", "type", "event"})
+
+
+class FlightLogError(ValueError):
+    """A malformed flight-log line; the message names the file and line."""
+
+
+def _r(x: float, nd: int = 4) -> float | None:
+    """A float rounded for the log (mm and better); None for NaN / infinite."""
+    x = float(x)
+    return round(x, nd) if math.isfinite(x) else None
+
+
+def _vec(v: Any) -> list[float | None]:
+    return [_r(x) for x in v]
+
+
+def describe_command(key: str, command: FlightCommand, *, command_id: int | None = None,
+                     behaviour_id: str | None = None, n_commands: int = 1) -> dict[str, Any]:
+    """The ``command`` record's fields for one flight command (seed 000 Fig. 7-8, Fig. 16b's columns)."""
+    from companion.flight.codec import command_to_dict
+
+    end = command.end
+    return {"key": key, "command_id": command_id, "behaviour_id": behaviour_id,
+            "h": command.horizontal.mode.name, "v": command.vertical.mode.name,
+            "hd": command.heading.mode.name,
+            "end": [name for name in ("e_h", "e_v", "e_hd", "e_any", "e_user") if getattr(end, name)],
+            "e_wait": end.e_wait, "take_off": command.vertical.take_off,
+            "allow_landing": command.vertical.allow_landing, "n_commands": n_commands,
+            "spec": command_to_dict(command)}
+
+
+class FlightRecorder:
+    """Writes a QuadNode's flight log (see the module docstring for the records).
+
+    Attached to the node's ``setpoint_listeners`` (tick thread, 20-50 Hz: one snapshot of the mirror,
+    one dict, one write) and to its link's ``listeners`` (receive thread: LOCAL_POSITION_NED only, with
+    ``positions``). ``active_node`` returns the active TST node's id (the execution system provides
+    it); ``extra`` adds fields to each setpoint record. Thread-safe (one lock), every line flushed.
+    """
+
+    def __init__(self, node: QuadNode, path: str | Path, active_node: Callable[[], str | None] = lambda: None,
+                 extra: Callable[[], dict[str, Any]] | None = None, *, positions: bool = True) -> None:
+        self.node = node
+        self.path = Path(path)
+        self.active_node = active_node
+        self.extra = extra
+        self.records_written = 0
+        self._lock = threading.Lock()
+        self._file: IO[str] | None = self.path.open("w", encoding="utf-8")
+        self._described: set[str] = set()
+        self._callback_failed = False
+        self._write({"type": "header", "t": _r(node.clock.now()), "format": FORMAT, "version": VERSION,
+                     "rate_hz": node.rate_hz})
+        node.setpoint_listeners.append(self._on_setpoint)
+        if positions:
+            node.link.listeners.append(self._on_message)
+
+    # --- writing ---------------------------------------------------------------------------------------
+    def _write(self, record: dict[str, Any]) -> None:
+        line = json.dumps(record, separators=(",", ":"))
+        with self._lock:
+            if self._file is None:
+                return
+            self._file.write(line + "\n")
+            self._file.flush()
+            self.records_written += 1
+
+    def mark(self, event: str, **fields: Any) -> None:
+        """A mission event at the autopilot's current time (e.g. ``mark("break_in_start", node="n3")``);
+        ``plan`` carries the area, the scan waypoints and the nodes (module docstring)."""
+        if not event or not isinstance(event, str):
+            raise ValueError("mark: the event name must be a non-empty string")
+        clash = _RESERVED & fields.keys()
+        if clash:
+            raise ValueError(f"mark: field(s) {sorted(clash)} are reserved")
+        self._write({"type": "event", "t": _r(self.node.clock.now()), "event": event, **fields})
+
+    def close(self) -> None:
+        """Detach from the node and close the file (idempotent)."""
+        for listeners, fn in ((self.node.setpoint_listeners, self._on_setpoint),
+                              (self.node.link.listeners, self._on_message)):
+            if fn in listeners:
+                listeners.remove(fn)
+        with self._lock:
+            if self._file is not None:
+                self._file.close()
+                self._file = None
+
+    def __enter__(self) -> FlightRecorder:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # --- listeners -----------------------------------------------------------------------------------------
+    def _call(self, fn: Callable[[], Any]) -> Any:
+        try:
+            return fn()
+        except Exception:
+            if not self._callback_failed:
+                self._callback_failed = True
+                log.exception("flight log: a recorder callback failed (logged once)")
+            return None
+
+    def _command_key(self, sp: Setpoint) -> str | None:
+        if sp.behaviour_id is not None:
+            key = f"b:{sp.behaviour_id}"
+            if key not in self._described:
+                try:
+                    behaviour = self.node.queue.catalog.get(sp.behaviour_id)
+                except (KeyError, ValueError):
+                    return key
+                self._described.add(key)
+                self._write({"type": "command", "t": _r(sp.t_s), **describe_command(
+                    key, behaviour.commands[0], behaviour_id=sp.behaviour_id,
+                    n_commands=len(behaviour.commands))})
+            return key
+        if sp.command_id is None:
+            return None
+        key = f"c{sp.command_id}"
+        if key not in self._described:
+            entry = next((e for e in self.node.queue.entries if e.id == sp.command_id), None)
+            if entry is None:
+                return key
+            self._described.add(key)
+            self._write({"type": "command", "t": _r(sp.t_s),
+                         **describe_command(key, entry.command, command_id=sp.command_id)})
+        return key
+
+    def _on_setpoint(self, sp: Setpoint, _fields: TargetFields, t_ap: float) -> None:
+        s = self.node.link.mirror.snapshot()
+        key = self._command_key(sp)
+        record: dict[str, Any] = {
+            "type": "setpoint", "t": _r(t_ap), "key": key, "command_id": sp.command_id,
+            "behaviour_id": sp.behaviour_id, "node": self._call(self.active_node), "kind": sp.kind.name,
+            "p": _vec(sp.p), "v": _vec(sp.v), "yaw": _r(sp.yaw), "m": None, "mv": None, "m_age": None,
+            "mode": s.mode_name, "armed": s.armed, "landed": s.landed}
+        if s.position is not None:
+            record["m"] = _vec(s.position)
+            record["mv"] = _vec(s.velocity)
+            if s.position_time_ms is not None:
+                record["m_age"] = _r(t_ap - s.position_time_ms * 1e-3)
+        if self.extra is not None:
+            extra = self._call(self.extra)
+            if extra:
+                record["extra"] = extra
+        self._write(record)
+
+    def _on_message(self, msg: Any) -> None:
+        if msg.get_type() == "LOCAL_POSITION_NED":
+            self._write({"type": "position", "t": _r(msg.time_boot_ms * 1e-3),
+                         "p": _vec((msg.x, msg.y, msg.z)), "v": _vec((msg.vx, msg.vy, msg.vz))})
+
+
+def read_flight_log(path: str | Path) -> list[dict[str, Any]]:
+    """The records of a flight log, in file order. Blank lines are skipped; a line that is not a JSON
+    object with a string ``type`` and a numeric ``t`` raises :class:`FlightLogError` naming file:line.
+    Unknown record types are kept (a newer writer); the report ignores them."""
+    records: list[dict[str, Any]] = []
+    with Path(path).open(encoding="utf-8") as f:
+        for lineno, line in enumerate(f, 1):
+            if not line.strip():
+                continue
+            where = f"{path}:{lineno}"
+            try:
+                record = json.loads(line)
+            except json.JSONDecodeError as exc:
+                raise FlightLogError(f"{where}: not JSON ({exc.msg} at column {exc.colno})") from None
+            if not isinstance(record, dict):
+                raise FlightLogError(f"{where}: expected a JSON object, got {type(record).__name__}")
+            if not isinstance(record.get("type"), str):
+                raise FlightLogError(f"{where}: no record type ('type' missing or not a string)")
+            t = record.get("t")
+            if isinstance(t, bool) or not isinstance(t, int | float):
+                raise FlightLogError(f"{where}: 't' (autopilot time, s) missing or not a number")
+            if record["type"] == "setpoint" and not _is_vec(record.get("p")):
+                raise FlightLogError(f"{where}: setpoint without a position 'p' [n, e, d]")
+            if record["type"] == "position" and not _is_vec(record.get("p")):
+                raise FlightLogError(f"{where}: position without 'p' [n, e, d]")
+            if record["type"] == "event" and not isinstance(record.get("event"), str):
+                raise FlightLogError(f"{where}: event without an 'event' name")
+            records.append(record)
+    return records
+
+
+def _is_vec(v: Any) -> bool:
+    return (isinstance(v, list) and len(v) == 3
+            and all(isinstance(x, int | float) and not isinstance(x, bool) for x in v))
