@@ -157,6 +157,7 @@ class TstExecutor:
                 if self.status.paused:
                     self.lifecycle.continue_requested()
                     self.ctx.mark("node_continued", node=self.node.id, by="operator confirmation")
+                    self.ctx.mark("break_in_end", node=self.node.id, outcome="continued")
         if self.activation_id is None:
             return
         ended = self._ended(self.activation_id)
@@ -170,7 +171,7 @@ class TstExecutor:
             if self.status.paused:
                 self.lifecycle.continue_requested()
             self.lifecycle.succeed()
-            self._finished("node_succeeded")
+            self._finished("node_finished", state="succeeded")
         else:
             detail = f": {ended.detail}" if ended.detail else ""
             self._fail(f"{ended.behavior} {ended.cause.value}{detail}")
@@ -185,23 +186,24 @@ class TstExecutor:
             raise ExecutionRequestError(f"{self.node.id}: pause refused: {result.reason}")
         self.break_in_id = result.activation_id
         self.ctx.mark("node_paused", node=self.node.id, control=control, activation=self.break_in_id)
+        self.ctx.mark("break_in_start", node=self.node.id, control=control)
         return self.status
 
     def continue_requested(self) -> NodeExecutionStatus:
         self.lifecycle.continue_requested()
-        self._end_break_in()
+        self._end_break_in("continued")
         self.ctx.mark("node_continued", node=self.node.id, by="continue")
         return self.status
 
     def enough_requested(self) -> NodeExecutionStatus:
         self.lifecycle.enough_requested()
-        self._stop_behavior()
+        self._stop_behavior("enoughed")
         self._finished("node_enoughed")
         return self.status
 
     def abort(self, reason: str = "") -> NodeExecutionStatus:
         self.lifecycle.abort(reason)
-        self._stop_behavior()
+        self._stop_behavior("aborted")
         self._finished("node_aborted", reason=reason)
         return self.status
 
@@ -210,15 +212,16 @@ class TstExecutor:
         ended = self.ctx.coordinator.ended
         return next((e for e in reversed(ended) if e.activation_id == activation_id), None)
 
-    def _end_break_in(self) -> None:
+    def _end_break_in(self, outcome: str) -> None:
         if self.break_in_id is not None:
             self._own_ends.add(self.break_in_id)
             if self._ended(self.break_in_id) is None:
                 self.ctx.coordinator.inhibit(self.break_in_id, "operator")
             self.break_in_id = None
+            self.ctx.mark("break_in_end", node=self.node.id, outcome=outcome)
 
-    def _stop_behavior(self) -> None:
-        self._end_break_in()
+    def _stop_behavior(self, outcome: str) -> None:
+        self._end_break_in(outcome)
         if self.activation_id is not None:
             self._own_ends.add(self.activation_id)
             act = self.ctx.coordinator.activation(self.behavior or "")
@@ -226,9 +229,9 @@ class TstExecutor:
                 self.ctx.coordinator.inhibit(self.activation_id, "mission")
 
     def _fail(self, reason: str) -> None:
-        self._end_break_in()
+        self._end_break_in("aborted")
         self.lifecycle.fail(reason)
-        self._finished("node_failed", reason=reason)
+        self._finished("node_finished", state="failed", reason=reason)
 
     def _finished(self, event: str, **fields: Any) -> None:
         self.on_end()
