@@ -54,6 +54,27 @@ def add_behaviors_arguments(parser: argparse.ArgumentParser) -> None:
     tp.set_defaults(behaviors_handler=_cmd_behaviors_timeline)
 
 
+def _cmd_mission(args: argparse.Namespace) -> int:
+    return args.mission_handler(args)
+
+
+def _cmd_mission_check(args: argparse.Namespace) -> int:
+    from taskflight.mission_check import run_mission_check
+
+    return run_mission_check(args)
+
+
+def add_mission_arguments(parser: argparse.ArgumentParser) -> None:
+    """``taskflight mission SUBCOMMAND``: each sub-command sets ``mission_handler``."""
+    msub = parser.add_subparsers(dest="mission_command", required=True, metavar="SUBCOMMAND")
+    cp = msub.add_parser("check", help="delegate a mission file to a platform offline (exit 0 accepted, "
+                                       "1 rejected, 2 bad file)")
+    from taskflight.mission_check import add_check_arguments
+
+    add_check_arguments(cp)
+    cp.set_defaults(mission_handler=_cmd_mission_check)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="taskflight", description=__doc__.splitlines()[0])
     parser.add_argument("-v", "--verbose", action="count", default=0, help="more log output (-vv: debug)")
@@ -86,6 +107,10 @@ def build_parser() -> argparse.ArgumentParser:
     bp = sub.add_parser("behaviors", help="the executive layer: behaviors, beliefs, processes (seed 001)")
     add_behaviors_arguments(bp)
     handlers["behaviors"] = _cmd_behaviors
+
+    mp = sub.add_parser("mission", help="Task Specification Tree missions: check (delegation) ... (seed 000)")
+    add_mission_arguments(mp)
+    handlers["mission"] = _cmd_mission
 
     parser.set_defaults(_handlers=handlers)
     return parser
