@@ -115,9 +115,10 @@ def test_free_parameters_are_fixed_and_written_into_the_delegated_copy() -> None
     m = mission({"type": "scan-ground", "id": "scan",
                  "params": {"area": area(2, -3, 8, 3), "speed": "slow | standard",
                             "altitude": "unspecified"}},
-                fly_to("go", 5, 5, 3.0, commanded_speed={"interval": [1.0, 5.0]}))
+                fly_to("go", 5, 5, 3.0, commanded_speed={"interval": [1.0, 5.0]}), fly_to("walk", 3, 3, 2.0))
     d = delegate(m, INDOOR)
     assert d.accepted, d.reasons
+    assert d.fixed["walk.speed"] == "standard" and d.plans["walk"].speed_m_s == INDOOR.speeds["standard"]
     assert d.fixed["scan.speed"] == "standard" and d.fixed["scan.altitude"] == "standard"
     assert 1.0 <= d.fixed["go.commanded_speed"] <= INDOOR.max_speed[0]
     node = d.mission.root.find("go")
@@ -165,6 +166,17 @@ tree:
     # IF counts its longer branch, C its longer child, WHILE one pass
     leaves = {i: d.plans[i].expected_s for i in ("n2", "sweep", "look")}
     assert d.expected_s >= sum(leaves.values()) + 3
+
+
+def test_relations_between_parameters_and_platform_quantities() -> None:
+    m = mission(fly_to("go", 5, 5, 3.0, commanded_speed="commanded_speed <= 0.5 * max_speed"),
+                {"type": "wait", "id": "w", "params": {"duration": {"interval": [2, 6]}}})
+    d = delegate(m, INDOOR)
+    assert d.accepted, d.reasons
+    assert min(INDOOR.speeds.values()) <= d.fixed["go.commanded_speed"] <= 0.5 * INDOOR.max_speed[0] + 1e-9
+    assert d.fixed["w.duration"] == pytest.approx(4.0) and d.plans["w"].duration_s == pytest.approx(4.0)
+    bad = delegate(mission(fly_to("go", 5, 5, 3.0, commanded_speed="commanded_speed <= fuel")), INDOOR)
+    assert not bad.accepted and "unknown name 'fuel'" in bad.reasons[0]
 
 
 def test_waypoint_scan_with_any_order_flies_a_shorter_order() -> None:

@@ -176,8 +176,9 @@ def delegate(mission: Mission, platform: Platform) -> Delegation:
         if n.type == "scan-ground":
             plan = plans[str(n.id)]
             word = values[str(n.id)].get("speed")
-            for child in expand(n, platform, values[str(n.id)], plan, speed_word=word):
-                plans[str(child.id)] = _child_plan(child, plan, platform)
+            kids = expand(n, platform, values[str(n.id)], plan, speed_word=word)
+            for idx, child in enumerate(kids):
+                plans[str(child.id)] = _child_plan(child, idx, plan, platform)
     expected = _tree_seconds(root, {k: p.expected_s or 0.0 for k, p in plans.items()})
     seconds = time.perf_counter() - t0
     log.info("delegation of %s to %s accepted in %.1f ms: %d nodes, expected %.1f s of %.1f s endurance",
@@ -258,6 +259,9 @@ def _apply(node: TstNode, platform: Platform, sol: Solution, values: dict[str, A
     choice = sol.choices.get(var(node, "speed"))
     if choice is not None:
         values["speed"] = choice
+        if "speed" not in node.params and "commanded_speed" not in node.params:  # absent: free
+            node.params["speed"] = choice
+            fixed_out[f"{node.id}.speed"] = choice
     for key, value in list(node.params.items()):
         if key == "speed" and (isinstance(value, Qualitative) or value == "unspecified") and choice:
             node.params[key] = choice
@@ -270,8 +274,8 @@ def _apply(node: TstNode, platform: Platform, sol: Solution, values: dict[str, A
         fixed_out[f"{node.id}.{key}"] = node.params[key]
 
 
-def _child_plan(child: TstNode, scan: NodePlan, platform: Platform) -> NodePlan:
-    idx = int(str(child.id).rsplit("wp", 1)[-1]) - 1 if ".wp" in str(child.id) else 0
+def _child_plan(child: TstNode, idx: int, scan: NodePlan, platform: Platform) -> NodePlan:
+    """The plan of the ``idx``-th fly-to child of an expanded scan (its waypoint ``idx + 1``)."""
     wps = scan.waypoints_neu
     target = wps[min(idx, len(wps) - 1)]
     if idx == 0:

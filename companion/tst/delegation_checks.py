@@ -117,11 +117,15 @@ def _qualitative_allowed(value: Any, options: dict[str, float]) -> list[str] | N
     return None
 
 
-def _number(problem: ConstraintProblem, name: str, value: Any, label: str, lo: float | None = None) -> None:
-    """Declare a numeric parameter: a given value, an interval, or free (a relation constrains it)."""
+def _number(problem: ConstraintProblem, name: str, value: Any, label: str, lo: float | None = None,
+            hi: float | None = None) -> None:
+    """Declare a numeric parameter: a given value, an interval, or free in ``[lo, hi]`` (a relation
+    constrains it; the solver's default objective puts it in the middle, or at ``lo`` without ``hi``)."""
     if isinstance(value, Interval):
         problem.variable(name, lo=value.lo, hi=value.hi,
                          label=f"{label} in [{value.lo:g}, {value.hi:g}] (given)")
+    elif (isinstance(value, LinearRelation) or value is None) and hi is not None and lo is not None:
+        problem.variable(name, lo=lo, hi=hi, label=f"{label} in [{lo:g}, {hi:g}] (platform)")
     elif isinstance(value, LinearRelation) or value is None:
         problem.variable(name, lo=lo, label=f"{label} >= {lo:g}" if lo is not None else None)
     else:
@@ -154,7 +158,8 @@ def get_constraints(node: TstNode, platform: Platform, problem: ConstraintProble
             given = p["commanded_speed"]
             if plan is not None:
                 given = fixed.get("commanded_speed", given)
-            _number(problem, speed, given, f"{nid}.commanded_speed", lo=0.0)
+            _number(problem, speed, given, f"{nid}.commanded_speed", lo=min(platform.speeds.values()),
+                    hi=platform.max_speed[0])
         else:
             allowed = _qualitative_allowed(p.get("speed"), dict(platform.speeds))
             problem.qualitative(speed, dict(platform.speeds), allowed=allowed, prefer="standard",
