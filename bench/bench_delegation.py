@@ -15,11 +15,24 @@ in ms):
 * altitude: one leaf's given altitude is above the ceiling; the conflict search names the two;
 * endurance: the endurance is shorter than the whole flight at fast speed; the conflict names the
   endurance, the sum and every leaf's free speed set.
+
+A second table times the whole of :func:`companion.tst.delegation.delegate` (check, constraints, first
+solve, plans with scan patterns, second solve with the durations, expansion) on 100-node mission trees
+on the bundled outdoor platform (its battery made large enough, except in the rejected case):
+
+* fly-to: S of take-off, 97 fly-to to random points inside the fence (speeds ``standard | fast``), land;
+* scan-ground: S of take-off, 49 fly-to and 48 scan-ground nodes over 30 x 30 m areas (each expands
+  into its waypoints' fly-to children), land;
+* fly-to, endurance 85 %: the fly-to tree with an endurance of 85 % of its flight at standard speed: the
+  second solve flies as few legs fast as needed;
+* fly-to, endurance 50 %: shorter than the flight at fast speed: rejected, the conflict search names the
+  endurance and the speeds.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import random
 import statistics
 import sys
@@ -31,6 +44,10 @@ sys.path.insert(0, str(ROOT))
 
 from bench.common import machine, table  # noqa: E402
 from companion.tst.constraints import ConstraintProblem, Solution  # noqa: E402
+from companion.tst.delegation import Delegation, delegate  # noqa: E402
+from companion.tst.delegation_plan import local_to_geopoint  # noqa: E402
+from companion.tst.platform import Platform, bundled_platform  # noqa: E402
+from companion.tst.spec import Mission, mission_from_dict  # noqa: E402
 
 SPEEDS = {"slow": 1.0, "standard": 3.0, "fast": 5.0}
 CEILING_M = 30.0
@@ -84,6 +101,64 @@ def run(tree: list[tuple[str, str, float]], endurance_s: float, bad_altitude: bo
     return build_ms, solve_ms, sol, p
 
 
+def mission_tree(platform: Platform, nodes: int, scans: bool, seed: int) -> Mission:
+    """S(take-off, nodes - 3 leaves, land): fly-to (and scan-ground) inside the outdoor fence."""
+    rng = random.Random(seed)
+
+    def geo(n: float, e: float, up: float | None = None) -> list[float]:
+        lat, lon, alt = local_to_geopoint((n, e, up or 0.0), platform)
+        return [lat, lon] if up is None else [lat, lon, alt]
+
+    leaves: list[dict] = [{"type": "take-off"}]
+    for i in range(nodes - 3):
+        n, e = rng.uniform(-150, 150), rng.uniform(-150, 150)
+        if scans and i % 2:
+            area = [geo(n, e), geo(n, e + 30), geo(n + 30, e + 30), geo(n + 30, e)]
+            leaves.append({"type": "scan-ground", "params": {"area": area, "speed": "standard | fast"}})
+        else:
+            leaves.append({"type": "fly-to", "params": {"position": geo(n, e, rng.uniform(10, 40)),
+                                                         "speed": "standard | fast"}})
+    leaves.append({"type": "land"})
+    return mission_from_dict({"mission": f"bench-{nodes}", "tree": {"type": "S", "children": leaves}})
+
+
+def run_delegate(mission: Mission, platform: Platform, runs: int) -> tuple[list[float], Delegation]:
+    times, result = [], None
+    for _ in range(runs):
+        result = delegate(mission, platform)
+        times.append(result.seconds * 1e3)
+    assert result is not None
+    return times, result
+
+
+def delegate_table(nodes: int, runs: int, seed: int) -> str:
+    base = bundled_platform("outdoor")
+    roomy = dataclasses.replace(base, battery_capacity_s=1e6, reserve_s=0.0)
+    rows = []
+    for name, scans in (("fly-to", False), ("scan-ground", True)):
+        m = mission_tree(base, nodes, scans, seed)
+        times, d = run_delegate(m, roomy, runs)
+        assert d.accepted, d.reasons
+        fast = sum(1 for v in d.fixed.values() if v == "fast")
+        rows.append((name, nodes, sum(1 for _ in d.mission.root.iter()), d.waypoints, round(d.expected_s),
+                     statistics.mean(times), max(times), f"accepted ({fast} fast)"))
+        if not scans:  # an endurance of 85 % of the flight at standard speed: some legs fly fast
+            tight = dataclasses.replace(roomy, battery_capacity_s=0.85 * d.expected_s)
+            times, r = run_delegate(m, tight, runs)
+            assert r.accepted, r.reasons
+            fast = sum(1 for v in r.fixed.values() if v == "fast")
+            rows.append(("fly-to, endurance 85 %", nodes, nodes, 0, round(r.expected_s),
+                         statistics.mean(times), max(times), f"accepted ({fast} fast)"))
+            # half of it: not even all fast is short enough
+            short = dataclasses.replace(roomy, battery_capacity_s=0.5 * d.expected_s)
+            times, r = run_delegate(m, short, runs)
+            assert not r.accepted
+            rows.append(("fly-to, endurance 50 %", nodes, nodes, 0, "-", statistics.mean(times), max(times),
+                         f"rejected ({len(r.solution.conflict) if r.solution else 0} constraints named)"))
+    return table(["tree", "nodes", "nodes expanded", "scan waypoints", "expected s", "delegate mean",
+                  "delegate max", "result"], rows)
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--nodes", type=int, default=100, help="nodes of the tree (an S root and its leaves)")
@@ -114,6 +189,9 @@ def main() -> int:
           f"{args.runs} runs per case, times in ms\n")
     print(table(["case", "variables", "constraints", "build mean", "solve mean", "solve max", "total mean",
                  "total max", "result"], rows))
+    print(f"\ndelegate() of {args.nodes}-node mission trees on the outdoor platform, {args.runs} runs, "
+          "times in ms\n")
+    print(delegate_table(args.nodes, args.runs, args.seed))
     return 0
 
 

@@ -33,10 +33,6 @@ def _cmd_behaviors(args: argparse.Namespace) -> int:
     return args.behaviors_handler(args)
 
 
-def _cmd_mission(args: argparse.Namespace) -> int:
-    return args.mission_handler(args)
-
-
 def _cmd_behaviors_timeline(args: argparse.Namespace) -> int:
     from companion.behaviors.timeline import TimelineError, run_timeline
 
@@ -56,6 +52,30 @@ def add_behaviors_arguments(parser: argparse.ArgumentParser) -> None:
     tp.add_argument("--out", required=True, metavar="FILE.png", help="the PNG to write")
     tp.add_argument("--title", default=None, help="the figure's title")
     tp.set_defaults(behaviors_handler=_cmd_behaviors_timeline)
+
+
+def _cmd_mission(args: argparse.Namespace) -> int:
+    return args.mission_handler(args)
+
+
+def _cmd_mission_check(args: argparse.Namespace) -> int:
+    from taskflight.mission_check import run_mission_check
+
+    return run_mission_check(args)
+
+
+def add_mission_arguments(parser: argparse.ArgumentParser) -> None:
+    """``taskflight mission SUBCOMMAND``: each sub-command sets ``mission_handler``."""
+    msub = parser.add_subparsers(dest="mission_command", required=True, metavar="SUBCOMMAND")
+    cp = msub.add_parser("check", help="delegate a mission file to a platform offline (exit 0 accepted, "
+                                       "1 rejected, 2 bad file)")
+    from taskflight.mission_check import add_check_arguments
+
+    add_check_arguments(cp)
+    cp.set_defaults(mission_handler=_cmd_mission_check)
+    from companion.mission_report.cli import add_mission_plot_arguments
+
+    add_mission_plot_arguments(msub)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -91,11 +111,8 @@ def build_parser() -> argparse.ArgumentParser:
     add_behaviors_arguments(bp)
     handlers["behaviors"] = _cmd_behaviors
 
-    mp = sub.add_parser("mission", help="the mission layer: TST missions and their flight logs (seed 000)")
-    msub = mp.add_subparsers(dest="mission_command", required=True, metavar="SUBCOMMAND")
-    from companion.mission_report.cli import add_mission_plot_arguments
-
-    add_mission_plot_arguments(msub)
+    mp = sub.add_parser("mission", help="Task Specification Tree missions: check, plot, fig16 (seed 000)")
+    add_mission_arguments(mp)
     handlers["mission"] = _cmd_mission
 
     parser.set_defaults(_handlers=handlers)

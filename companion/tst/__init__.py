@@ -14,5 +14,11 @@ Modules, one job each:
 * :mod:`companion.tst.composite`: the Fig. 5 status of S, C and IF nodes derived from their children;
 * :mod:`companion.tst.constraints` (with :mod:`~companion.tst.linear`, :mod:`~companion.tst.milp`,
   :mod:`~companion.tst.conflict`): the consistency check of a tree's constraints (Sec. III-A) with a MILP
-  (scipy's HiGHS), fixing free parameters or naming the constraints in conflict.
+  (scipy's HiGHS), fixing free parameters or naming the constraints in conflict;
+* :mod:`companion.tst.platform`: ``Platform``, what a vehicle can do (fence, limits, speeds, sensors,
+  endurance), from ``mission_specs/platform_*.yaml``;
+* :mod:`companion.tst.delegation` (with :mod:`~companion.tst.delegation_checks` for ``check()`` and
+  ``get_constraints()`` and :mod:`~companion.tst.delegation_plan` for ``NodePlan`` and ``expand()``):
+  delegation of a tree to a platform (Sec. III-A, Fig. 3), accepted with a plan per node or rejected
+  with the reasons.
 """
