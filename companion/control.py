@@ -30,6 +30,8 @@ process-unique command ids (:mod:`companion.flight.events`).
                                            (streams: ext_pos, ext_vel, ext_heading, ext_point, rc_vel)
 ``/behaviors/...``, ``/beliefs``           the executive layer (seed 001), when served: see
                                            :mod:`companion.control_behaviors`
+``/mission``, ``/mission/...``             the mission layer (seed 000 Sec. III, VII), when served:
+                                           see :mod:`companion.control_mission`
 =========================================  ===========================================================
 
 Errors
@@ -76,6 +78,7 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from companion.behaviors.system import ExecutiveLayer
 from companion.control_behaviors import add_behavior_routes
+from companion.control_mission import add_mission_routes
 from companion.control_models import (
     UNION_TAGS,
     AcceptedResponse,
@@ -109,6 +112,7 @@ from companion.flight import (
     command_to_dict,
 )
 from companion.flight.events import TERMINAL
+from companion.mission_service import MissionService
 from companion.node import QuadNode
 from taskflight.yamlio import ConfigError
 
@@ -250,11 +254,13 @@ def _kinds(text: str | None) -> frozenset[EventKind]:
     return frozenset(out)
 
 
-def create_app(node: QuadNode, token: str | None = None, behaviors: ExecutiveLayer | None = None) -> FastAPI:
+def create_app(node: QuadNode, token: str | None = None, behaviors: ExecutiveLayer | None = None,
+               missions: MissionService | None = None) -> FastAPI:
     """The FastAPI application serving ``node``'s QAPI (see module docstring).
 
     ``token``: require ``Authorization: Bearer <token>`` on every endpoint (None: no authentication).
-    ``behaviors``: also serve the executive layer (:mod:`companion.control_behaviors`).
+    ``behaviors``: also serve the executive layer (:mod:`companion.control_behaviors`); ``missions``: the
+    mission layer (:mod:`companion.control_mission`).
     ``app.state.closing`` (a :class:`threading.Event`) ends pending ``/events/wait`` requests when set.
     """
     if token is not None and (not isinstance(token, str) or not token.strip()):
@@ -408,6 +414,8 @@ def create_app(node: QuadNode, token: str | None = None, behaviors: ExecutiveLay
 
     if behaviors is not None:
         add_behavior_routes(app, behaviors, RequestError)
+    if missions is not None:
+        add_mission_routes(app, missions, RequestError)
     return app
 
 
@@ -425,8 +433,9 @@ class ControlServer:
     """uvicorn serving :func:`create_app` on ``host:port`` in a background thread (port 0: any free)."""
 
     def __init__(self, node: QuadNode, port: int = 8765, host: str = "127.0.0.1",
-                 token: str | None = None, behaviors: ExecutiveLayer | None = None) -> None:
-        self.app = create_app(node, token, behaviors)
+                 token: str | None = None, behaviors: ExecutiveLayer | None = None,
+                 missions: MissionService | None = None) -> None:
+        self.app = create_app(node, token, behaviors, missions)
         config = uvicorn.Config(self.app, host=host, port=port, log_level="warning", lifespan="off",
                                 timeout_graceful_shutdown=2)
         self.server = uvicorn.Server(config)

@@ -16,6 +16,7 @@ from __future__ import annotations
 import argparse
 import logging
 import os
+from typing import Any
 
 from taskflight.runtime import stop_on_signals
 
@@ -60,6 +61,13 @@ def add_companion_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--flight-log", default=None, metavar="FILE",
                         help="write the flight log (JSON lines: setpoints, measured positions, commands, "
                              "mission events; for 'taskflight mission plot')")
+    parser.add_argument("--platform", default=None, metavar="YAML",
+                        help="the platform for delegation (default mission_specs/platform_indoor.yaml)")
+    parser.add_argument("--scenario", default=None, metavar="YAML",
+                        help="objects for the simulated downward camera (companion.sensing.scenario)")
+    parser.add_argument("--mission", default=None, metavar="YAML",
+                        help="a Task Specification Tree to delegate once the vehicle is heard (seed 000)")
+    parser.add_argument("--start", action="store_true", help="with --mission: start it once accepted")
     parser.add_argument("--commands", default=None, metavar="YAML", help="flight commands to queue at start")
     parser.add_argument("--run", action="store_true", help="run the queue at start")
 
@@ -77,7 +85,11 @@ def run_companion(args: argparse.Namespace) -> int:
     from companion.control import ControlServer
     from companion.flight import load_catalog, load_commands, load_flight_config
     from companion.flight.external import DEFAULT_MAX_VALIDITY_S
+    from companion.mission_service import MissionService
     from companion.node import QuadNode
+    from companion.sensing.scenario import Scenario
+    from companion.tst.platform import load_platform
+    from companion.tst.spec import load_mission
     from taskflight.yamlio import ConfigError
 
     try:
@@ -86,6 +98,11 @@ def run_companion(args: argparse.Namespace) -> int:
         commands = load_commands(args.commands) if args.commands else []
         behavior_catalog = None if args.no_behaviors else load_behavior_catalog(
             *([args.behavior_catalog] if args.behavior_catalog else []))
+        platform = load_platform(args.platform) if args.platform else None
+        scenario = Scenario.load(args.scenario) if args.scenario else None
+        mission = load_mission(args.mission) if args.mission else None
+        if mission is not None and behavior_catalog is None:
+            raise ValueError("--mission needs the executive layer (drop --no-behaviors)")
         node = QuadNode(args.autopilot, rate_hz=args.rate, limits=limits, envelope=envelope, catalog=catalog,
                         baud=args.baud, source_system=args.source_system,
                         max_validity_s=(DEFAULT_MAX_VALIDITY_S if args.max_validity is None
@@ -97,6 +114,7 @@ def run_companion(args: argparse.Namespace) -> int:
     server = None
     layer = None
     recorder = None
+    missions = None
     try:
         if args.flight_log:
             from companion.flightlog import FlightRecorder
@@ -104,14 +122,17 @@ def run_companion(args: argparse.Namespace) -> int:
             recorder = FlightRecorder(node, args.flight_log)  # the execution system sets .active_node
         node.start()
         if behavior_catalog is not None:
-            layer = ExecutiveLayer.for_node(node, catalog=behavior_catalog,
-                                            log_path=args.behavior_log).start()
+            layer = ExecutiveLayer.for_node(node, catalog=behavior_catalog, log_path=args.behavior_log,
+                                            scenario=scenario).start()
+            missions = MissionService(node, layer, platform, recorder=recorder)
+            if mission is not None and not _fly_mission(missions, mission, args.start, stop):
+                return 1
         node.add_commands(commands)
         if args.run:
             node.run()
         if args.control_port >= 0:
             server = ControlServer(node, args.control_port, host=args.control_host,
-                                   token=control_token(args), behaviors=layer).start()
+                                   token=control_token(args), behaviors=layer, missions=missions).start()
             log.info("companion: autopilot %s, %g Hz, control %s", args.autopilot, args.rate, server.url)
         while not stop.wait(0.5):
             pass
@@ -121,9 +142,28 @@ def run_companion(args: argparse.Namespace) -> int:
     finally:
         if server is not None:
             server.close()
+        if missions is not None:
+            missions.close()
         if layer is not None:
             layer.close()
         node.close()
         if recorder is not None:
             recorder.close()
     return 0
+
+
+def _fly_mission(missions: Any, mission: Any, start: bool, stop: Any) -> bool:
+    """Delegate ``mission`` once the vehicle's home is known; start it if asked. False if rejected."""
+    while missions.node.link.mirror.snapshot().home is None or not missions.layer.coordinator.is_active(
+            "SELF_LOCALIZE"):
+        if stop.wait(0.2):
+            return True
+    result = missions.submit(mission)
+    if not result.accepted:
+        for reason in result.reasons:
+            log.error("mission rejected: %s", reason)
+        return False
+    log.info("mission %s accepted: %d nodes, %d waypoints", mission.name, len(result.plans), result.waypoints)
+    if start:
+        missions.start()
+    return True

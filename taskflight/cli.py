@@ -74,8 +74,10 @@ def add_mission_arguments(parser: argparse.ArgumentParser) -> None:
     add_check_arguments(cp)
     cp.set_defaults(mission_handler=_cmd_mission_check)
     from companion.mission_report.cli import add_mission_plot_arguments
+    from taskflight.fig16 import add_fig16_arguments
 
     add_mission_plot_arguments(msub)
+    add_fig16_arguments(msub)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -20,7 +20,7 @@ mission:
 5. ``expand()`` of every scan-ground leaf (its waypoints become ``fly-to`` children), the free parameters
    of the copy replaced by their values.
 
-It either accepts, with every node's :class:`~companion.tst.delegation_plan.NodePlan`, or rejects with the
+It either accepts, with every node's :class:`~companion.tst.plan.NodePlan`, or rejects with the
 reasons. Durations over control nodes: S sums its children, C and IF take the longest child, WHILE counts
 one pass of its body; hover without a duration, external-velocity and operator requests count 0 s.
 """

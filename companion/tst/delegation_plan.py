@@ -18,12 +18,12 @@ from __future__ import annotations
 
 import itertools
 import math
-from dataclasses import dataclass, field
 from typing import Any
 
 from companion.executors.coverage import Sensor, line_spacing, scan_pattern, scan_specs
 from companion.executors.waypoint_order import order_segments, order_waypoints, path_length, segments
 from companion.tst.params import area_to_local, geopoint_to_local
+from companion.tst.plan import NodePlan
 from companion.tst.platform import Platform
 from companion.tst.tree import TstNode
 from taskflight.geo import ned_to_geodetic
@@ -31,43 +31,6 @@ from taskflight.geo import ned_to_geodetic
 __all__ = ["NodePlan", "expand", "leg_time", "local_to_geopoint", "plan_leaf"]
 
 NEU = tuple[float, float, float]
-
-
-@dataclass
-class NodePlan:
-    """What the executors need for one node, in the local frame (north, east, up from home)."""
-
-    node_id: str
-    task: str                 #: the task type
-    speed_m_s: float | None = None
-    altitude_m: float | None = None
-    position_neu: NEU | None = None   #: fly-to / land / hover target
-    waypoints_neu: list[NEU] = field(default_factory=list)  #: scan-ground, flight order
-    straight_line: bool = True
-    duration_s: float | None = None      #: wait / hover
-    expected_s: float | None = None      #: estimated time to run (for the endurance)
-    length_m: float | None = None
-    area_ne: list[tuple[float, float]] = field(default_factory=list)   #: scan-ground area (local)
-    extra: dict[str, Any] = field(default_factory=dict)   #: data_uuid, repeat, loiter_mode, scan specs...
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON form (tuples as lists, unset fields left out)."""
-        out: dict[str, Any] = {}
-        for key, value in self.__dict__.items():
-            if value is None or (isinstance(value, list | dict) and not value):
-                continue
-            out[key] = _jsonable(value)
-        return out
-
-
-def _jsonable(value: Any) -> Any:
-    if isinstance(value, tuple | list):
-        return [_jsonable(v) for v in value]
-    if isinstance(value, dict):
-        return {str(k): _jsonable(v) for k, v in value.items()}
-    if isinstance(value, float):
-        return round(value, 6)
-    return value
 
 
 def local_to_geopoint(neu: NEU, platform: Platform) -> tuple[float, float, float]:

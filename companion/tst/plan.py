@@ -30,17 +30,20 @@ class NodePlan:
     extra: dict[str, Any] = field(default_factory=dict)  # data_uuid, repeat, loiter_mode, scan specs...
 
     def to_dict(self) -> dict[str, Any]:
-        out: dict[str, Any] = {"node_id": self.node_id, "task": self.task}
-        for key in ("speed_m_s", "altitude_m", "position_neu", "duration_s", "expected_s", "length_m"):
-            value = getattr(self, key)
-            if value is not None:
-                out[key] = list(value) if isinstance(value, tuple) else value
-        if self.waypoints_neu:
-            out["waypoints_neu"] = [list(w) for w in self.waypoints_neu]
-        if self.area_ne:
-            out["area_ne"] = [list(a) for a in self.area_ne]
-        if self.task == "fly-to":
-            out["straight_line"] = self.straight_line
-        if self.extra:
-            out["extra"] = dict(self.extra)
+        """JSON form (tuples as lists, unset fields left out)."""
+        out: dict[str, Any] = {}
+        for key, value in self.__dict__.items():
+            if value is None or (isinstance(value, list | dict) and not value):
+                continue
+            out[key] = _jsonable(value)
         return out
+
+
+def _jsonable(value: Any) -> Any:
+    if isinstance(value, tuple | list):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, dict):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, float):
+        return round(value, 6)
+    return value

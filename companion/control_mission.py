@@ -1,0 +1,122 @@
+"""The mission layer on the control surface (issue 10 item 7; seed 000 Sec. III, VII).
+
+===============================  =====================================================================
+``POST /mission``                a mission: JSON (``{"mission": name, "tree": {...}}``, the YAML format's
+                                 structure) or YAML text (``Content-Type: application/yaml``); runs
+                                 delegation -> ``{"accepted": true, "tree": ..., "delegation": ...}``;
+                                 422 ``{"error", "reasons"}`` when the platform rejects it; 400 when
+                                 malformed (the message names the line and field)
+``POST /mission/start``          optional ``{"break_in": "joystick" | "hover"}`` (what a pause does)
+``POST /mission/pause``          the operator's break-in: optional ``{"behaviour_id": "joystick" |
+                                 "hover"}`` (default joystick: all channels from the operator's feed)
+``POST /mission/continue``       resume where it stopped
+``POST /mission/enough``         end the running task as done; the mission goes on with the next node
+``POST /mission/abort``          abort the mission (the vehicle hovers: KEEP_HOVERING)
+``GET  /mission``                the expanded tree: each node's id, type, parameters, plan, Fig. 4 flags,
+                                 Fig. 5 status and progress (e.g. "waypoint 4 of 12")
+===============================  =====================================================================
+
+A request the Fig. 4 flags or the mission's state forbid answers 409 with the reason.
+"""
+
+from __future__ import annotations
+
+import json
+from typing import Any
+
+from fastapi import FastAPI, Request
+from fastapi.responses import JSONResponse
+from pydantic import BaseModel, ConfigDict, Field
+
+from companion.mission_service import MissionService
+from companion.tst.spec import mission_from_dict, mission_from_yaml
+from companion.tst.status import ExecutionRequestError, NodeExecutionStatus
+from companion.tst.tree import TreeError
+from taskflight.yamlio import ConfigError
+
+YAML_TYPES = ("application/yaml", "application/x-yaml", "text/yaml", "text/x-yaml")
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+
+class StartRequest(_Strict):
+    break_in: str = Field("joystick", pattern="^(joystick|hover)$",
+                          description="what a pause does: the operator's joystick, or hold")
+
+
+class PauseMissionRequest(_Strict):
+    behaviour_id: str = Field("joystick", pattern="^(joystick|hover)$")
+
+
+class MissionVerbResponse(BaseModel):
+    ok: bool
+    state: str
+    status: dict[str, Any]
+
+
+class MissionAccepted(BaseModel):
+    accepted: bool
+    tree: dict[str, Any] | None
+    delegation: dict[str, Any]
+
+
+def add_mission_routes(app: FastAPI, service: MissionService, refuse: type[Exception]) -> None:
+    """Add the routes above to ``app``; ``refuse(status, message)`` is the surface's error type."""
+
+    def verb(fn: Any, *args: Any) -> MissionVerbResponse:
+        try:
+            st: NodeExecutionStatus = fn(*args)
+        except ExecutionRequestError as exc:
+            raise refuse(409, str(exc)) from None
+        return MissionVerbResponse(ok=True, state=st.state, status=st.to_dict())
+
+    @app.post("/mission", response_model=MissionAccepted,
+              responses={422: {"description": "rejected by delegation: {error, reasons}"}})
+    async def submit(request: Request) -> Any:
+        raw = (await request.body()).decode("utf-8", errors="replace")
+        kind = request.headers.get("content-type", "").split(";")[0].strip().lower()
+        try:
+            if kind in YAML_TYPES:
+                mission = mission_from_yaml(raw, "<request>")
+            elif kind == "application/json":
+                mission = mission_from_dict(json.loads(raw), "<request>")
+            else:
+                raise refuse(415, f"send the mission as application/json or application/yaml, not {kind!r}")
+        except json.JSONDecodeError as exc:
+            raise refuse(400, f"malformed JSON: {exc}") from None
+        except (ConfigError, TreeError, ValueError) as exc:
+            raise refuse(400, str(exc)) from None
+        try:
+            result = service.submit(mission)
+        except ExecutionRequestError as exc:
+            raise refuse(409, str(exc)) from None
+        if not result.accepted:
+            return JSONResponse(status_code=422, content={
+                "error": "rejected: " + "; ".join(result.reasons), "reasons": result.reasons})
+        return MissionAccepted(accepted=True, tree=service.status()["tree"], delegation=result.to_dict())
+
+    @app.post("/mission/start", response_model=MissionVerbResponse)
+    def start(body: StartRequest | None = None) -> MissionVerbResponse:
+        return verb(service.start, (body or StartRequest()).break_in)
+
+    @app.post("/mission/pause", response_model=MissionVerbResponse)
+    def pause(body: PauseMissionRequest | None = None) -> MissionVerbResponse:
+        return verb(service.pause, (body or PauseMissionRequest()).behaviour_id)
+
+    @app.post("/mission/continue", response_model=MissionVerbResponse)
+    def continue_() -> MissionVerbResponse:
+        return verb(service.continue_)
+
+    @app.post("/mission/enough", response_model=MissionVerbResponse)
+    def enough() -> MissionVerbResponse:
+        return verb(service.enough)
+
+    @app.post("/mission/abort", response_model=MissionVerbResponse)
+    def abort() -> MissionVerbResponse:
+        return verb(service.abort, "operator")
+
+    @app.get("/mission")
+    def mission() -> dict[str, Any]:
+        return service.status()
