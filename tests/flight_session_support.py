@@ -23,7 +23,9 @@ from mavlink_support import wall as _wall
 from companion.behaviors.system import ExecutiveLayer
 from companion.control import ControlServer
 from companion.flight import Envelope, EventKind, Setpoint
+from companion.mission_service import MissionService
 from companion.node import QuadNode
+from companion.tst.platform import bundled_platform
 
 TAKEOFF = {"vertical": {"mode": "POS", "altitude": 5, "take_off": True}, "end": {"e_v": True}}
 LAND_HERE = {"vertical": {"mode": "POS", "altitude": 0.0, "allow_landing": True}, "end": {"e_v": True}}
@@ -33,7 +35,7 @@ class FlightSession:
     """Everything one autopilot's conformance tests share (see module docstring)."""
 
     def __init__(self, kind: str, state_dir: Path, speedup: float, *, behaviors: bool = False,
-                 envelope: Envelope | None = None) -> None:
+                 envelope: Envelope | None = None, missions: bool = False) -> None:
         self.speedup = speedup
         self.ap: Autopilot = start_autopilot(kind, state_dir, speedup)
         self.kind = kind
@@ -47,9 +49,12 @@ class FlightSession:
         self.node.setpoint_listeners.append(self._on_setpoint)
         self.node.link.listeners.append(self._on_message)
         self.node.start()
-        if behaviors:
+        self.missions: MissionService | None = None
+        if behaviors or missions:
             self.layer = ExecutiveLayer.for_node(self.node, log_path=state_dir / "behaviors.jsonl").start()
-        self.server = ControlServer(self.node, port=0, behaviors=self.layer).start()
+        if missions:
+            self.missions = MissionService(self.node, self.layer, bundled_platform("indoor"))
+        self.server = ControlServer(self.node, port=0, behaviors=self.layer, missions=self.missions).start()
         self.http = httpx.Client(base_url=self.server.url, timeout=10.0)
         try:
             wait_for(lambda: self.node.link.mirror.snapshot().position is not None, self.wall(60),
@@ -159,6 +164,8 @@ class FlightSession:
     def close(self) -> None:
         self.http.close()
         self.server.close()
+        if self.missions is not None:
+            self.missions.close()
         if self.layer is not None:
             self.layer.close()
         self.node.close()
