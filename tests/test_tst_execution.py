@@ -202,3 +202,43 @@ tree:
     m.w.run_until(lambda: m.node("both")["state"] == "succeeded", 10, "both children done")
     assert m.node("ask")["state"] == "succeeded" and m.node("w")["state"] == "succeeded"
     assert m.run_until_done() == "succeeded"
+
+
+def test_each_executor_queues_the_flight_commands_of_fig_11_to_14() -> None:
+    """Each leaf, run alone on a flying vehicle, puts seed 000's flight commands on the queue."""
+    from companion.flight import HeadingMode as Hd
+    from companion.flight import HorizontalMode as H
+    from companion.flight import VerticalMode as V
+
+    cases: list[tuple[str, NodePlan, list[tuple[Any, ...]]]] = [
+        ("{type: fly-to, id: x, params: {position: [-35.36, 149.16, 3], fly_straight_line_flag: true}}",
+         NodePlan("x", "fly-to", position_neu=(5.0, 1.0, 4.0), straight_line=True),
+         [(H.POS, V.WITH_HOR, Hd.DNU, ("e_h", "e_v"))]),  # Fig. 12b, I
+        ("{type: fly-to, id: x, params: {position: [-35.36, 149.16, 3]}}",
+         NodePlan("x", "fly-to", position_neu=(5.0, 1.0, 4.0), straight_line=False),
+         [(H.POS, V.POS, Hd.DNU, ("e_h", "e_v"))]),  # Fig. 12b, II
+        ("{type: land, id: x, params: {position: [-35.36, 149.16, 0]}}",
+         NodePlan("x", "land", position_neu=(4.0, 2.0, 0.0)),
+         [(H.POS, V.WITH_HOR, Hd.DNU, ("e_h", "e_v")), (H.DNU, V.POS, Hd.DNU, ("e_v",))]),  # Fig. 13b
+        ("{type: land, id: x}", NodePlan("x", "land"), [(H.DNU, V.POS, Hd.DNU, ("e_v",))]),
+        ("{type: wait, id: x, params: {duration: 2}}", NodePlan("x", "wait", duration_s=2.0),
+         [(H.DNU, V.DNU, Hd.DNU, ("e_wait",))]),  # Sec. VI-D
+        (f"{{type: scan-ground, id: x, params: {{area: {AREA}}}}}",
+         NodePlan("x", "scan-ground", waypoints_neu=[(3.0, 0.0, 3.0), (3.0, 3.0, 3.0)]),
+         [(H.POS, V.WITH_HOR, Hd.DNU, ("e_h", "e_v"))] * 2),  # Fig. 14b, I
+        ("{type: external-velocity, id: x}", NodePlan("x", "external-velocity"),
+         [(H.EXT_VEL, V.EXT_VEL, Hd.EXT_VEL, ("e_user",))]),  # Sec. VI-F
+    ]
+    for leaf, plan, expected in cases:
+        w = World()
+        w.take_off(3.0)
+        m = Mission(f"mission: one\ntree: {leaf}\n", [plan], w)
+        m.ts.start()
+        got = []
+        for c in w.queue.commands:
+            ends = tuple(k for k in ("e_h", "e_v", "e_hd", "e_user") if getattr(c.end, k))
+            ends += ("e_wait",) if c.end.e_wait is not None else ()
+            got.append((c.horizontal.mode, c.vertical.mode, c.heading.mode, ends))
+        assert got == expected, leaf
+        if plan.task == "land":
+            assert w.queue.commands[-1].vertical.allow_landing
