@@ -307,3 +307,32 @@ def test_the_idle_reference_follows_the_vehicle_when_asked() -> None:
     assert sp is not None and sp.p == (3.0, 4.0, -2.0) and sp.yaw == pytest.approx(1.0)
     sp = sim.queue.tick(sim.t + 0.10, VehicleState((9.0, 9.0, -2.0)), follow_vehicle=False)
     assert sp is not None and sp.p == (3.0, 4.0, -2.0)  # not asked: the reference holds
+
+
+def test_a_position_command_after_velocity_only_starts_where_the_vehicle_is() -> None:
+    """ExtVel streams no position: the reference's integrated one drifts from the vehicle's. The first
+    position setpoint after it starts at the measured position, velocity kept (no step of the target)."""
+    from companion.flight import CommandQueue, Limits, SetpointKind
+    from companion.flight.simulate import step_violations
+
+    q = CommandQueue(Limits())
+    joystick = FlightCommand(HorizontalChannel(HorizontalMode.EXT_VEL), VerticalChannel(VerticalMode.EXT_VEL),
+                             HeadingChannel(HeadingMode.DNU), EndCondition(e_user=True))
+    hold = FlightCommand(end=EndCondition(e_wait=1.0))
+    q.add_commands([joystick, hold])
+    q.run()
+    t, out = 0.0, []
+    vehicle = VehicleState((0.0, 0.0, -5.0), (0.0, 0.0, 0.0), 0.0, False)
+    for _ in range(40):  # 2 s at 1 m/s east; the vehicle lags 0.5 m behind the integrated reference
+        q.push_external("ext_vel", (0.0, 1.0, 0.0, 0.0), 0.5, t)
+        sp = q.tick(t, vehicle)
+        out.append(sp)
+        vehicle = VehicleState((0.0, max(0.0, sp.p[1] - 0.5), -5.0), sp.v, 0.0, False)
+        t = round(t + 0.05, 6)
+    assert out[-1].kind is SetpointKind.VELOCITY and out[-1].p[1] > 1.3  # the ramp up, then 1 m/s
+    q.user_confirm()
+    sp = q.tick(t, vehicle)
+    assert sp.kind is SetpointKind.POSITION
+    assert abs(sp.p[1] - (vehicle.p[1] + sp.v[1] * 0.05)) < 0.06  # from the vehicle, not the reference
+    assert abs(sp.v[1] - out[-1].v[1]) < 0.2  # velocity continuous
+    assert step_violations([*out, sp], q.limits) == []

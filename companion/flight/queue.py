@@ -101,6 +101,7 @@ class CommandQueue(TakeoffStopRule):
         self._last_setpoint: Setpoint | None = None
         self._limit_reached = False
         self._unreachable = False
+        self._velocity_only = False  # the last tick streamed velocity only
 
     # --- locking and events ----------------------------------------------------------------------------
     @contextmanager
@@ -422,6 +423,7 @@ class CommandQueue(TakeoffStopRule):
             dt = min(elapsed, self._max_step_s)
             self._maybe_start()
             execution = self._active_execution()
+            self._after_velocity_only(execution, vehicle_state)
             land_now = False
             if execution is None:
                 result = self._gen.step(self._ref, HOLD, dt)
@@ -440,6 +442,20 @@ class CommandQueue(TakeoffStopRule):
             return setpoint
 
     # --- internals (call with the lock held) ------------------------------------------------------------
+    def _after_velocity_only(self, execution: CommandExecution | None, vehicle: VehicleState | None) -> None:
+        """The first position tick after velocity-only ones starts at the measured position.
+
+        Velocity-only setpoints give the autopilot no position (ExtVel, RCVel: it flies the velocity);
+        the reference's integrated position drifts from where the vehicle is. Restarting the position
+        there (velocity and acceleration kept: the stream stays continuous) spares the autopilot a step
+        of its target when a position command follows (a break-in resumed, a joystick confirmed)."""
+        velocity_only = execution is not None and execution.command.velocity_only
+        if self._velocity_only and not velocity_only and vehicle is not None and self._ref is not None:
+            self._ref = replace(self._ref, p=tuple(float(c) for c in vehicle.p))
+            if execution is not None:
+                execution.resume(self._ref)
+        self._velocity_only = velocity_only
+
     def _refuse_if_overridden(self, verb: str) -> None:
         if self._overridden:
             raise QueueStateError(f"{verb}: the queue is OVERRIDDEN (the vehicle is controlled elsewhere)")

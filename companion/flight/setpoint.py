@@ -18,7 +18,8 @@ class SetpointKind(Enum):
 
     POSITION: position + velocity + acceleration feed-forward + yaw (and yaw rate).
     VELOCITY: velocity only (+ yaw rate), for commands whose horizontal and vertical channels are
-    both velocity streams (ExtVel / RCVel). The reference position is still integrated and given.
+    both velocity streams (ExtVel / RCVel). The reference's position then follows the measured one
+    (the autopilot is given none), so the next position command starts where the vehicle is.
     """
 
     POSITION = "POSITION"

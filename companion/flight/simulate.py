@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 from .limits import Limits
 from .queue import CommandQueue
 from .reference import wrap_pi
-from .setpoint import Setpoint, VehicleState
+from .setpoint import Setpoint, SetpointKind, VehicleState
 
 
 @dataclass(frozen=True)
@@ -32,7 +32,9 @@ class Violation:
 
 def step_violations(setpoints: Sequence[Setpoint], limits: Limits, rel_tol: float = 1e-9) -> list[Violation]:
     """All violations of |dv| <= a_max*dt, |dp| <= v_max*dt (horizontal norm, vertical) and
-    |dyaw| <= yaw_rate*dt between consecutive setpoints (dt from their time stamps)."""
+    |dyaw| <= yaw_rate*dt between consecutive setpoints (dt from their time stamps). Positions are
+    compared between position setpoints only: a velocity-only setpoint gives the autopilot none (as
+    the wire check does)."""
     out: list[Violation] = []
     L = limits
     for i in range(1, len(setpoints)):
@@ -42,13 +44,14 @@ def step_violations(setpoints: Sequence[Setpoint], limits: Limits, rel_tol: floa
             if s0 != s1:
                 out.append(Violation(i, s1.t_s, "time", dt, 0.0))
             continue
-        checks = (
+        checks = [
             ("dv_h", math.hypot(s1.v[0] - s0.v[0], s1.v[1] - s0.v[1]), L.horizontal_acceleration * dt),
             ("dv_v", abs(s1.v[2] - s0.v[2]), L.vertical_acceleration * dt),
-            ("dp_h", math.hypot(s1.p[0] - s0.p[0], s1.p[1] - s0.p[1]), L.horizontal_speed * dt),
-            ("dp_v", abs(s1.p[2] - s0.p[2]), L.vertical_speed * dt),
             ("dyaw", abs(wrap_pi(s1.yaw - s0.yaw)), math.radians(L.yaw_rate) * dt),
-        )
+        ]
+        if s0.kind is SetpointKind.POSITION and s1.kind is SetpointKind.POSITION:  # as on the wire
+            checks += [("dp_h", math.hypot(s1.p[0] - s0.p[0], s1.p[1] - s0.p[1]), L.horizontal_speed * dt),
+                       ("dp_v", abs(s1.p[2] - s0.p[2]), L.vertical_speed * dt)]
         for name, value, bound in checks:
             if value > bound * (1.0 + rel_tol) + 1e-12:
                 out.append(Violation(i, s1.t_s, name, value, bound))
