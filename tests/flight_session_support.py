@@ -35,7 +35,7 @@ class FlightSession:
     """Everything one autopilot's conformance tests share (see module docstring)."""
 
     def __init__(self, kind: str, state_dir: Path, speedup: float, *, behaviors: bool = False,
-                 envelope: Envelope | None = None, missions: bool = False) -> None:
+                 envelope: Envelope | None = None, missions: bool = False, scenario: Any = None) -> None:
         self.speedup = speedup
         self.ap: Autopilot = start_autopilot(kind, state_dir, speedup)
         self.kind = kind
@@ -51,7 +51,8 @@ class FlightSession:
         self.node.start()
         self.missions: MissionService | None = None
         if behaviors or missions:
-            self.layer = ExecutiveLayer.for_node(self.node, log_path=state_dir / "behaviors.jsonl").start()
+            self.layer = ExecutiveLayer.for_node(self.node, log_path=state_dir / "behaviors.jsonl",
+                                                 scenario=scenario).start()
         if missions:
             self.missions = MissionService(self.node, self.layer, bundled_platform("indoor"))
         self.server = ControlServer(self.node, port=0, behaviors=self.layer, missions=self.missions).start()

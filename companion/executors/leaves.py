@@ -58,7 +58,9 @@ class LandExecutor(TstExecutor):
     task = "land"
 
     def activation(self) -> str:
-        if self.plan.position_neu is None:
+        # land_at_current_position_flag: where the vehicle is when the node runs (delegation's plan only
+        # estimates that place)
+        if self.plan.position_neu is None or self.node.params.get("land_at_current_position_flag", True):
             return "LAND"
         return format_activation("LAND", {"coordinate": _point(self.plan.position_neu)[:2]})
 
@@ -100,8 +102,8 @@ class HoverExecutor(TstExecutor):
 
     def target(self) -> tuple[float, float, float] | None:
         over = self.node.params.get("over")
-        if over is None:
-            return self.plan.position_neu
+        if over is None:  # a given position, else where the vehicle is (the plan only estimates it)
+            return self.plan.position_neu if "position" in self.node.params else None
         obj = self.ctx.bindings.get(over.lstrip("?"))
         pos = self.ctx.layer.beliefs.value("position", obj) if obj is not None else None
         if not isinstance(pos, tuple) or len(pos) < 2:
