@@ -19,8 +19,11 @@ Tick contract
     link is not streaming) and nothing executing, the reference is re-anchored on the measured
     state, so the next command starts where the vehicle is. The setpoint is the reference one tick
     ahead. A tick with ``now_s`` not after the previous one returns the previous setpoint. Intervals
-    above ``max_step_s`` advance the reference by ``max_step_s`` only (a stalled loop never makes
-    the reference leap). Returns None while OVERRIDDEN.
+    above ``max_step_s`` (1 s) advance the reference by ``max_step_s`` only (a stalled loop never
+    makes the reference leap); shorter ones in full, so that after a late tick the reference is
+    where the autopilot, which carries the last setpoint on with its velocity (ArduCopter's GUIDED
+    until GUID_TIMEOUT, 3 s), expects it, instead of falling behind the vehicle for the rest of the
+    flight. Returns None while OVERRIDDEN.
 """
 
 from __future__ import annotations
@@ -70,7 +73,7 @@ class CommandQueue(TakeoffStopRule):
 
     def __init__(self, limits: Limits | None = None, envelope: Envelope | None = None,
                  catalog: BehaviourCatalog | None = None, clock: Clock | None = None,
-                 max_step_s: float = 0.25, max_validity_s: float = DEFAULT_MAX_VALIDITY_S,
+                 max_step_s: float = 1.0, max_validity_s: float = DEFAULT_MAX_VALIDITY_S,
                  takeoff_min_hold_m: float = TAKEOFF_MIN_HOLD_M) -> None:
         self.limits = limits or Limits()
         self.envelope = envelope or Envelope()
