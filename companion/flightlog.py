@@ -56,6 +56,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import IO, TYPE_CHECKING, Any
 
+from taskflight.jsonlines import json_lines
+
 if TYPE_CHECKING:
     from companion.flight.commands import FlightCommand
     from companion.flight.setpoint import Setpoint
@@ -227,29 +229,21 @@ def read_flight_log(path: str | Path) -> list[dict[str, Any]]:
     object with a string ``type`` and a numeric ``t`` raises :class:`FlightLogError` naming file:line.
     Unknown record types are kept (a newer writer); the report ignores them."""
     records: list[dict[str, Any]] = []
-    with Path(path).open(encoding="utf-8") as f:
-        for lineno, line in enumerate(f, 1):
-            if not line.strip():
-                continue
-            where = f"{path}:{lineno}"
-            try:
-                record = json.loads(line)
-            except json.JSONDecodeError as exc:
-                raise FlightLogError(f"{where}: not JSON ({exc.msg} at column {exc.colno})") from None
-            if not isinstance(record, dict):
-                raise FlightLogError(f"{where}: expected a JSON object, got {type(record).__name__}")
-            if not isinstance(record.get("type"), str):
-                raise FlightLogError(f"{where}: no record type ('type' missing or not a string)")
-            t = record.get("t")
-            if isinstance(t, bool) or not isinstance(t, int | float):
-                raise FlightLogError(f"{where}: 't' (autopilot time, s) missing or not a number")
-            if record["type"] == "setpoint" and not _is_vec(record.get("p")):
-                raise FlightLogError(f"{where}: setpoint without a position 'p' [n, e, d]")
-            if record["type"] == "position" and not _is_vec(record.get("p")):
-                raise FlightLogError(f"{where}: position without 'p' [n, e, d]")
-            if record["type"] == "event" and not isinstance(record.get("event"), str):
-                raise FlightLogError(f"{where}: event without an 'event' name")
-            records.append(record)
+    for where, record in json_lines(path, FlightLogError):
+        if not isinstance(record, dict):
+            raise FlightLogError(f"{where}: expected a JSON object, got {type(record).__name__}")
+        if not isinstance(record.get("type"), str):
+            raise FlightLogError(f"{where}: no record type ('type' missing or not a string)")
+        t = record.get("t")
+        if isinstance(t, bool) or not isinstance(t, int | float):
+            raise FlightLogError(f"{where}: 't' (autopilot time, s) missing or not a number")
+        if record["type"] == "setpoint" and not _is_vec(record.get("p")):
+            raise FlightLogError(f"{where}: setpoint without a position 'p' [n, e, d]")
+        if record["type"] == "position" and not _is_vec(record.get("p")):
+            raise FlightLogError(f"{where}: position without 'p' [n, e, d]")
+        if record["type"] == "event" and not isinstance(record.get("event"), str):
+            raise FlightLogError(f"{where}: event without an 'event' name")
+        records.append(record)
     return records
 
 

@@ -146,7 +146,7 @@ def test_read_flight_log_names_the_bad_line(tmp_path: Path) -> None:
     with pytest.raises(FlightLogError, match=r"flight.jsonl:6: setpoint without a position"):
         read_flight_log(path)
     path.write_text('{"type": "event", "t": 1.0, "event": "plan"}\n\nnot json\n', encoding="utf-8")
-    with pytest.raises(FlightLogError, match=r"flight.jsonl:3: not JSON"):
+    with pytest.raises(FlightLogError, match=r"flight.jsonl:3: malformed JSON"):
         read_flight_log(path)
     path.write_text('{"type": "event", "t": "soon", "event": "plan"}\n', encoding="utf-8")
     with pytest.raises(FlightLogError, match=r":1: 't'"):

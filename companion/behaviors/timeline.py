@@ -21,12 +21,13 @@ is not JSON, or a known line without its fields, is an error naming the file and
 
 from __future__ import annotations
 
-import json
 import logging
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
+
+from taskflight.jsonlines import json_lines
 
 log = logging.getLogger(__name__)
 
@@ -79,37 +80,28 @@ class _Rows:
 
 def load_log(path: str | Path) -> TimelineLog:
     """Read a JSON-lines log; events sorted by ``t`` (stable), unknown lines counted in ``skipped``."""
-    p = Path(path)
     events: list[dict[str, Any]] = []
     skipped = 0
-    with p.open(encoding="utf-8") as f:
-        for lineno, line in enumerate(f, 1):
-            if not line.strip():
-                continue
-            where = f"{p}:{lineno}"
-            try:
-                ev = json.loads(line)
-            except json.JSONDecodeError as exc:
-                raise TimelineError(f"{where}: malformed JSON: {exc.msg} (column {exc.colno})") from None
-            if not isinstance(ev, dict) or ev.get("type") not in _KINDS:
-                skipped += 1
-                continue
-            known, required = _KINDS[ev["type"]]
-            if ev.get("event") not in known:
-                skipped += 1
-                continue
-            t = ev.get("t")
-            if isinstance(t, bool) or not isinstance(t, (int, float)) or t != t:
-                raise TimelineError(f"{where}: field 't' must be a number of seconds, got {t!r}")
-            for name in required:
-                if not isinstance(ev.get(name), str) or not ev[name]:
-                    raise TimelineError(f"{where}: {ev['type']} line without a '{name}' name")
-            ev["t"] = float(t)
-            ev["_line"] = lineno
-            events.append(ev)
+    for where, ev in json_lines(path, TimelineError):
+        if not isinstance(ev, dict) or ev.get("type") not in _KINDS:
+            skipped += 1
+            continue
+        known, required = _KINDS[ev["type"]]
+        if ev.get("event") not in known:
+            skipped += 1
+            continue
+        t = ev.get("t")
+        if isinstance(t, bool) or not isinstance(t, (int, float)) or t != t:
+            raise TimelineError(f"{where}: field 't' must be a number of seconds, got {t!r}")
+        for name in required:
+            if not isinstance(ev.get(name), str) or not ev[name]:
+                raise TimelineError(f"{where}: {ev['type']} line without a '{name}' name")
+        ev["t"] = float(t)
+        ev["_line"] = int(where.rsplit(":", 1)[1])
+        events.append(ev)
     events.sort(key=lambda e: e["t"])
     if skipped:
-        log.info("%s: %d line(s) of unknown type or event skipped", p, skipped)
+        log.info("%s: %d line(s) of unknown type or event skipped", path, skipped)
     return TimelineLog(events, skipped)
 
 
