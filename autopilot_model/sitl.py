@@ -89,6 +89,8 @@ class Sitl:
         self.pilot_link = PilotLink(self.endpoint, self.rc)
         selected = ["flight_modes", "mavlink"]
         selected += self._wire_missions_and_safety()
+        from autopilot_model.modules.gcs_params import define_gcs_params
+        define_gcs_params(v.params)  # last: a module's own definition of a name comes first
         for name in v.params.unknown_saved():
             log.warning("%s: unknown parameter %s ignored", self.state_dir / "params.json", name)
         v.select(*selected)
@@ -99,6 +101,7 @@ class Sitl:
         from pymavlink.dialects.v20 import ardupilotmega as m
 
         from autopilot_model.mavlink.mission_protocol import MissionProtocol
+        from autopilot_model.mavlink.status_telemetry import FenceLink, StatusTelemetry
         from autopilot_model.modules.mission import MissionRunner, MissionStore
         from autopilot_model.modules.safety import Safety
 
@@ -110,6 +113,10 @@ class Sitl:
         if hasattr(self.mission_protocol, "status"):
             self.mission_protocol.status = self.mission_runner
         self.safety = Safety(v, self.endpoint, self.modes, self.missions)
+        self.modes.fence = fence = self.safety.fence
+        self.fence_link = FenceLink(self.endpoint, fence)
+        self.safety.on_fence_breach = self.fence_link.send_now
+        self.status_telemetry = StatusTelemetry(self.endpoint, v)
         v.register("mission.periodic", self.mission_protocol.periodic)
         v.register("safety.periodic", self.safety.periodic)
         self.telemetry.capabilities |= (m.MAV_PROTOCOL_CAPABILITY_MISSION_INT
@@ -119,8 +126,7 @@ class Sitl:
             self.safety.gcs_failsafe or self.safety.battery_level or self.safety.fence_breached
             or self.safety.ekf_failsafe or self.rc.failsafe)
         self.telemetry.fence_state = lambda: (
-            bool(v.params.get("FENCE_ENABLE")) if "FENCE_ENABLE" in v.params else False,
-            bool(self.safety.fence_breached))
+            bool(fence.present()), fence.enabled and v.params.get("FENCE_ACTION") != 0, bool(fence.breached))
         return ["mission", "safety"]
 
     # --- running -------------------------------------------------------------------------------

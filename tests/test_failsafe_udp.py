@@ -47,29 +47,38 @@ def test_gcs_heartbeat_loss_rtl(gcs: Gcs) -> None:
 
 
 def test_fence_altitude_rtl_and_radius_brake(gcs: Gcs) -> None:
+    """As ArduCopter: a GUIDED target beyond the fence is ignored; the fence moved in under the vehicle is
+    a breach (announced "Max Alt fence breached"), answered by FENCE_ACTION."""
     gcs.set_param("FENCE_ALT_MAX", 20)
-    gcs.set_param("FENCE_RADIUS", 30)
+    gcs.set_param("FENCE_RADIUS", 100)
     gcs.set_param("FENCE_ACTION", 1)  # RTL
     gcs.set_param("FENCE_ENABLE", 1)
     gcs.takeoff(10)
     gcs.texts.clear()
-    goto(gcs, 0, 0, 28)
+    goto(gcs, 0, 0, 28)  # above FENCE_ALT_MAX: refused, the vehicle keeps holding 10 m
+    t0 = gcs.last["LOCAL_POSITION_NED"].time_boot_ms
+    gcs.wait(lambda: gcs.last["LOCAL_POSITION_NED"].time_boot_ms > t0 + 3000, wall(5), "3 s")
+    assert max(-p[2] for p in gcs.positions[-10:]) < 11.0
+    goto(gcs, 0, 0, 18)
+    gcs.wait_alt(18, 20)
+    gcs.set_param("FENCE_ALT_MAX", 15)
     gcs.wait_mode(RTL, 20)
-    assert text_seen(gcs, "Fence Breach: max alt")
-    top = max(-p[2] for p in gcs.positions[-40:])
-    assert top < 26, top  # turned back well before the GUIDED target
+    assert text_seen(gcs, "Max Alt fence breached")
     gcs.wait(lambda: text_seen(gcs, "Fence breach cleared"), wall(60), "breach cleared")
     gcs.wait_disarmed(90)
 
+    gcs.set_param("FENCE_ALT_MAX", 20)
     gcs.set_param("FENCE_ACTION", 4)  # BRAKE
     gcs.takeoff(10)
     gcs.texts.clear()
     goto(gcs, 60, 0, 10)
+    gcs.wait(lambda: gcs.last["LOCAL_POSITION_NED"].x > 30.5, wall(30), "30 m out")
+    gcs.set_param("FENCE_RADIUS", 30)
     gcs.wait_mode(BRAKE, 30)
-    assert text_seen(gcs, "Fence Breach: radius")
+    assert text_seen(gcs, "Circle fence breached")
     stopped = gcs.wait(lambda: (m := gcs.last.get("LOCAL_POSITION_NED")) is not None
                        and math.hypot(m.vx, m.vy) < 0.2 and m, wall(10), "stopped by BRAKE")
-    assert 30 <= stopped.x < 40, stopped  # stopped just beyond the 30 m fence, not at the 60 m target
+    assert 30 <= stopped.x < 42, stopped  # stopped just beyond the 30 m fence, not at the 60 m target
     assert gcs.heartbeat().custom_mode == BRAKE
     gcs.set_param("FENCE_ENABLE", 0)
     gcs.land_and_disarm()

@@ -90,12 +90,14 @@ class MavlinkEndpoint:
         # protocol pieces (imported here to keep the module graph one-way)
         from .commands import CommandDispatcher
         from .params_protocol import ParamsProtocol
+        from .signing_setup import SigningSetup
         from .stream_requests import StreamRequests
         from .streams import StreamScheduler
         self.streams = StreamScheduler(self)
         self.commands = CommandDispatcher(self)
         self.params_protocol = ParamsProtocol(self)
         self.stream_requests = StreamRequests(self)
+        self.signing_setup = SigningSetup(self)
         self.add_handler("HEARTBEAT", self._on_heartbeat)
         self.add_handler("TIMESYNC", self._on_timesync)
         if register and hasattr(vehicle, "register"):

@@ -91,13 +91,17 @@ class Signing:
         self.key = key
         self._streams.clear()
 
+    def raise_timestamp(self, timestamp: int) -> None:
+        """Move our signing timestamp forward to ``timestamp`` (SETUP_SIGNING's initial timestamp)."""
+        self._timestamp = max(self._timestamp, timestamp)
+
     def configure_encoder(self, mav: object) -> None:
         """Make a pymavlink ``MAVLink`` object sign what it packs (or stop signing)."""
         sig = mav.signing  # type: ignore[attr-defined]
         sig.secret_key = self.key
         sig.sign_outgoing = self.key is not None
         sig.link_id = self.link_id
-        sig.timestamp = max(sig.timestamp, wall_timestamp())
+        sig.timestamp = max(sig.timestamp, wall_timestamp(), self._timestamp)
 
     def accept(self, frame: bytes | bytearray | memoryview, signed: bool, sysid: int, compid: int) -> bool:
         """Whether a received frame (whole, signature included) may be acted on.

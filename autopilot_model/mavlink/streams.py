@@ -34,13 +34,14 @@ Builder = Callable[[], Any]
 STREAM_GROUPS: dict[int, tuple[str, ...]] = {
     mavlink2.MAV_DATA_STREAM_RAW_SENSORS: (),
     mavlink2.MAV_DATA_STREAM_EXTENDED_STATUS: ("SYS_STATUS", "MISSION_CURRENT", "GPS_RAW_INT",
+                                               "NAV_CONTROLLER_OUTPUT", "FENCE_STATUS",
                                                "POSITION_TARGET_LOCAL_NED"),
     mavlink2.MAV_DATA_STREAM_RC_CHANNELS: ("RC_CHANNELS", "SERVO_OUTPUT_RAW"),
     mavlink2.MAV_DATA_STREAM_POSITION: ("GLOBAL_POSITION_INT", "LOCAL_POSITION_NED"),
     mavlink2.MAV_DATA_STREAM_EXTRA1: ("ATTITUDE",),
     mavlink2.MAV_DATA_STREAM_EXTRA2: ("VFR_HUD",),
-    mavlink2.MAV_DATA_STREAM_EXTRA3: ("SYSTEM_TIME", "BATTERY_STATUS", "EXTENDED_SYS_STATE",
-                                      "HOME_POSITION"),
+    mavlink2.MAV_DATA_STREAM_EXTRA3: ("SYSTEM_TIME", "BATTERY_STATUS", "EKF_STATUS_REPORT",
+                                      "EXTENDED_SYS_STATE", "HOME_POSITION"),
 }
 
 #: What a new link gets before it asks for anything (param TELEM_DEFAULTS=1), in Hz.

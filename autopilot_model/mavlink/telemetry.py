@@ -51,7 +51,9 @@ BASE_CAPABILITIES = (M.MAV_PROTOCOL_CAPABILITY_MAVLINK2 | M.MAV_PROTOCOL_CAPABIL
                      | M.MAV_PROTOCOL_CAPABILITY_PARAM_FLOAT | M.MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_C_CAST
                      | M.MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_LOCAL_NED
                      | M.MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_GLOBAL_INT)
-VERSION = (4, 5, 0)
+VERSION = (4, 7, 0)
+"""ArduCopter's version whose parameter names the model uses: MAV_SYSID and MAV_GCS_SYSID (4.7; SYSID_THISMAV
+and SYSID_MYGCS before), reported as a development build as ArduCopter 4.7.0-dev does."""
 
 
 def _clamp_int(v: float, lo: int, hi: int) -> int:
@@ -70,8 +72,8 @@ class VehicleTelemetry:
         self.v = modes.v
         self.capabilities = BASE_CAPABILITIES
         self.critical: Callable[[], bool] = lambda: False  # a failsafe is active (set by Safety wiring)
-        #: (fence enabled, fence breached), set by the Safety wiring
-        self.fence_state: Callable[[], tuple[bool, bool]] = lambda: (False, False)
+        #: (fence present, enabled, breached) as ArduPilot's AC_Fence::sys_status_*, set by the Safety wiring
+        self.fence_state: Callable[[], tuple[bool, bool, bool]] = lambda: (False, False, False)
         self.unix0_us = int(time.time() * 1e6)  # wall time at the simulation's t = 0
         b = endpoint.streams.add_builder
         b("HEARTBEAT", self.heartbeat)
@@ -141,12 +143,14 @@ class VehicleTelemetry:
         if not v.nav.prearm_failures() and self.modes.allows_arming():
             health |= S.MAV_SYS_STATUS_PREARM_CHECK
         present = SENSORS_PRESENT
-        fence_on, fence_breached = self.fence_state()
-        if fence_on:
+        fence_present, fence_enabled, fence_breached = self.fence_state()
+        if fence_present:
             present |= S.MAV_SYS_STATUS_GEOFENCE
         if not fence_breached:  # ArduPilot: healthy unless breached, whether or not enabled
             health |= S.MAV_SYS_STATUS_GEOFENCE
-        enabled = present
+        enabled = present & ~S.MAV_SYS_STATUS_GEOFENCE
+        if fence_enabled:
+            enabled |= S.MAV_SYS_STATUS_GEOFENCE
         if not v.nav.armed:
             enabled &= ~S.MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS
         stats = self.ep.stats

@@ -38,6 +38,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from autopilot_model.modules import navigation as navmod
+from autopilot_model.modules.shared_params import define_rtl_alt
 from taskflight.geo import geodetic_to_ned
 
 if TYPE_CHECKING:
@@ -103,7 +104,7 @@ def mode_name(mode: int) -> str:
 def define_mode_params(params: Any) -> None:
     params.define("GUID_TIMEOUT", 3.0, 0.1, 5.0,
                   doc="GUIDED: stop if no new velocity/acceleration target for this long (s)")
-    params.define("RTL_ALT", 1500.0, 200.0, 300000.0, "int", "RTL: minimum return altitude above home (cm)")
+    define_rtl_alt(params)
     params.define("RTL_SPEED", 0.0, 0.0, 2000.0, doc="RTL: horizontal speed, 0 = WPNAV_SPEED (cm/s)")
 
 
@@ -216,6 +217,9 @@ class GuidedTargets:
         now = self.v.clock.now()
         if t.pos is not None and t.vel is not None and t is self.target and self.kind == G_POSVEL:
             return True, ""
+        fence = self.modes.fence
+        if t.pos is not None and fence is not None and not fence.destination_ok(t.pos):
+            return False, "Destination outside fence"  # ArduCopter: DEST_OUTSIDE_FENCE, target ignored
         if t.pos is not None and t.vel is None:
             ok, why = nav.goto(t.pos, self.modes.speed_h())
             kind = G_POS
@@ -406,6 +410,7 @@ class FlightModes:
         self._rtl_stage = RTL_CLIMB
         self._listeners: list[ModeListener] = []
         self.pilot: Any = None  # the pilot-driven modes (pilot_modes.PilotModes), set by the Sitl wiring
+        self.fence: Any = None  # the geofence (fence.Fence): GUIDED destinations outside it are refused
 
     # --- listeners -----------------------------------------------------------------------------
     def on_mode_change(self, callback: ModeListener) -> None:

@@ -53,6 +53,7 @@ from .mission_items import (
     vehicle_frames,
 )
 from .mission_store import MissionStore
+from .shared_params import define_rtl_alt
 
 __all__ = [
     "ACCEPTED",
@@ -125,7 +126,7 @@ def define_mission_params(params: Any) -> None:
     """ArduCopter parameters the mission runner reads (units as ArduCopter: cm, cm/s)."""
     params.define("WPNAV_RADIUS", 200.0, 5.0, 1000.0, doc="waypoint acceptance radius (cm) when an item's "
                   "param2 is 0")
-    params.define("RTL_ALT", 1500.0, 30.0, 300000.0, doc="return altitude above home (cm), 0 = current")
+    define_rtl_alt(params)
 
 
 class MissionRunner:

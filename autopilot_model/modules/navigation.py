@@ -52,6 +52,8 @@ class Navigator:
         self._land_timer = 0.0
         self._idle_timer = 0.0
         self._listeners: list[Callable[[str], None]] = []
+        self.prearm_checks: list[Callable[[], str | None]] = []
+        """More pre-arm checks (each returns its failure text or None), e.g. the fence's."""
 
     def on_event(self, callback: Callable[[str], None]) -> None:
         """``callback(text)`` on arming, take-off complete, landed, disarmed (the endpoint announces them)."""
@@ -72,6 +74,7 @@ class Navigator:
             failures.append("GPS: no 3D fix")
         if v.battery.remaining_pct < 5:
             failures.append("Battery below minimum")
+        failures += [why for check in self.prearm_checks if (why := check())]
         return failures
 
     def arm(self, force: bool = False) -> tuple[bool, str]:

@@ -5,10 +5,11 @@
 * Battery (BATT_LOW_VOLT / BATT_CRT_VOLT held for BATT_LOW_TIMER, or BATT_LOW_MAH / BATT_CRT_MAH
   remaining of BATT_CAPACITY; actions BATT_FS_LOW_ACT / BATT_FS_CRT_ACT). The levels latch: low acts
   once, critical once more, until the battery is replaced (a restart).
-* Geofence (FENCE_ENABLE, FENCE_TYPE bits 1 max altitude, 2 circle, 4 polygon; FENCE_ALT_MAX,
-  FENCE_RADIUS around home, inclusion/exclusion polygons and circles from the FENCE mission type;
-  FENCE_ACTION). A breach acts once; if the vehicle keeps going a further FENCE_BACKUP_M outside, it
-  acts again (ArduCopter's backup fence); the breach clears once back inside.
+* Geofence (:mod:`.fence`, ArduPilot's AC_Fence): checked at 10 Hz, armed or not (a breach while
+  disarmed fails the pre-arm check); a new breach while armed is announced as ArduCopter does ("Circle
+  fence breached") and answered by FENCE_ACTION (ArduCopter's ``Copter::fence_check``): on the ground a
+  disarm; more than 100 m outside LAND; else RTL or LAND, LAND, BRAKE or LAND. A breach acts once; 20 m
+  further out it acts again (the backup fence); "Fence breach cleared" once back inside.
 * EKF (FS_EKF_THRESH, FS_EKF_ACTION): the estimator's position variance over threshold, or its position
   unusable after a fault, for 1 s -> "EKF variance" and LAND (:mod:`.ekf_check`).
 
@@ -30,24 +31,13 @@ capacity, which makes battery tests fast.
 from __future__ import annotations
 
 import logging
-import math
 from typing import Any
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
-from shapely.geometry import Point, Polygon
 
 from autopilot_model.modules.ekf_check import EkfCheck
-from autopilot_model.modules.mission import (
-    FENCE,
-    FENCE_CIRCLE_EXCLUSION,
-    FENCE_CIRCLE_INCLUSION,
-    FENCE_POLYGON_EXCLUSION,
-    FENCE_POLYGON_INCLUSION,
-    MissionItem,
-    MissionStore,
-    vehicle_frames,
-)
-from taskflight.geo import geodetic_to_ned
+from autopilot_model.modules.fence import GIVE_UP_DISTANCE_M, Fence, fence_names
+from autopilot_model.modules.mission import MissionStore
 
 log = logging.getLogger(__name__)
 
@@ -59,14 +49,8 @@ BRAKE = 17
 MODE_NAMES = {RTL: "RTL", LAND: "LAND", BRAKE: "BRAKE"}
 
 _LANDED_ON_GROUND = 1
+_LANDED_LANDING = 4
 _LANDING_MODES = (LAND,)
-FENCE_BACKUP_M = 20.0
-"""A breach acts again when the vehicle is this much further outside (ArduCopter's backup fence)."""
-
-# FENCE_TYPE bits
-FENCE_ALT_MAX_BIT = 1
-FENCE_CIRCLE_BIT = 2
-FENCE_POLYGON_BIT = 4
 
 
 def define_safety_params(params: Any, cells: int, capacity_mah: float) -> None:
@@ -88,15 +72,6 @@ def define_safety_params(params: Any, cells: int, capacity_mah: float) -> None:
     params.define("BATT_FS_CRT_ACT", 1, 0, 7, "int", "critical battery action (as BATT_FS_LOW_ACT)")
     params.define("SIM_BATT_CAP_AH", round(capacity_mah / 1000.0, 3), 0.001, 1000.0,
                   doc="capacity of the simulated battery (Ah)")
-    params.define("FENCE_ENABLE", 0, 0, 1, "int", "geofence on")
-    params.define("FENCE_TYPE", 7, 0, 15, "int", "fence bits: 1 max altitude, 2 circle, 4 polygon")
-    params.define("FENCE_ACTION", 1, 0, 5, "int",
-                  "fence breach: 0 report, 1 RTL or LAND, 2 LAND, 3 SmartRTL/RTL, 4 BRAKE or LAND, "
-                  "5 SmartRTL/LAND")
-    params.define("FENCE_ALT_MAX", 100.0, 10.0, 1000.0, doc="maximum altitude above home (m)")
-    params.define("FENCE_RADIUS", 300.0, 30.0, 10000.0, doc="circular fence radius around home (m)")
-    params.define("FENCE_MARGIN", 2.0, 1.0, 10.0, doc="distance kept from the fence (m)")
-
 
 # failsafe action codes -> (mode, fallback)
 _FS_ACTIONS: dict[int, tuple[int, int] | None] = {
@@ -110,62 +85,6 @@ _GCS_ACTIONS: dict[int, tuple[int, int] | None] = {
 _FENCE_ACTIONS: dict[int, tuple[int, int] | None] = {
     0: None, 1: (RTL, LAND), 2: (LAND, LAND), 3: (RTL, LAND), 4: (BRAKE, LAND), 5: (LAND, LAND),
 }
-
-
-class FenceShapes:
-    """Inclusion/exclusion polygons and circles of the FENCE plan, in local NED (north, east)."""
-
-    def __init__(self) -> None:
-        self.inclusion: list[Polygon] = []
-        self.exclusion: list[Polygon] = []
-        self.inclusion_circles: list[tuple[float, float, float]] = []
-        self.exclusion_circles: list[tuple[float, float, float]] = []
-
-    @classmethod
-    def from_items(cls, items: list[MissionItem], origin: tuple[float, float, float]) -> FenceShapes:
-        shapes = cls()
-
-        def ne(it: MissionItem) -> tuple[float, float]:
-            n, e, _ = geodetic_to_ned(origin, it.lat, it.lon, origin[2])
-            return float(n), float(e)
-
-        i = 0
-        while i < len(items):
-            it = items[i]
-            if it.command in (FENCE_POLYGON_INCLUSION, FENCE_POLYGON_EXCLUSION):
-                n = int(it.param1)
-                poly = Polygon([ne(v) for v in items[i:i + n]])
-                (shapes.inclusion if it.command == FENCE_POLYGON_INCLUSION else shapes.exclusion).append(poly)
-                i += n
-                continue
-            if it.command in (FENCE_CIRCLE_INCLUSION, FENCE_CIRCLE_EXCLUSION):
-                circle = (*ne(it), float(it.param1))
-                if it.command == FENCE_CIRCLE_INCLUSION:
-                    shapes.inclusion_circles.append(circle)
-                else:
-                    shapes.exclusion_circles.append(circle)
-            i += 1
-        return shapes
-
-    @property
-    def empty(self) -> bool:
-        return not (self.inclusion or self.exclusion or self.inclusion_circles or self.exclusion_circles)
-
-    def outside_by(self, n: float, e: float) -> float:
-        """How far (m) the point is on the wrong side of the nearest violated shape; <= 0: inside."""
-        p = Point(n, e)
-        worst = -math.inf
-        for poly in self.inclusion:
-            d = poly.exterior.distance(p)
-            worst = max(worst, -d if poly.contains(p) else d)
-        for poly in self.exclusion:
-            d = poly.exterior.distance(p)
-            worst = max(worst, d if poly.contains(p) else -d)
-        for cn, ce, r in self.inclusion_circles:
-            worst = max(worst, math.hypot(n - cn, e - ce) - r)
-        for cn, ce, r in self.exclusion_circles:
-            worst = max(worst, r - math.hypot(n - cn, e - ce))
-        return worst
 
 
 class Safety:
@@ -188,18 +107,16 @@ class Safety:
         self.gcs_failsafe = False
         self.battery_level = 0
         """0 ok, 1 low, 2 critical (latched)."""
-        self.fence_breached = 0
-        """FENCE_TYPE bits currently breached."""
         self.events: list[str] = []
         """Every failsafe text announced, in order (tests and logs)."""
         self._low_since: float | None = None
         self._crit_since: float | None = None
-        self._fence_trigger_excess = 0.0
-        self._shapes = FenceShapes()
-        if store is not None:
-            store.on_change(self._on_plan_change)
-            self._on_plan_change(FENCE)
+        self.fence = Fence(vehicle, store)
+        if hasattr(vehicle.nav, "prearm_checks"):
+            vehicle.nav.prearm_checks.append(self.fence.prearm_failure)
         self.ekf = EkfCheck(vehicle, modes, self._announce)
+        self.on_fence_breach: Any = None
+        """Called on a new breach while armed (the endpoint sends FENCE_STATUS at once, as ArduPilot)."""
 
     @property
     def ekf_failsafe(self) -> bool:
@@ -267,54 +184,47 @@ class Safety:
         self._act(_FS_ACTIONS.get(act), text)
 
     # --- geofence ---------------------------------------------------------------------------------
-    def _on_plan_change(self, mission_type: int) -> None:
-        if mission_type != FENCE or self.store is None:
-            return
-        origin, _, _ = vehicle_frames(self.vehicle)
-        self._shapes = FenceShapes.from_items(self.store.get(FENCE), origin)
+    @property
+    def fence_breached(self) -> int:
+        """FENCE_TYPE bits currently breached."""
+        return self.fence.breached
 
     def fence_excess(self) -> tuple[int, float]:
-        """(breached FENCE_TYPE bits, metres beyond the furthest breached fence) at the present position."""
-        p = self.params
-        kinds = int(p.get("FENCE_TYPE"))
-        _, _, home = vehicle_frames(self.vehicle)
-        n, e, d = self.vehicle.state.position_ned
-        bits, excess = 0, 0.0
-        if kinds & FENCE_ALT_MAX_BIT:
-            over = -(d - home[2]) - p.get("FENCE_ALT_MAX")
-            if over > 0:
-                bits, excess = bits | FENCE_ALT_MAX_BIT, max(excess, over)
-        if kinds & FENCE_CIRCLE_BIT:
-            over = math.hypot(n - home[0], e - home[1]) - p.get("FENCE_RADIUS")
-            if over > 0:
-                bits, excess = bits | FENCE_CIRCLE_BIT, max(excess, over)
-        if kinds & FENCE_POLYGON_BIT and not self._shapes.empty:
-            over = self._shapes.outside_by(n, e)
-            if over > 0:
-                bits, excess = bits | FENCE_POLYGON_BIT, max(excess, over)
-        return bits, excess
+        """(breached FENCE_TYPE bits, metres beyond the furthest breached fence) at the last check."""
+        bits = self.fence.breached
+        return bits, max(0.0, self.fence.breach_distance(bits)) if bits else 0.0
 
     def _check_fence(self) -> None:
+        """ArduCopter's ``fence_checks_async`` and ``fence_check``."""
         nav = self.vehicle.nav
-        if self.params.get("FENCE_ENABLE") < 1 or not nav.armed or nav.landed_state == _LANDED_ON_GROUND:
-            if self.fence_breached:
-                self.fence_breached = 0
+        fence = self.fence
+        landed = nav.landed_state == _LANDED_ON_GROUND
+        landing = self.modes.mode in _LANDING_MODES or nav.landed_state == _LANDED_LANDING
+        before = fence.breached
+        new = fence.check(landing or landed or not nav.armed)
+        if fence.floor_auto_enabled:
+            fence.floor_auto_enabled = False
+            self._announce(mavlink.MAV_SEVERITY_NOTICE, "Min Alt fence enabled (auto enable)")
+        if not new and before and not fence.breached and not landed:
+            self._announce(mavlink.MAV_SEVERITY_NOTICE, "Fence breach cleared")
+        if new and self.on_fence_breach is not None:
+            self.on_fence_breach()
+        if not nav.armed or not new:
             return
-        bits, excess = self.fence_excess()
-        if not bits:
-            if self.fence_breached:
-                self.fence_breached = 0
-                self._announce(mavlink.MAV_SEVERITY_INFO, "Fence breach cleared")
+        if not landed:
+            self._announce(mavlink.MAV_SEVERITY_NOTICE, f"{fence_names(new)} breached")
+        action = int(self.params.get("FENCE_ACTION"))
+        if action == 0:
             return
-        new = bits & ~self.fence_breached
-        again = excess >= self._fence_trigger_excess + FENCE_BACKUP_M
-        self.fence_breached = bits
-        if not new and not again:
+        if landed:
+            nav.disarm()
             return
-        self._fence_trigger_excess = excess
-        what = ", ".join(n for b, n in ((FENCE_ALT_MAX_BIT, "max alt"), (FENCE_CIRCLE_BIT, "radius"),
-                                        (FENCE_POLYGON_BIT, "polygon")) if bits & b)
-        self._act(_FENCE_ACTIONS.get(int(self.params.get("FENCE_ACTION"))), f"Fence Breach: {what}")
+        if fence.breach_distance(new) > GIVE_UP_DISTANCE_M:
+            self.modes.set_mode(LAND, "fence breach")
+            return
+        mode, fallback = _FENCE_ACTIONS.get(action) or (RTL, LAND)
+        if not self.modes.set_mode(mode, "fence breach")[0] and fallback != mode:
+            self.modes.set_mode(fallback, "fence breach")
 
     # --- actions ----------------------------------------------------------------------------------
     def _announce(self, severity: int, text: str) -> None:
