@@ -127,22 +127,23 @@ def test_lines_run_along_the_long_side_to_minimise_turns() -> None:
     assert pattern.turns < across.turns
 
 
-def test_first_line_is_half_a_spacing_inside_the_edge_and_lines_are_a_spacing_apart() -> None:
-    pattern = scan_pattern(RECT, 4.0, start_ne=(0.0, 0.0), angle_deg=0.0)
+def test_as_few_lines_as_cover_the_width_spread_evenly() -> None:
+    pattern = scan_pattern(RECT, 4.0, start_ne=(0.0, 0.0), angle_deg=0.0)  # 30 m wide: 8 lines
     easts = [a[1] for a, _ in pattern.lines]
-    assert easts[0] == pytest.approx(2.0)
-    assert np.diff(easts)[:-1] == pytest.approx([4.0] * (len(easts) - 2))
-    assert easts[-1] == pytest.approx(28.0)
     assert len(pattern.lines) == 8
+    step = 30.0 / 8  # <= the 4 m spacing, so every band is narrower than the footprint asks
+    assert easts[0] == pytest.approx(step / 2)
+    assert np.diff(easts) == pytest.approx([step] * 7)
+    assert easts[-1] == pytest.approx(30.0 - step / 2)
 
 
 def test_the_pattern_starts_at_the_end_nearest_the_start_and_alternates() -> None:
     pattern = scan_pattern(RECT, 4.0, start_ne=(45.0, 35.0), angle_deg=0.0)
-    assert pattern.waypoints[0] == pytest.approx((40.0, 28.0))
+    assert pattern.waypoints[0] == pytest.approx((40.0, 30.0 - 30.0 / 16))
     dirs = [np.sign(b[0] - a[0]) for a, b in pattern.lines]
     assert all(d1 == -d2 for d1, d2 in itertools.pairwise(dirs))
     other = scan_pattern(RECT, 4.0, start_ne=(-1.0, -1.0), angle_deg=0.0)
-    assert other.waypoints[0] == pytest.approx((0.0, 2.0))
+    assert other.waypoints[0] == pytest.approx((0.0, 30.0 / 16))
 
 
 def test_pattern_fields_are_consistent() -> None:

@@ -12,8 +12,8 @@ metres ``(north, east)``, angles in degrees clockwise from north.
   edge of the area's convex hull, the one giving the fewest scan segments (hence turns) and, on a
   tie, the smallest width across the lines, which by the rotating-calipers theorem is the polygon's
   minimum width. Every hull edge direction is tried.
-* **Lines**: the first line lies ``spacing / 2`` inside the extreme edge, the next ones ``spacing``
-  apart, the last one ``spacing / 2`` inside the opposite edge. Each line is *responsible* for the
+* **Lines**: as few as cover the width (``n = ceil(width / spacing)``), spread evenly ``width / n``
+  apart (at most ``spacing``), the outer ones half that inside the edges. Each line is *responsible* for the
   band half-way to its neighbours (never wider than ``spacing / 2`` on each side); a line's segment
   spans the extent of the area inside its band (not merely on the line itself), so with a footprint
   half-width of at least ``spacing / 2`` every point of the area is seen: this is the coverage
@@ -155,11 +155,12 @@ def _from_uv(u: float, v: float, angle_deg: float) -> Point:
 
 
 def _line_positions(vmin: float, vmax: float, spacing: float) -> list[float]:
+    """As few lines as cover the width, spread evenly: ``n`` lines ``width / n`` (<= spacing) apart,
+    the outer ones half that inside the edges (no pair of lines closer than the rest)."""
     width = vmax - vmin
     n = max(1, math.ceil(width / spacing - 1e-9))
-    if n == 1:
-        return [(vmin + vmax) / 2.0]
-    return [vmin + spacing / 2.0 + k * spacing for k in range(n - 1)] + [vmax - spacing / 2.0]
+    step = width / n
+    return [vmin + step / 2.0 + k * step for k in range(n)]
 
 
 def _band_segments(uv_poly: BaseGeometry, spacing: float) -> list[tuple[float, list[tuple[float, float]]]]:
