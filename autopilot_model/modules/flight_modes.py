@@ -10,10 +10,12 @@ ALT_HOLD     2   as STABILIZE (the altitude is held by the velocity demand)
 AUTO         3   delegates to the mission runner (``modes.mission_runner``: ``start()``, ``update()``)
 GUIDED       4   targets from the ground station / companion (:class:`GuidedTargets`); GUID_TIMEOUT
 LOITER       5   hold position
-RTL          6   climb to RTL_ALT if lower, fly home, descend and land (RTL_ALT_FINAL = 0)
+RTL          6   climb to RTL_ALT if lower, fly home or to the nearest rally point (:mod:`.rally`), land
 LAND         9   land where it is; stays in LAND after touchdown and disarm, as ArduCopter does
+CIRCLE       7   circle a centre CIRCLE_RADIUS ahead at CIRCLE_RATE, nose in (:mod:`.circle_nav`)
 POSHOLD     16   as LOITER without a pilot; with one: lean angles, braking to a hold when sticks centre
 BRAKE       17   stop as fast as the envelope allows and hold
+SMART_RTL   21   fly the recorded path back, land where armed (:mod:`.smart_rtl`); refused without a path
 ==========  ===  ===========================================================================
 
 Every change of mode goes through :meth:`FlightModes.set_mode`, which may refuse with a reason;
@@ -32,10 +34,14 @@ to zero) and holds; entering GUIDED in the air holds the current position. A pos
 from __future__ import annotations
 
 import logging
+import math
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from autopilot_model.modules import navigation as navmod
+from autopilot_model.modules import rally
+from autopilot_model.modules.auto_yaw import AutoYaw
+from autopilot_model.modules.circle_nav import CircleNav, define_circle_params
 from autopilot_model.modules.guided_targets import (  # noqa: F401 - re-exported
     G_ACCEL,
     G_NONE,
@@ -47,6 +53,7 @@ from autopilot_model.modules.guided_targets import (  # noqa: F401 - re-exported
     GuidedTargets,
     sqrt_controller,
 )
+from autopilot_model.modules.smart_rtl import SmartRtl
 from taskflight.geo import geodetic_to_ned
 
 if TYPE_CHECKING:
@@ -60,20 +67,26 @@ AUTO = 3
 GUIDED = 4
 LOITER = 5
 RTL = 6
+CIRCLE = 7
 LAND = 9
 POSHOLD = 16
 BRAKE = 17
+SMART_RTL = 21
 
 MODE_NAMES: dict[int, str] = {STABILIZE: "STABILIZE", ALT_HOLD: "ALT_HOLD", AUTO: "AUTO", GUIDED: "GUIDED",
-                              LOITER: "LOITER", RTL: "RTL", LAND: "LAND", POSHOLD: "POSHOLD",
-                              BRAKE: "BRAKE"}
+                              LOITER: "LOITER", RTL: "RTL", CIRCLE: "CIRCLE", LAND: "LAND",
+                              POSHOLD: "POSHOLD", BRAKE: "BRAKE", SMART_RTL: "SMART_RTL"}
 MODE_NUMBERS: dict[str, int] = {v: k for k, v in MODE_NAMES.items()}
 #: Modes ArduCopter lets a ground station arm in (AUTO, RTL, LAND, BRAKE refuse arming).
 ARMABLE = frozenset({STABILIZE, ALT_HOLD, GUIDED, LOITER, POSHOLD})
 #: Modes in which a take-off command is accepted (ArduCopter: modes with a navigating user take-off).
 TAKEOFF_MODES = frozenset({GUIDED, LOITER})
-#: Modes in which MAV_CMD_DO_PAUSE_CONTINUE applies.
-PAUSABLE = frozenset({AUTO, GUIDED, RTL})
+#: Modes in which MAV_CMD_DO_PAUSE_CONTINUE applies (ArduCopter: ``pause()`` of ModeAuto, ModeGuided).
+PAUSABLE = frozenset({AUTO, GUIDED})
+#: Modes whose speed DO_CHANGE_SPEED sets (ArduCopter: ``set_speed_xy_cms`` of Auto, Guided, RTL).
+SPEED_MODES = frozenset({AUTO, GUIDED, RTL})
+#: Modes that fly the auto yaw (CONDITION_YAW, ROI).
+AUTO_YAW_MODES = frozenset({AUTO, GUIDED, RTL, SMART_RTL})
 
 ModeListener = Callable[[int, int, str], None]
 Vec3 = tuple[float, float, float]
@@ -107,6 +120,8 @@ def define_mode_params(params: Any) -> None:
                   doc="GUIDED: stop if no new velocity/acceleration target for this long (s)")
     params.define("RTL_ALT", 1500.0, 200.0, 300000.0, "int", "RTL: minimum return altitude above home (cm)")
     params.define("RTL_SPEED", 0.0, 0.0, 2000.0, doc="RTL: horizontal speed, 0 = WPNAV_SPEED (cm/s)")
+    define_circle_params(params)
+    rally.define_rally_params(params)
 
 
 class FlightModes:
@@ -123,6 +138,10 @@ class FlightModes:
         self._rtl_stage = RTL_CLIMB
         self._listeners: list[ModeListener] = []
         self.pilot: Any = None  # the pilot-driven modes (pilot_modes.PilotModes), set by the Sitl wiring
+        self.auto_yaw = AutoYaw(vehicle)
+        self.circle = CircleNav(vehicle)
+        self.smart_rtl = SmartRtl(vehicle)
+        self.missions: Any = None  # the MissionStore (rally points for RTL), set by the Sitl wiring
 
     # --- listeners -----------------------------------------------------------------------------
     def on_mode_change(self, callback: ModeListener) -> None:
@@ -162,6 +181,7 @@ class FlightModes:
         self.mode = mode
         self.paused = False
         self.speed_override_h = None
+        self.auto_yaw.reset()
         if mode != GUIDED:
             self.guided.reset()
         if self.pilot is not None:
@@ -192,6 +212,15 @@ class FlightModes:
     _enter_brake = _enter_loiter
     _enter_poshold = _enter_loiter
 
+    def _enter_circle(self) -> tuple[bool, str]:
+        if self.in_air():
+            p = self.v.params
+            self.circle.start_here(p.get("CIRCLE_RADIUS") / 100.0, math.radians(p.get("CIRCLE_RATE")))
+        return True, ""
+
+    def _enter_smart_rtl(self) -> tuple[bool, str]:
+        return self.smart_rtl.start()
+
     def _enter_land(self) -> tuple[bool, str]:
         if self.in_air():
             self.v.nav.land()
@@ -218,19 +247,26 @@ class FlightModes:
 
     # --- pause / continue (MAV_CMD_DO_PAUSE_CONTINUE) -----------------------------------------
     def pause(self) -> tuple[bool, str]:
-        if self.mode not in PAUSABLE or not self.in_air():
-            return False, f"Pause denied in {self.name}"
+        """``Mode::pause``: GUIDED always; AUTO while flying to a waypoint not yet reached."""
+        runner = self.mission_runner
+        if self.mode == AUTO and not (runner is not None and runner.can_pause()):
+            return False, "Failed to pause"
+        if self.mode not in PAUSABLE:
+            return False, "Failed to pause"
         self.paused = True
-        self.v.nav.hold()
+        if self.in_air():
+            self.v.nav.hold()
         return True, ""
 
     def resume(self) -> tuple[bool, str]:
+        if self.mode not in PAUSABLE:
+            return False, "Failed to resume"
         if not self.paused:
             return True, ""
         self.paused = False
-        if self.mode == RTL:
-            self._rtl_start()
-        elif self.mode == AUTO and self.mission_runner is not None and hasattr(self.mission_runner, "resume"):
+        if not self.in_air():
+            return True, ""
+        if self.mode == AUTO and self.mission_runner is not None and hasattr(self.mission_runner, "resume"):
             self.mission_runner.resume()
         elif self.mode == GUIDED:
             self.guided.resume()
@@ -253,11 +289,20 @@ class FlightModes:
         hn, he, hd = self._home_ned()
         alt_above_home = hd - d
         target_alt = max(self._rtl_alt(), alt_above_home)
+        best = rally.return_target(self.v, self.missions)  # the nearest rally point, else home
+        if best is not None:
+            (hn, he, _), rally_alt = best
+            target_alt = max(target_alt, rally_alt)
         if self._rtl_stage == RTL_CLIMB and alt_above_home < self._rtl_alt() - 0.5:
             nav.goto((n, e, hd - target_alt), self._rtl_speed())
         else:
             self._rtl_stage = RTL_RETURN
             nav.goto((hn, he, hd - target_alt), self._rtl_speed())
+
+    def rtl_speed_changed(self) -> None:
+        """DO_CHANGE_SPEED in RTL: the climb or the return goes on at the new speed."""
+        if self.mode == RTL and self.in_air() and self._rtl_stage in (RTL_CLIMB, RTL_RETURN):
+            self._rtl_start()
 
     def _rtl_update(self) -> None:
         nav = self.v.nav
@@ -274,9 +319,18 @@ class FlightModes:
     # --- periodic (navigation group) -----------------------------------------------------------
     def update(self) -> None:
         mode = self.mode
+        dt = self.v.step_of("flight_modes.update")
         if self.pilot is not None:
-            self.pilot.update(self.v.step_of("flight_modes.update"))
-        if mode == GUIDED:
+            self.pilot.update(dt)
+        self.smart_rtl.record(mode != SMART_RTL)
+        if mode in AUTO_YAW_MODES:
+            self.auto_yaw.update()
+        if mode == CIRCLE:
+            if self.in_air():
+                self.circle.update(dt)
+        elif mode == SMART_RTL:
+            self.smart_rtl.update()
+        elif mode == GUIDED:
             if not self.paused:
                 self.guided.update()
         elif mode == RTL:
