@@ -130,7 +130,6 @@ class VehicleCommands:
 
     # --- guided navigation ---------------------------------------------------------------------
     def reposition(self, cmd: Command, peer: Peer) -> CommandResult:
-        speed = cmd.p(1)
         flags = cmd.p(2)
         lat, lon, alt = cmd.p(5), cmd.p(6), cmd.p(7)
         may_switch = math.isfinite(flags) and int(flags) & M.MAV_DO_REPOSITION_FLAGS_CHANGE_MODE
@@ -158,12 +157,18 @@ class VehicleCommands:
             ok, why = self.modes.set_mode(fm.GUIDED, "reposition")
             if not ok:
                 return DENIED, why
-        if math.isfinite(speed) and speed > 0:
-            self.modes.speed_override_h = min(speed, 50.0)
+        # ArduCopter ignores param1 (speed) and flies the new destination at WPNAV_SPEED: the GUIDED
+        # sub-mode starts afresh (``pva_control_start``), dropping an earlier DO_CHANGE_SPEED
+        self.modes.speed_override_h = None
         target = fm.GuidedTarget(pos=geodetic_to_ned(self.v.state.origin, lat, lon, alt_amsl))
         yaw = cmd.p(4)
         if math.isfinite(yaw):
             target.yaw = math.radians(yaw)
+        else:  # ArduCopter's default auto yaw in GUIDED (WP_YAW_BEHAVIOR 2): face the destination
+            n, e, _ = self.v.state.position_ned
+            dn, de = target.pos[0] - n, target.pos[1] - e  # type: ignore[index]
+            if math.hypot(dn, de) > 2.0:
+                target.yaw = math.atan2(de, dn)
         return _result(self.modes.guided.set(target))
 
     def change_speed(self, cmd: Command, peer: Peer) -> CommandResult:
@@ -275,6 +280,7 @@ class VehicleCommands:
     def set_home(self, cmd: Command, peer: Peer) -> CommandResult:
         if cmd.p(1) == 1:
             lat, lon, alt = self.v.state.position_geodetic
+            self.modes.smart_rtl.set_home()  # Copter::set_home_to_current_location restarts SmartRTL's path
         else:
             lat, lon, alt = cmd.finite(5, "latitude"), cmd.finite(6, "longitude"), cmd.finite(7, "altitude")
             if cmd.frame in (M.MAV_FRAME_GLOBAL_RELATIVE_ALT, M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT):

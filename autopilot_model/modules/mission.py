@@ -179,6 +179,7 @@ class MissionRunner:
         """Jumps taken per DO_JUMP item (AP_Mission's jump tracking)."""
         self.circle = CircleNav(vehicle)
         self._turns = 0.0
+        self._reached_pending: int | None = None
         self.reached: list[int] = []
         """Sequence numbers reached so far (also sent as MISSION_ITEM_REACHED)."""
         store.on_current(self._on_current)
@@ -278,16 +279,19 @@ class MissionRunner:
             self.state = WAITING  # disarmed under us: wait for a new start
             self.store.running = False
             return
+        self._reached_pending = None
         if self._check_done():
             self._complete_item()
-            if self.state != RUNNING:
-                return
         # AP_Mission::update: the do command beside the navigation command
-        if self.do.item is None:
-            self.do.advance(self.store, self.jumps)
-        elif self.do.verified():
-            self._reached(self.do.item)
-            self.do.item = None
+        if self.state == RUNNING:
+            if self.do.item is None:
+                self.do.advance(self.store, self.jumps)
+            elif self.do.verified():
+                self._reached(self.do.item)
+                self.do.item = None
+        if self._reached_pending is not None and self.endpoint is not None:
+            self.endpoint.send(self.endpoint.mav.mission_item_reached_encode(self._reached_pending))
+        self._reached_pending = None
 
     # --- what the do commands use --------------------------------------------------------------------
     @property
@@ -548,12 +552,14 @@ class MissionRunner:
         return False
 
     def _reached(self, item: MissionItem) -> None:
-        """``verify_command`` succeeded: MISSION_ITEM_REACHED (every command, as ArduCopter)."""
+        """``verify_command`` succeeded (every command, as ArduCopter): MISSION_ITEM_REACHED at the end of
+        the cycle. ArduCopter queues one such message per cycle (``send_mission_item_reached_message``
+        keeps the last index), so a navigation item verified in the same cycle as the do command started
+        with the next one is overtaken by it; the model reports the same way."""
         self.reached.append(item.seq)
-        if self.endpoint is not None:
-            self.endpoint.send(self.endpoint.mav.mission_item_reached_encode(item.seq))
-            if item.command in (NAV_WAYPOINT, NAV_LOITER_TIME):
-                self.endpoint.statustext(mavlink.MAV_SEVERITY_INFO, f"Reached command #{item.seq}")
+        self._reached_pending = item.seq
+        if self.endpoint is not None and item.command in (NAV_WAYPOINT, NAV_LOITER_TIME):
+            self.endpoint.statustext(mavlink.MAV_SEVERITY_INFO, f"Reached command #{item.seq}")
 
     def _complete_item(self) -> None:
         item = self._item

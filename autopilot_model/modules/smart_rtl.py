@@ -1,12 +1,13 @@
 """ArduCopter's SMART_RTL (mode 21, ``ModeSmartRTL`` with ``AP_SmartRTL``) for the model.
 
-While armed (and not in SMART_RTL) the path is recorded: the position at arming, then a point each time
+The path starts (``AP_SmartRTL::set_home``) once the position is good, again at arming and at every
+DO_SET_HOME to the current location; while armed (and not in SMART_RTL) a point is added each time
 the vehicle is SRTL_ACCURACY metres from the last one, at most SRTL_POINTS points (when full, the mode
-becomes unavailable, as ArduCopter when its cleanup cannot make room). Entering SMART_RTL needs a
-path (``AP_SmartRTL::is_active``: armed, at least the arming point): otherwise the mode change is
-refused and the caller (a failsafe) falls back to RTL or LAND. The mode flies the points back in
-reverse order at WPNAV_SPEED, the last one (where it was armed) 2 m higher (``PRELAND_POSITION``), then
-lands there (RTL_ALT_FINAL = 0) and stays in SMART_RTL after the disarm.
+becomes unavailable, as ArduCopter when its cleanup cannot make room). Entering SMART_RTL needs the
+path to be active (``AP_SmartRTL::is_active``): otherwise the mode change is refused and the caller
+(a failsafe) falls back to RTL or LAND. On the ground it is accepted and does nothing. In the air the
+mode flies the points back in reverse order at WPNAV_SPEED, the last one (where the path started) 2 m
+higher (``PRELAND_POSITION``), then lands there (RTL_ALT_FINAL = 0) and stays in SMART_RTL after the disarm.
 
 Differences kept (``docs/conformance.md``): ArduCopter prunes loops and simplifies the path
 (Ramer-Douglas-Peucker) in the background and waits for that cleanup before leaving; the model keeps
@@ -43,9 +44,8 @@ class SmartRtl:
     def record(self, recording: bool) -> None:
         """Each navigation step: keep the path while armed (``recording``: not in SMART_RTL)."""
         nav = self.v.nav
-        if nav.armed and not self._was_armed:
-            self.path = [self._pos()]  # AP_SmartRTL::set_home at arming
-            self.active = self.v.params.get("SRTL_POINTS") > 0
+        if (nav.armed and not self._was_armed) or (not self.path and self.v.estimator.healthy):
+            self.set_home()  # AP_SmartRTL::set_home: the first good position, and at arming
         self._was_armed = nav.armed
         if not (nav.armed and recording and self.active):
             return
@@ -56,6 +56,11 @@ class SmartRtl:
                 return
             self.path.append(p)
 
+    def set_home(self) -> None:
+        """Restart the path here (also ``Copter::set_home_to_current_location``: DO_SET_HOME param1 1)."""
+        self.path = [self._pos()]
+        self.active = self.v.params.get("SRTL_POINTS") > 0
+
     def _pos(self) -> tuple[float, float, float]:
         n, e, d = self.v.state.position_ned
         return (float(n), float(e), float(d))
@@ -64,10 +69,10 @@ class SmartRtl:
     def start(self) -> tuple[bool, str]:
         """Entering SMART_RTL: refused without a path (ArduCopter's init returns false)."""
         nav = self.v.nav
-        if not (nav.armed and self.active and self.path):
+        if not (self.active and self.path):
             return False, "SmartRTL Unavailable"
-        if nav.landed_state == 1:  # on the ground: nothing to fly (ArduCopter lands at once)
-            self.stage = "land"
+        if not nav.armed or nav.landed_state == 1:  # on the ground: nothing to fly
+            self.stage = "idle"
             return True, ""
         self._returning = list(self.path)
         self.stage = "path"
