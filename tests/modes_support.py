@@ -123,6 +123,7 @@ def observe_commands(ap: Autopilot) -> dict[str, Any]:
     g = f.g
     obs: dict[str, Any] = {}
     f.start()
+    g.wait_prearm(g.wall(60))  # a good position: SmartRTL's path has started
     obs["smart_rtl_disarmed"] = g.set_mode(SMART_RTL)
     obs["reboot_bad_param"] = g.command(M.MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN, 0)
     obs["set_guided"] = g.set_mode(GUIDED)
@@ -235,6 +236,7 @@ def _upload(f: Flight, items: list[tuple[Any, ...]], mission_type: int = 0,
     """Upload (with ``partial`` start, end: MISSION_WRITE_PARTIAL_LIST); returns requested seqs, ACK type."""
     g = f.g
     by_seq = {it[0]: it for it in items}
+    _quiet(f)
     if partial is None:
         g.conn.mav.mission_count_send(1, 1, len(items), mission_type)
     else:
@@ -249,8 +251,17 @@ def _upload(f: Flight, items: list[tuple[Any, ...]], mission_type: int = 0,
     return seqs, req.type
 
 
+def _quiet(f: Flight) -> None:
+    """Drop what is left of the last exchange (a request repeated after 1 s of simulated time, answered
+    twice, is acknowledged twice): each exchange starts from the vehicle's next answer."""
+    f.during(0.5)
+    with f.g._lock:
+        f.g.mission.clear()
+
+
 def _download_item(f: Flight, seq: int) -> Any:
     g = f.g
+    _quiet(f)
     g.conn.mav.mission_request_list_send(1, 1, 0)
     count = g.next_mission(("MISSION_COUNT",)).count
     g.conn.mav.mission_request_int_send(1, 1, seq, 0)
@@ -301,7 +312,7 @@ def observe_mission(ap: Autopilot) -> dict[str, Any]:
     obs["mission_start"] = g.command(M.MAV_CMD_MISSION_START, 0, 0)
     current: list[int] = []
     t_reached: dict[int, float] = {}
-    heading_at: dict[int, float] = {}
+    heading_at: dict[Any, float] = {}
     speeds: list[float] = []
     circle_r: list[float] = []
 
@@ -313,6 +324,8 @@ def observe_mission(ap: Autopilot) -> dict[str, Any]:
             if seq not in t_reached:
                 t_reached[seq] = f.sim_s()
                 heading_at[seq] = f.heading()
+        if 5 in t_reached and "yaw_held" not in heading_at and f.sim_s() > t_reached[5] + 1.0:
+            heading_at["yaw_held"] = f.heading()  # a second after CONDITION_YAW was verified
         if current[-1:] == [3] and len(current) <= 3:
             speeds.append(f.speed())
         if current[-1:] == [10] and 10 not in t_reached:
@@ -321,16 +334,17 @@ def observe_mission(ap: Autopilot) -> dict[str, Any]:
 
     f.until(lambda: current[-1:] == [11] and math.dist(f.pos()[:2], (30.0, -10.0)) < 2.0, 400,
             "at the LOITER_UNLIM", each)
+    f.until(lambda: f.speed() < 0.3, 20, "holding at the LOITER_UNLIM", each)
     f.during(3.0, each)
     obs["mission_current"] = current
     obs["reached"] = list(g.reached)
     obs["speed_leg_3"] = max(speeds) if speeds else None
     obs["delay_s"] = t_reached.get(4, math.nan) - t_reached.get(3, math.nan)
-    obs["heading_after_condition_yaw"] = heading_at.get(5)
+    obs["heading_after_condition_yaw"] = heading_at.get("yaw_held")
     obs["heading_at_wp9"] = heading_at.get(9)
     obs["circle_radius"] = (min(circle_r[len(circle_r) // 2:]), max(circle_r[len(circle_r) // 2:])) \
         if circle_r else None
-    obs["still_loitering"] = current[-1] == 11 and f.speed() < 0.5
+    obs["still_loitering"] = (current[-1], math.dist(f.pos()[:2], (30.0, -10.0)), f.speed())
 
     # RTL: to the rally point (nearer than home), lands there
     obs["rtl"] = g.set_mode(RTL)
