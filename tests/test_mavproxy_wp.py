@@ -68,7 +68,10 @@ def test_mavproxy_wp_partial_edit(setup: tuple[MavProxy, Gcs, Path]) -> None:
     plan = _plan_file(d / "plan.txt")
     mp.type(f"wp load {d / 'plan.txt'}")
     mp.out.wait("Sent all 5", 30)
-    before = _download(gcs)
+    before: list[Any] = []
+    # MAVProxy prints "Sent all" as it sends the last item: the vehicle may not have stored it yet
+    wait_for(lambda: len(before.__setitem__(slice(None), _download(gcs)) or before) == 5, 30,
+             "the uploaded plan")
     assert [m.command for m in before] == [c for c, *_ in plan]
     assert before[2].param1 == 0.0 and before[3].z == pytest.approx(15.0)
 
