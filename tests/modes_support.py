@@ -126,9 +126,15 @@ def observe_commands(ap: Autopilot) -> dict[str, Any]:
     g.wait_prearm(g.wall(60))  # a good position: SmartRTL's path has started
     obs["smart_rtl_disarmed"] = g.set_mode(SMART_RTL)
     obs["reboot_bad_param"] = g.command(M.MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN, 0)
+    # DO_SET_HOME to a location (20 m east) on the ground: HOME_POSITION moves, locked: arming keeps it
+    lat, lon = f.geo(0.0, 20.0)
+    obs["set_home_location"] = g.command(M.MAV_CMD_DO_SET_HOME, 0, 0, 0, 0, lat, lon, f.home[2])
+    h = g.home()
+    obs["home_moved_east_m"] = (h[1] - f.home[1]) * 111_195.0 * math.cos(math.radians(h[0]))
     obs["set_guided"] = g.set_mode(GUIDED)
     obs["arm"] = f.arm()
-    obs["takeoff"] = f.takeoff(10.0)
+    obs["takeoff"] = f.takeoff(10.0)  # at once: DISARM_DELAY
+    obs["home_after_arming_east_m"] = (g.home()[1] - f.home[1]) * 111_195.0 * math.cos(math.radians(h[0]))
     obs["reboot_armed"] = g.command(M.MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN, 1)
 
     # CONDITION_YAW: 90 deg absolute, then a bad angle

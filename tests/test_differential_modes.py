@@ -59,6 +59,11 @@ COMMAND_CHECKS: dict[str, tuple[str, Callable[[dict[str, Any]], bool]]] = {
                            "good position)", lambda o: o["smart_rtl_disarmed"] == ACCEPTED),
     "reboot_bad_param": ("PREFLIGHT_REBOOT_SHUTDOWN param1 0: UNSUPPORTED",
                          lambda o: o["reboot_bad_param"] == UNSUPPORTED),
+    "set_home_location": ("DO_SET_HOME to a location on the ground: ACCEPTED, HOME_POSITION 20 m east",
+                          lambda o: o["set_home_location"] == ACCEPTED
+                          and abs(o["home_moved_east_m"] - 20) < 1),
+    "home_locked_at_arming": ("DO_SET_HOME locks home: arming keeps it 20 m east",
+                              lambda o: abs(o["home_after_arming_east_m"] - 20) < 1.0),
     "takeoff": ("GUIDED, arm, NAV_TAKEOFF: ACCEPTED",
                 lambda o: (o["set_guided"], o["arm"], o["takeoff"]) == (0, 0, 0)),
     "reboot_armed": ("PREFLIGHT_REBOOT_SHUTDOWN while armed: FAILED", lambda o: o["reboot_armed"] == FAILED),

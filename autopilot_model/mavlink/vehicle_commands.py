@@ -278,7 +278,11 @@ class VehicleCommands:
         return ACCEPTED, None
 
     def set_home(self, cmd: Command, peer: Peer) -> CommandResult:
-        if cmd.p(1) == 1:
+        if cmd.p(1) not in (0.0, 1.0):
+            return FAILED, None
+        here = cmd.p(1) == 1 or (cmd.is_int and cmd.x_int == 0 and cmd.y_int == 0) or (
+            not cmd.is_int and cmd.p(5) == 0 and cmd.p(6) == 0)
+        if here:
             lat, lon, alt = self.v.state.position_geodetic
             self.modes.smart_rtl.set_home()  # Copter::set_home_to_current_location restarts SmartRTL's path
         else:
@@ -293,6 +297,7 @@ class VehicleCommands:
             if math.hypot(n, e) > 50_000:
                 return DENIED, "Set home: more than 50 km from origin"
         self.v.home = (float(lat), float(lon), float(alt))
+        self.v.nav.home_locked = True  # GCS_MAVLINK::handle_command_do_set_home: set_home(loc, lock=true)
         self.ep.statustext(M.MAV_SEVERITY_INFO, "Home position set")
         self.ep.commands.after_ack(lambda: self.ep.streams.send_now("HOME_POSITION", None))
         return ACCEPTED, None
