@@ -110,6 +110,7 @@ class Sitl:
         self.mission_protocol = MissionProtocol(self.endpoint, self.missions)
         self.mission_runner = MissionRunner(v, self.missions, self.endpoint, self.modes)
         self.modes.mission_runner = self.mission_runner
+        self.modes.missions = self.missions  # rally points for RTL
         if hasattr(self.mission_protocol, "status"):
             self.mission_protocol.status = self.mission_runner
         self.safety = Safety(v, self.endpoint, self.modes, self.missions)

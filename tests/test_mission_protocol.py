@@ -290,3 +290,38 @@ def test_mission_item_roundtrip_dict():
     it = MissionItem(seq=3, frame=6, command=16, param4=math.nan, x=1, y=2, z=3.5)
     back = MissionItem.from_dict(it.to_dict())
     assert back.seq == 3 and math.isnan(back.param4)
+
+
+def test_write_partial_list_replaces_a_range_and_appends(env):
+    """MISSION_WRITE_PARTIAL_LIST as ArduPilot's MissionItemProtocol: items start..end requested in turn,
+    the others kept; end = count appends; a bad range is MAV_MISSION_ERROR; busy is DENIED."""
+    ep, _, store, _ = env
+    assert upload(ep, plan()).type == mavlink.MAV_MISSION_ACCEPTED
+    ep.take()
+    ep.deliver(gcs().mission_write_partial_list_encode(1, 1, 2, 2, MISSION))
+    assert [r.seq for r in ep.take("MISSION_REQUEST_INT")] == [2]
+    ep.deliver(gcs().mission_write_partial_list_encode(1, 1, 1, 1, MISSION))  # busy with the first one
+    assert ep.take("MISSION_ACK")[0].type == mavlink.MAV_MISSION_DENIED
+    ep.deliver(wp(2, HOME[0] + 2e-4, HOME[1], 25, p1=4))
+    assert ep.take("MISSION_ACK")[0].type == mavlink.MAV_MISSION_ACCEPTED
+    items = store.items
+    assert len(items) == 4 and items[2].z == 25 and items[2].param1 == 4
+    assert items[1].command == mavlink.MAV_CMD_NAV_TAKEOFF and items[3].command == mavlink.MAV_CMD_NAV_LAND
+    ep.deliver(gcs().mission_write_partial_list_encode(1, 1, 4, 4, MISSION))  # append
+    assert [r.seq for r in ep.take("MISSION_REQUEST_INT")] == [4]
+    ep.deliver(wp(4, HOME[0], HOME[1], 5))
+    assert ep.take("MISSION_ACK")[0].type == mavlink.MAV_MISSION_ACCEPTED
+    assert store.count() == 5
+    for start, end in ((3, 2), (6, 6), (0, 9)):
+        ep.deliver(gcs().mission_write_partial_list_encode(1, 1, start, end, MISSION))
+        assert ep.take("MISSION_ACK")[0].type == mavlink.MAV_MISSION_ERROR, (start, end)
+    assert store.count() == 5
+
+
+def test_do_jump_must_name_an_item_of_the_plan(env):
+    ep, _, store, _ = env
+    items = [*plan()[:3], wp(3, 0, 0, 0, cmd=mavlink.MAV_CMD_DO_JUMP, p1=7)]
+    assert upload(ep, items).type == mavlink.MAV_MISSION_ERROR
+    assert store.count() == 0
+    items[3] = wp(3, 0, 0, 0, cmd=mavlink.MAV_CMD_DO_JUMP, p1=2)
+    assert upload(ep, items).type == mavlink.MAV_MISSION_ACCEPTED

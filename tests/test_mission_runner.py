@@ -60,7 +60,10 @@ def test_flies_plan_and_lands(rig):
 
     v.run(60, watch)
     assert runner.finished and runner.state == COMPLETE
-    assert reached_msgs(ep) == [1, 2, 4, 5] == runner.reached
+    # every verified command is reached, the DO_CHANGE_SPEED too (ArduCopter's verify_command); one
+    # MISSION_ITEM_REACHED per cycle: waypoint 2 is overtaken by item 3, verified in the same cycle
+    assert runner.reached == [1, 2, 3, 4, 5]
+    assert reached_msgs(ep) == [1, 3, 4, 5]
     assert "Reached command #2" in ep.texts and "Mission complete" in ep.texts
     assert not v.nav.armed and v.nav.landed_state == ON_GROUND
     n, e, d = v.state.position_ned
@@ -171,3 +174,44 @@ def test_auto_refused_without_plan_and_restart_after_completion(rig):
     v.run(5)
     assert runner.start() == (True, "")  # back in AUTO after completion: from the beginning
     assert store.current == 1 and runner.state == RUNNING
+
+
+def test_do_jump_walk_counts_and_resets():
+    """AP_Mission::get_next_cmd: a DO_JUMP is taken param2 times (counted only by the navigation walk),
+    then passed and its counter reset; -1 jumps forever; a jump to item 0 or past the end ends the walk."""
+    from autopilot_model.modules.mission_do import next_cmd
+
+    store = MissionStore()
+    store.replace(0, [HOME_ITEM, item(1, 22, z=5, here=True), item(2, 16, 5, 0, 5), item(3, 177, p1=2, p2=2),
+                      item(4, 16, 0, 5, 5)])
+    jumps: dict[int, int] = {}
+    said: list[str] = []
+    assert next_cmd(store, 3, jumps, increment=False).seq == 2 and jumps == {}
+    assert next_cmd(store, 3, jumps, increment=True, say=said.append).seq == 2
+    assert next_cmd(store, 3, jumps, increment=True, say=said.append).seq == 2
+    assert said == ["Mission: 3 Jump 1/2", "Mission: 3 Jump 2/2"]
+    assert next_cmd(store, 3, jumps, increment=True).seq == 4 and jumps[3] == 0
+    store.replace(0, [HOME_ITEM, item(1, 16, 5, 0, 5), item(2, 177, p1=1, p2=-1)])
+    for _ in range(100):
+        assert next_cmd(store, 2, jumps, increment=True).seq == 1
+    store.replace(0, [HOME_ITEM, item(1, 16, 5, 0, 5), item(2, 177, p1=0, p2=1)])
+    assert next_cmd(store, 2, jumps, increment=True) is None
+
+
+def test_condition_delay_holds_back_the_do_commands_after_it_not_the_navigation(rig):
+    v, store, _, runner = rig
+    store.replace(0, [HOME_ITEM, item(1, 22, z=5, here=True), item(2, 112, p1=3), item(3, 178, p2=2),
+                      item(4, 16, 40, 0, 5)])
+    v.nav.arm()
+    runner.start()
+    runner.mission_start()
+    t_wp = t_speed = None
+    while v.t < 60 and not runner.finished:
+        v.run(0.02, runner.update)
+        if t_wp is None and store.current == 4:
+            t_wp = v.t
+        if t_speed is None and 3 in runner.reached:
+            t_speed = v.t
+    assert t_wp is not None and t_speed is not None
+    assert 2.9 <= t_speed - t_wp <= 3.2  # the speed change waited for the delay, the leg did not
+    assert runner.reached == [1, 2, 3, 4] and v.nav.speeds[-1] == 2

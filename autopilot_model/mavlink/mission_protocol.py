@@ -13,6 +13,12 @@ MISSION_REQUEST) is answered with MISSION_ITEM_INT. Download is driven by the gr
 owns its timeouts), so the vehicle side keeps no state for it. As in ArduPilot, item 0 of the flight
 plan is reported as the current home position.
 
+Partial upload (MISSION_WRITE_PARTIAL_LIST start..end, as ArduPilot's
+``MissionItemProtocol::handle_mission_write_partial_list``): items start..end are requested in turn and
+replace the stored ones (end = the count appends one); the other items stay. Refused with
+MAV_MISSION_DENIED while an upload of that type is in progress, MAV_MISSION_ERROR for a bad range
+(start or end past the count, end before start). The plan is swapped in when the last item arrived.
+
 Also: MISSION_CLEAR_ALL, MISSION_SET_CURRENT (answered with MISSION_CURRENT), MISSION_CURRENT sent
 on every change and streamed by the endpoint's telemetry (its builder is registered here). Mission
 types MISSION, FENCE and RALLY are kept separately.
@@ -99,6 +105,8 @@ class _Upload:
     t_request: float = 0.0
     """Simulated time of the last MISSION_REQUEST_INT sent."""
     retries: int = 0
+    tail: list[MissionItem] = field(default_factory=list)
+    """Partial upload: the stored items after the range, kept."""
 
     @property
     def expected(self) -> int:
@@ -133,7 +141,8 @@ class MissionProtocol:
                          ("MISSION_ITEM", self._on_item), ("MISSION_REQUEST_LIST", self._on_request_list),
                          ("MISSION_REQUEST_INT", self._on_request), ("MISSION_REQUEST", self._on_request),
                          ("MISSION_CLEAR_ALL", self._on_clear), ("MISSION_SET_CURRENT", self._on_set_current),
-                         ("MISSION_ACK", self._on_ack)):
+                         ("MISSION_ACK", self._on_ack),
+                         ("MISSION_WRITE_PARTIAL_LIST", self._on_write_partial)):
             endpoint.add_handler(name, fn)
         store.on_current(lambda _seq: self.send_current())
         commands = getattr(endpoint, "commands", None)
@@ -182,6 +191,25 @@ class MissionProtocol:
         log.info("mission upload of %d item(s), type %d, from %d/%d", up.count, mtype, *peer)
         self._request(up)
 
+    def _on_write_partial(self, msg: Any, link: Any) -> None:
+        mtype = _mission_type(msg)
+        peer = (msg.get_srcSystem(), msg.get_srcComponent())
+        if mtype not in MISSION_TYPES:
+            self._ack(msg, link, mavlink.MAV_MISSION_UNSUPPORTED, mtype)
+            return
+        if mtype in self._uploads:
+            self._ack(msg, link, mavlink.MAV_MISSION_DENIED, mtype)
+            return
+        stored = self.store.get(mtype)
+        start, end = int(msg.start_index), int(msg.end_index)
+        if start < 0 or end < 0 or start > len(stored) or end > len(stored) or end < start:
+            self._ack(msg, link, mavlink.MAV_MISSION_ERROR, mtype)
+            return
+        up = _Upload(mtype, end + 1, link, peer, items=list(stored[:start]), tail=list(stored[end + 1:]))
+        self._uploads[mtype] = up
+        log.info("partial mission upload of items %d..%d, type %d, from %d/%d", start, end, mtype, *peer)
+        self._request(up)
+
     def _on_item(self, msg: Any, link: Any) -> None:
         mtype = _mission_type(msg)
         peer = (msg.get_srcSystem(), msg.get_srcComponent())
@@ -222,7 +250,7 @@ class MissionProtocol:
             self._request(up)
             return
         del self._uploads[mtype]
-        result = self._swap(mtype, up.items)
+        result = self._swap(mtype, up.items + up.tail)
         if result == ACCEPTED:
             self.stats["uploads"] += 1
             self._finished[mtype] = (peer, up.count - 1, self._now())

@@ -7,7 +7,10 @@ COMPONENT_ARM_DISARM (param1 1/0; param2 21196 forces: skips pre-arm checks / di
 NAV_TAKEOFF (param7 altitude above home; GUIDED or LOITER, armed, on the ground), NAV_LAND,
 NAV_RETURN_TO_LAUNCH, DO_SET_MODE (and the SET_MODE message, acknowledged with command id 11 as
 ArduPilot does), DO_REPOSITION (GUIDED; param2 bit 0 lets it switch to GUIDED), DO_CHANGE_SPEED,
-MISSION_START (AUTO; accepted while disarmed), DO_PAUSE_CONTINUE, GET_HOME_POSITION, DO_SET_HOME.
+MISSION_START (AUTO; accepted while disarmed), DO_PAUSE_CONTINUE, GET_HOME_POSITION, DO_SET_HOME,
+CONDITION_YAW and DO_SET_ROI_LOCATION / DO_SET_ROI / DO_SET_ROI_NONE (:mod:`..modules.auto_yaw`),
+PREFLIGHT_REBOOT_SHUTDOWN. The results follow ArduCopter's handlers (GCS_MAVLink_Copter.cpp,
+GCS_Common.cpp); ``docs/conformance.md`` lists what the differential tests compare.
 """
 
 from __future__ import annotations
@@ -22,7 +25,7 @@ from autopilot_model.modules import flight_modes as fm
 from autopilot_model.modules.navigation import LANDED_ON_GROUND
 from taskflight.geo import geodetic_to_ned
 
-from .commands import ACCEPTED, DENIED, FAILED, Command, CommandResult
+from .commands import ACCEPTED, DENIED, FAILED, UNSUPPORTED, Command, CommandResult
 
 if TYPE_CHECKING:
     from .endpoint import MavlinkEndpoint
@@ -59,6 +62,11 @@ class VehicleCommands:
         add(M.MAV_CMD_DO_PAUSE_CONTINUE, self.pause_continue)
         add(M.MAV_CMD_GET_HOME_POSITION, self.get_home, dedup=False)
         add(M.MAV_CMD_DO_SET_HOME, self.set_home)
+        add(M.MAV_CMD_CONDITION_YAW, self.condition_yaw)
+        add(M.MAV_CMD_DO_SET_ROI_LOCATION, self.set_roi)
+        add(M.MAV_CMD_DO_SET_ROI, self.set_roi)
+        add(M.MAV_CMD_DO_SET_ROI_NONE, self.set_roi_none)
+        add(M.MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN, self.reboot)
         endpoint.add_handler("SET_MODE", self._on_set_mode)
 
     # --- arming --------------------------------------------------------------------------------
@@ -122,7 +130,6 @@ class VehicleCommands:
 
     # --- guided navigation ---------------------------------------------------------------------
     def reposition(self, cmd: Command, peer: Peer) -> CommandResult:
-        speed = cmd.p(1)
         flags = cmd.p(2)
         lat, lon, alt = cmd.p(5), cmd.p(6), cmd.p(7)
         may_switch = math.isfinite(flags) and int(flags) & M.MAV_DO_REPOSITION_FLAGS_CHANGE_MODE
@@ -150,27 +157,97 @@ class VehicleCommands:
             ok, why = self.modes.set_mode(fm.GUIDED, "reposition")
             if not ok:
                 return DENIED, why
-        if math.isfinite(speed) and speed > 0:
-            self.modes.speed_override_h = min(speed, 50.0)
+        # ArduCopter ignores param1 (speed) and flies the new destination at WPNAV_SPEED: the GUIDED
+        # sub-mode starts afresh (``pva_control_start``), dropping an earlier DO_CHANGE_SPEED
+        self.modes.speed_override_h = None
         target = fm.GuidedTarget(pos=geodetic_to_ned(self.v.state.origin, lat, lon, alt_amsl))
         yaw = cmd.p(4)
         if math.isfinite(yaw):
             target.yaw = math.radians(yaw)
+        else:  # ArduCopter's default auto yaw in GUIDED (WP_YAW_BEHAVIOR 2): face the destination
+            n, e, _ = self.v.state.position_ned
+            dn, de = target.pos[0] - n, target.pos[1] - e  # type: ignore[index]
+            if math.hypot(dn, de) > 2.0:
+                target.yaw = math.atan2(de, dn)
         return _result(self.modes.guided.set(target))
 
     def change_speed(self, cmd: Command, peer: Peer) -> CommandResult:
+        """``handle_MAV_CMD_DO_CHANGE_SPEED``: param2 <= 0 DENIED; ground/air speed (0, 1) in AUTO, GUIDED
+        and RTL (others: FAILED); climb / descent speed (2, 3) accepted there, flown at the envelope's."""
         kind = cmd.finite(1, "speed type")
         speed = cmd.finite(2, "speed")
-        if speed == -1 or speed == -2:
-            return ACCEPTED, None  # "no change" / "default" per the MAVLink spec
-        if not (0 < speed <= 50):
-            return DENIED, f"Change speed: {speed:g} m/s out of range"
+        if not speed > 0:
+            return DENIED, None
+        if int(kind) not in (0, 1, 2, 3):
+            return DENIED, None
+        if self.modes.mode not in fm.SPEED_MODES:
+            return FAILED, None
         if int(kind) in (0, 1):
+            speed = min(speed, 50.0)
             self.modes.speed_override_h = speed
             if self.modes.mode == fm.GUIDED and self.modes.guided.target.pos is not None:
                 self.modes.guided.set(self.modes.guided.target)
-            return ACCEPTED, None
-        return DENIED, "Change speed: only ground/air speed is supported"
+            runner = self.modes.mission_runner
+            if self.modes.mode == fm.AUTO and runner is not None and hasattr(runner, "change_speed"):
+                runner.speed = speed
+                runner.change_speed_now()
+            elif self.modes.mode == fm.RTL and self.modes.in_air():
+                self.modes.rtl_speed_changed()
+        return ACCEPTED, None
+
+    # --- heading -------------------------------------------------------------------------------
+    def condition_yaw(self, cmd: Command, peer: Peer) -> CommandResult:
+        """``handle_MAV_CMD_CONDITION_YAW``: 0 <= param1 <= 360 and param4 0 or 1, else FAILED; accepted
+        in every mode (flown by the auto-yaw modes)."""
+        angle, rate, direction, relative = (cmd.p(i) for i in (1, 2, 3, 4))
+        if not (0.0 <= angle <= 360.0) or relative not in (0.0, 1.0):
+            return FAILED, None
+        rate = rate if math.isfinite(rate) else 0.0
+        direction = direction if math.isfinite(direction) else 0.0
+        self.modes.auto_yaw.set_fixed(angle, rate, direction, relative > 0,
+                                      fly=self.modes.mode in fm.AUTO_YAW_MODES and self.modes.in_air())
+        return ACCEPTED, None
+
+    def set_roi(self, cmd: Command, peer: Peer) -> CommandResult:
+        """DO_SET_ROI_LOCATION / DO_SET_ROI (params 5-7 the location; 0, 0 clears it)."""
+        lat, lon, alt = cmd.p(5), cmd.p(6), cmd.p(7)
+        if not (math.isfinite(lat) and math.isfinite(lon)) or not (-90 <= lat <= 90 and -180 <= lon <= 180):
+            return DENIED, None
+        alt = alt if math.isfinite(alt) else 0.0
+        frame = cmd.frame if cmd.frame is not None else M.MAV_FRAME_GLOBAL_RELATIVE_ALT
+        if frame in (M.MAV_FRAME_GLOBAL, M.MAV_FRAME_GLOBAL_INT):
+            alt_amsl = alt
+        else:
+            alt_amsl = alt + self.v.home[2]
+        self.modes.auto_yaw.set_roi(lat, lon, alt_amsl)
+        return ACCEPTED, None
+
+    def set_roi_none(self, cmd: Command, peer: Peer) -> CommandResult:
+        self.modes.auto_yaw.reset()
+        return ACCEPTED, None
+
+    # --- reboot --------------------------------------------------------------------------------
+    def reboot(self, cmd: Command, peer: Peer) -> CommandResult:
+        """``handle_preflight_reboot``: FAILED while armed; param1 other than 1 (reboot) or 3 (reboot to the
+        bootloader) UNSUPPORTED; otherwise ACCEPTED and the vehicle restarts (see :meth:`soft_reboot`)."""
+        if self.v.nav.armed:
+            return FAILED, None
+        if cmd.p(1) not in (1.0, 3.0):
+            return UNSUPPORTED, None
+        self.ep.commands.after_ack(self.soft_reboot)
+        return ACCEPTED, None
+
+    def soft_reboot(self) -> None:
+        """What a ground station sees of a reboot, in the running process: the boot mode (STABILIZE), no
+        mission in progress, the estimator and setpoints restarted, "Rebooting" then the banner text.
+        Parameters and stored plans are kept (they persist anyway)."""
+        self.ep.statustext(M.MAV_SEVERITY_INFO, "Rebooting")
+        self.modes.set_mode(fm.STABILIZE, "reboot")
+        runner = self.modes.mission_runner
+        if runner is not None:
+            runner.stop()
+        self.v.guidance_reset_here()
+        self.ep.statustext(M.MAV_SEVERITY_INFO, "ArduCopter model: restarted")
 
     # --- missions ------------------------------------------------------------------------------
     def mission_start(self, cmd: Command, peer: Peer) -> CommandResult:
@@ -201,8 +278,13 @@ class VehicleCommands:
         return ACCEPTED, None
 
     def set_home(self, cmd: Command, peer: Peer) -> CommandResult:
-        if cmd.p(1) == 1:
+        if cmd.p(1) not in (0.0, 1.0):
+            return FAILED, None
+        here = cmd.p(1) == 1 or (cmd.is_int and cmd.x_int == 0 and cmd.y_int == 0) or (
+            not cmd.is_int and cmd.p(5) == 0 and cmd.p(6) == 0)
+        if here:
             lat, lon, alt = self.v.state.position_geodetic
+            self.modes.smart_rtl.set_home()  # Copter::set_home_to_current_location restarts SmartRTL's path
         else:
             lat, lon, alt = cmd.finite(5, "latitude"), cmd.finite(6, "longitude"), cmd.finite(7, "altitude")
             if cmd.frame in (M.MAV_FRAME_GLOBAL_RELATIVE_ALT, M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT):
@@ -215,6 +297,7 @@ class VehicleCommands:
             if math.hypot(n, e) > 50_000:
                 return DENIED, "Set home: more than 50 km from origin"
         self.v.home = (float(lat), float(lon), float(alt))
+        self.v.nav.home_locked = True  # GCS_MAVLINK::handle_command_do_set_home: set_home(loc, lock=true)
         self.ep.statustext(M.MAV_SEVERITY_INFO, "Home position set")
         self.ep.commands.after_ack(lambda: self.ep.streams.send_now("HOME_POSITION", None))
         return ACCEPTED, None

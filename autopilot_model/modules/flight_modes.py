@@ -10,10 +10,12 @@ ALT_HOLD     2   as STABILIZE (the altitude is held by the velocity demand)
 AUTO         3   delegates to the mission runner (``modes.mission_runner``: ``start()``, ``update()``)
 GUIDED       4   targets from the ground station / companion (:class:`GuidedTargets`); GUID_TIMEOUT
 LOITER       5   hold position
-RTL          6   climb to RTL_ALT if lower, fly home, descend and land (RTL_ALT_FINAL = 0)
+RTL          6   climb to RTL_ALT if lower, fly home or to the nearest rally point (:mod:`.rally`), land
 LAND         9   land where it is; stays in LAND after touchdown and disarm, as ArduCopter does
+CIRCLE       7   circle a centre CIRCLE_RADIUS ahead at CIRCLE_RATE, nose in (:mod:`.circle_nav`)
 POSHOLD     16   as LOITER without a pilot; with one: lean angles, braking to a hold when sticks centre
 BRAKE       17   stop as fast as the envelope allows and hold
+SMART_RTL   21   fly the recorded path back, land where armed (:mod:`.smart_rtl`); refused without a path
 ==========  ===  ===========================================================================
 
 Every change of mode goes through :meth:`FlightModes.set_mode`, which may refuse with a reason;
@@ -34,11 +36,25 @@ from __future__ import annotations
 import logging
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from autopilot_model.modules import navigation as navmod
+from autopilot_model.modules import rally
+from autopilot_model.modules.auto_yaw import AutoYaw
+from autopilot_model.modules.circle_nav import CircleNav, define_circle_params
+from autopilot_model.modules.guided_targets import (  # noqa: F401 - re-exported
+    G_ACCEL,
+    G_NONE,
+    G_POS,
+    G_POSVEL,
+    G_VEL,
+    PSC_JERK,
+    GuidedTarget,
+    GuidedTargets,
+    sqrt_controller,
+)
 from autopilot_model.modules.shared_params import define_rtl_alt
+from autopilot_model.modules.smart_rtl import SmartRtl
 from taskflight.geo import geodetic_to_ned
 
 if TYPE_CHECKING:
@@ -52,30 +68,29 @@ AUTO = 3
 GUIDED = 4
 LOITER = 5
 RTL = 6
+CIRCLE = 7
 LAND = 9
 POSHOLD = 16
 BRAKE = 17
+SMART_RTL = 21
 
 MODE_NAMES: dict[int, str] = {STABILIZE: "STABILIZE", ALT_HOLD: "ALT_HOLD", AUTO: "AUTO", GUIDED: "GUIDED",
-                              LOITER: "LOITER", RTL: "RTL", LAND: "LAND", POSHOLD: "POSHOLD",
-                              BRAKE: "BRAKE"}
+                              LOITER: "LOITER", RTL: "RTL", CIRCLE: "CIRCLE", LAND: "LAND",
+                              POSHOLD: "POSHOLD", BRAKE: "BRAKE", SMART_RTL: "SMART_RTL"}
 MODE_NUMBERS: dict[str, int] = {v: k for k, v in MODE_NAMES.items()}
 #: Modes ArduCopter lets a ground station arm in (AUTO, RTL, LAND, BRAKE refuse arming).
 ARMABLE = frozenset({STABILIZE, ALT_HOLD, GUIDED, LOITER, POSHOLD})
 #: Modes in which a take-off command is accepted (ArduCopter: modes with a navigating user take-off).
 TAKEOFF_MODES = frozenset({GUIDED, LOITER})
-#: Modes in which MAV_CMD_DO_PAUSE_CONTINUE applies.
-PAUSABLE = frozenset({AUTO, GUIDED, RTL})
+#: Modes in which MAV_CMD_DO_PAUSE_CONTINUE applies (ArduCopter: ``pause()`` of ModeAuto, ModeGuided).
+PAUSABLE = frozenset({AUTO, GUIDED})
+#: Modes whose speed DO_CHANGE_SPEED sets (ArduCopter: ``set_speed_xy_cms`` of Auto, Guided, RTL).
+SPEED_MODES = frozenset({AUTO, GUIDED, RTL})
+#: Modes that fly the auto yaw (CONDITION_YAW, ROI).
+AUTO_YAW_MODES = frozenset({AUTO, GUIDED, RTL, SMART_RTL})
 
 ModeListener = Callable[[int, int, str], None]
 Vec3 = tuple[float, float, float]
-
-# GUIDED sub-modes (what the last target asked for)
-G_NONE = "none"
-G_POS = "pos"
-G_VEL = "vel"
-G_ACCEL = "accel"
-G_POSVEL = "posvel"
 
 # RTL stages
 RTL_CLIMB = "climb"
@@ -106,294 +121,8 @@ def define_mode_params(params: Any) -> None:
                   doc="GUIDED: stop if no new velocity/acceleration target for this long (s)")
     define_rtl_alt(params)
     params.define("RTL_SPEED", 0.0, 0.0, 2000.0, doc="RTL: horizontal speed, 0 = WPNAV_SPEED (cm/s)")
-
-
-@dataclass
-class GuidedTarget:
-    """One GUIDED target in the local NED frame of the vehicle (origin = EKF origin)."""
-
-    pos: Vec3 | None = None
-    vel: Vec3 | None = None
-    acc: Vec3 | None = None
-    yaw: float | None = None
-    yaw_rate: float | None = None
-
-
-#: ArduCopter's jerk limit of the position controller's kinematic shaping (PSC_JERK_XY / PSC_JERK_Z
-#: default, m/s^3). With the acceleration limit A it sets the shaping gains of ``shape_pos_vel_accel``:
-#: ``KPa = jerk / A`` (velocity error -> acceleration) and ``KPv = KPa / 2`` (position error -> velocity,
-#: decelerating at ``A / 2``).
-PSC_JERK = 5.0
-#: Below this speed (m/s) and acceleration (m/s^2) a braking P_d counts as stopped and holds.
-_STOPPED_V = 0.02
-_STOPPED_A = 0.1
-
-
-def sqrt_controller(error: float, p: float, second_ord_lim: float, dt: float) -> float:
-    """ArduPilot's ``sqrt_controller`` (AP_Math/control.cpp): linear (gain ``p``) near zero, then the
-    square root that decelerates at ``second_ord_lim``; never more than ``|error| / dt`` (no overshoot in
-    one step)."""
-    if second_ord_lim <= 0.0:
-        rate = error * p
-    elif p == 0.0:
-        rate = math.copysign(math.sqrt(2.0 * second_ord_lim * abs(error)), error)
-    else:
-        linear_dist = second_ord_lim / (p * p)
-        if error > linear_dist:
-            rate = math.sqrt(2.0 * second_ord_lim * (error - linear_dist / 2.0))
-        elif error < -linear_dist:
-            rate = -math.sqrt(2.0 * second_ord_lim * (-error - linear_dist / 2.0))
-        else:
-            rate = error * p
-    if dt > 0.0:
-        lim = abs(error) / dt
-        rate = max(-lim, min(lim, rate))
-    return rate
-
-
-def _toward(cur: float, target: float, step: float) -> float:
-    return cur + max(-step, min(step, target - cur))
-
-
-class GuidedTargets:
-    """ArduCopter's ``ModeGuided`` target handling: the sub-mode, refresh time and timeout.
-
-    Position + velocity (+ acceleration), ArduCopter's PosVelAccel sub-mode
-    (``ModeGuided::set_destination_posvelaccel`` / ``posvelaccel_control_run``):
-
-    * the target is a moving point: every run it is advanced with its feed-forward,
-      ``p += v dt + a dt^2 / 2``, ``v += a dt`` (``AC_PosControl::input_pos_vel_accel_NE_cm`` / ``_U_cm``
-      take the target by reference and move it in place with ``update_pos_vel_accel``), so a companion
-      streaming p + v at 20 Hz gives a smooth target between its messages;
-    * P_d follows it as ArduCopter's desired trajectory does (``shape_pos_vel_accel``): velocity = target
-      velocity + ``sqrt_controller(position error, KPv, A / 2)`` (the correction capped at WPNAV_SPEED /
-      DO_CHANGE_SPEED horizontally, WPNAV_SPEED_UP / _DN vertically), acceleration = target acceleration +
-      ``sqrt_controller(velocity error, KPa, jerk)``, reached at most at the jerk limit (``shape_accel``).
-      The result is given to the setpoint generator as an acceleration target at each run, so the
-      envelope's speed, acceleration and position limits still bound P_d;
-    * GUID_TIMEOUT after the last message the velocity and acceleration feed-forward are zeroed (and a yaw
-      rate stops): the vehicle brakes, jerk-limited as ``shape_vel_accel`` to zero velocity, and holds
-      where it stopped, a braking distance beyond the advanced target (ArduCopter's shaper would then
-      settle back onto that frozen target; the model holds the stop point instead). It never flies back
-      to the last position *sent*.
-
-    Velocity and acceleration targets (VelAccel / Accel sub-modes) brake the same way after the timeout
-    (``velaccel_control_run`` / ``accel_control_run`` zero the targets and shape to a stop).
-
-    POSITION_TARGET_LOCAL_NED echoes the advanced target (``ModeGuided::get_target_pos`` / ``_vel`` /
-    ``_accel``), see :meth:`echo`.
-    """
-
-    def __init__(self, modes: FlightModes) -> None:
-        self.modes = modes
-        self.v = modes.v
-        self.kind = G_NONE
-        self.last_update_s = 0.0
-        self.target: GuidedTarget = GuidedTarget()
-        self.timed_out = False
-        # PosVelAccel: the moving target (advanced in place, as ArduCopter's guided_pos_target_cm)
-        self.pva_pos: Vec3 = (0.0, 0.0, 0.0)
-        self.pva_vel: Vec3 = (0.0, 0.0, 0.0)
-        self.pva_acc: Vec3 = (0.0, 0.0, 0.0)
-        self.braking = False  # shaping P_d to a stop after the timeout
-        self._pva_t = 0.0  # sim time the moving target was last advanced to
-        self._dt = 0.0  # period of the runs (s): the schedule's until measured on the clock
-        self._last_run_s: float | None = None
-        self._acc: Vec3 = (0.0, 0.0, 0.0)  # the shaped acceleration given to the generator
-
-    def reset(self) -> None:
-        self.kind = G_NONE
-        self.target = GuidedTarget()
-        self.timed_out = False
-        self.braking = False
-
-    def set(self, t: GuidedTarget) -> tuple[bool, str]:
-        """Apply a target (already converted to local NED). Position with velocity: posvel; etc.
-
-        Re-applying the current position + velocity target object (DO_CHANGE_SPEED does, to pick up a new
-        speed) changes nothing: the moving target and its update time stay (ArduCopter's
-        ``set_speed_xy`` only changes the limits)."""
-        nav = self.v.nav
-        now = self.v.clock.now()
-        if t.pos is not None and t.vel is not None and t is self.target and self.kind == G_POSVEL:
-            return True, ""
-        fence = self.modes.fence
-        if t.pos is not None and fence is not None and not fence.destination_ok(t.pos):
-            return False, "Destination outside fence"  # ArduCopter: DEST_OUTSIDE_FENCE, target ignored
-        if t.pos is not None and t.vel is None:
-            ok, why = nav.goto(t.pos, self.modes.speed_h())
-            kind = G_POS
-        elif t.pos is not None and t.vel is not None:
-            if self.kind != G_POSVEL or self.timed_out or self.braking:
-                self._shaping_start()  # ArduCopter: posvelaccel_control_start()
-            ok, why = nav.acceleration(self._acc)  # the in-air check; _shape() below replaces it
-            if ok:
-                self.pva_pos = (float(t.pos[0]), float(t.pos[1]), float(t.pos[2]))
-                self.pva_vel = (float(t.vel[0]), float(t.vel[1]), float(t.vel[2]))
-                self.pva_acc = (0.0, 0.0, 0.0) if t.acc is None else (float(t.acc[0]), float(t.acc[1]),
-                                                                       float(t.acc[2]))
-                self._pva_t = now
-            kind = G_POSVEL
-        elif t.vel is not None:
-            ok, why = nav.velocity(t.vel)
-            kind = G_VEL
-        elif t.acc is not None:
-            ok, why = nav.acceleration(t.acc)
-            kind = G_ACCEL
-        else:
-            return False, "no target"
-        if not ok:
-            return ok, why
-        if t.yaw is not None:
-            nav.yaw(t.yaw, None)
-        elif t.yaw_rate is not None:
-            nav.yaw_rate(t.yaw_rate)
-        self.kind = kind
-        self.target = t
-        self.timed_out = False
-        self.braking = False
-        self.last_update_s = now
-        if kind == G_POSVEL:
-            self._shape(self.pva_pos, self.pva_vel, self.pva_acc)
-        return True, ""
-
-    def stop(self) -> None:
-        """ArduCopter's ``mode_guided.init(true)`` for invalid input: stop and hold here."""
-        if self.v.nav.armed and self.v.nav.landed_state != navmod.LANDED_ON_GROUND:
-            self.v.nav.hold()
-        self.reset()
-
-    def resume(self) -> None:
-        """After DO_PAUSE_CONTINUE: ArduCopter's ``ModeGuided::resume`` only clears the pause and the
-        sub-mode carries on (its target was not advanced while paused); a position target is flown to
-        again. The pause held P_d (``pause_control_run``), so the shaping starts from rest."""
-        if self.kind == G_POSVEL:
-            self._pva_t = self.v.clock.now()
-            self._shaping_start()
-            if self.timed_out:
-                self.braking = True
-        elif self.target.pos is not None:
-            self.set(self.target)
-
-    def echo(self) -> tuple[Vec3 | None, Vec3 | None, Vec3 | None]:
-        """Position, velocity and acceleration targets as ArduCopter reports them (local NED; None: not
-        used by the sub-mode). PosVelAccel: the advanced target, zero feed-forward after the timeout, and
-        once the vehicle has stopped after it, the point it holds."""
-        t = self.target
-        if self.kind != G_POSVEL:
-            return t.pos, t.vel, t.acc
-        pos = self.pva_pos
-        if self.timed_out and not self.braking:
-            held = self.v.guidance.target
-            if held is not None:
-                pos = held
-        return pos, self.pva_vel, None if t.acc is None else self.pva_acc
-
-    # --- ArduCopter's kinematic shaping (AC_PosControl, AP_Math/control.cpp) ------------------------
-    def _shaping_start(self) -> None:
-        """``init_NE_controller`` / ``init_U_controller``: the shaping continues from P_d's acceleration."""
-        self._acc = tuple(float(x) for x in self.v.guidance.a)  # type: ignore[assignment]
-
-    def _shape(self, pos: Vec3 | None, vel: Vec3, acc: Vec3) -> None:
-        """One step of ``shape_pos_vel_accel`` (``pos`` None: ``shape_vel_accel``, no position
-        correction): the acceleration P_d should have until the next run, jerk-limited, given to the
-        setpoint generator as its acceleration target."""
-        g = self.v.guidance
-        env = g.envelope
-        dt = self._dt
-        jdt = PSC_JERK * dt
-        pn, pe, pd = g.p
-        vn, ve, vd = g.v
-        an, ae, ad = self._acc
-        ah, av = env.max_accel_h, env.max_accel_v
-        tvn, tve, tvd = vel
-        # horizontal (2-D, along the errors, as the _xy versions)
-        if pos is not None:
-            en, ee = pos[0] - pn, pos[1] - pe
-            eh = math.hypot(en, ee)
-            if eh > 0.0:
-                c = min(sqrt_controller(eh, 0.5 * PSC_JERK / ah, 0.5 * ah, dt), self.modes.speed_h())
-                tvn += en / eh * c
-                tve += ee / eh * c
-        en, ee = tvn - vn, tve - ve
-        eh = math.hypot(en, ee)
-        cn = ce = 0.0
-        if eh > 0.0:
-            c = min(sqrt_controller(eh, PSC_JERK / ah, PSC_JERK, dt), ah)
-            cn, ce = en / eh * c, ee / eh * c
-        cn += acc[0]
-        ce += acc[1]
-        dn, de = cn - an, ce - ae  # shape_accel_xy: at most jerk * dt
-        dh = math.hypot(dn, de)
-        k = jdt / dh if dh > jdt else 1.0
-        an, ae = an + dn * k, ae + de * k
-        # vertical (1-D; down positive)
-        if pos is not None:
-            params = self.v.params
-            c = sqrt_controller(pos[2] - pd, 0.5 * PSC_JERK / av, 0.5 * av, dt)
-            tvd += max(-params.get("WPNAV_SPEED_UP") / 100.0, min(params.get("WPNAV_SPEED_DN") / 100.0, c))
-        c = max(-av, min(av, sqrt_controller(tvd - vd, PSC_JERK / av, PSC_JERK, dt)))
-        ad = _toward(ad, c + acc[2], jdt)
-        self._acc = (an, ae, ad)
-        g.set_acceleration_target(self._acc)
-
-    def _brake(self) -> None:
-        """After the timeout: shape the velocity to zero, then hold where P_d stopped."""
-        g = self.v.guidance
-        if not self.modes.in_air():
-            self.braking = False
-            return
-        vn, ve, vd = g.v
-        an, ae, ad = self._acc
-        if (vn * vn + ve * ve + vd * vd < _STOPPED_V ** 2
-                and an * an + ae * ae + ad * ad < _STOPPED_A ** 2):
-            self.braking = False
-            self.v.nav.hold()
-            return
-        self._shape(None, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
-
-    def _pva_run(self) -> None:
-        """One run of ``posvelaccel_control_run``: advance the moving target, shape P_d after it."""
-        now = self.v.clock.now()
-        dt = now - self._pva_t
-        self._pva_t = now
-        if dt > 0.0:
-            (pn, pe, pd), (vn, ve, vd), (an, ae, ad) = self.pva_pos, self.pva_vel, self.pva_acc
-            h = 0.5 * dt * dt
-            self.pva_pos = (pn + vn * dt + an * h, pe + ve * dt + ae * h, pd + vd * dt + ad * h)
-            self.pva_vel = (vn + an * dt, ve + ae * dt, vd + ad * dt)
-        if self.modes.in_air():
-            self._shape(self.pva_pos, self.pva_vel, self.pva_acc)
-
-    def update(self) -> None:
-        now = self.v.clock.now()
-        if self._last_run_s is not None and 0.0 < now - self._last_run_s <= 0.1:
-            self._dt = now - self._last_run_s
-        elif self._dt <= 0.0:
-            self._dt = self.v.step_of("flight_modes.update")
-        self._last_run_s = now
-        if self.braking:
-            self._brake()
-            return
-        if self.kind not in (G_VEL, G_ACCEL, G_POSVEL) or self.timed_out:
-            return
-        if now - self.last_update_s <= self.v.params.get("GUID_TIMEOUT"):
-            if self.kind == G_POSVEL:
-                self._pva_run()
-            return
-        self.timed_out = True
-        if self.kind == G_POSVEL:
-            # zero the feed-forward; the target stops where it had been advanced to
-            self.pva_vel = (0.0, 0.0, 0.0)
-            self.pva_acc = (0.0, 0.0, 0.0)
-        else:
-            self._shaping_start()
-        if self.target.yaw_rate is not None:
-            self.v.nav.yaw_rate(0.0)
-        log.info("GUIDED: target timed out, stopping")
-        if self.modes.in_air():
-            self.braking = True
-            self._brake()
+    define_circle_params(params)
+    rally.define_rally_params(params)
 
 
 class FlightModes:
@@ -411,6 +140,10 @@ class FlightModes:
         self._listeners: list[ModeListener] = []
         self.pilot: Any = None  # the pilot-driven modes (pilot_modes.PilotModes), set by the Sitl wiring
         self.fence: Any = None  # the geofence (fence.Fence): GUIDED destinations outside it are refused
+        self.auto_yaw = AutoYaw(vehicle)
+        self.circle = CircleNav(vehicle)
+        self.smart_rtl = SmartRtl(vehicle)
+        self.missions: Any = None  # the MissionStore (rally points for RTL), set by the Sitl wiring
 
     # --- listeners -----------------------------------------------------------------------------
     def on_mode_change(self, callback: ModeListener) -> None:
@@ -450,6 +183,7 @@ class FlightModes:
         self.mode = mode
         self.paused = False
         self.speed_override_h = None
+        self.auto_yaw.reset()
         if mode != GUIDED:
             self.guided.reset()
         if self.pilot is not None:
@@ -480,6 +214,15 @@ class FlightModes:
     _enter_brake = _enter_loiter
     _enter_poshold = _enter_loiter
 
+    def _enter_circle(self) -> tuple[bool, str]:
+        if self.in_air():
+            p = self.v.params
+            self.circle.start_here(p.get("CIRCLE_RADIUS") / 100.0, math.radians(p.get("CIRCLE_RATE")))
+        return True, ""
+
+    def _enter_smart_rtl(self) -> tuple[bool, str]:
+        return self.smart_rtl.start()
+
     def _enter_land(self) -> tuple[bool, str]:
         if self.in_air():
             self.v.nav.land()
@@ -506,19 +249,26 @@ class FlightModes:
 
     # --- pause / continue (MAV_CMD_DO_PAUSE_CONTINUE) -----------------------------------------
     def pause(self) -> tuple[bool, str]:
-        if self.mode not in PAUSABLE or not self.in_air():
-            return False, f"Pause denied in {self.name}"
+        """``Mode::pause``: GUIDED always; AUTO while flying to a waypoint not yet reached."""
+        runner = self.mission_runner
+        if self.mode == AUTO and not (runner is not None and runner.can_pause()):
+            return False, "Failed to pause"
+        if self.mode not in PAUSABLE:
+            return False, "Failed to pause"
         self.paused = True
-        self.v.nav.hold()
+        if self.in_air():
+            self.v.nav.hold()
         return True, ""
 
     def resume(self) -> tuple[bool, str]:
+        if self.mode not in PAUSABLE:
+            return False, "Failed to resume"
         if not self.paused:
             return True, ""
         self.paused = False
-        if self.mode == RTL:
-            self._rtl_start()
-        elif self.mode == AUTO and self.mission_runner is not None and hasattr(self.mission_runner, "resume"):
+        if not self.in_air():
+            return True, ""
+        if self.mode == AUTO and self.mission_runner is not None and hasattr(self.mission_runner, "resume"):
             self.mission_runner.resume()
         elif self.mode == GUIDED:
             self.guided.resume()
@@ -541,11 +291,20 @@ class FlightModes:
         hn, he, hd = self._home_ned()
         alt_above_home = hd - d
         target_alt = max(self._rtl_alt(), alt_above_home)
+        best = rally.return_target(self.v, self.missions)  # the nearest rally point, else home
+        if best is not None:
+            (hn, he, _), rally_alt = best
+            target_alt = max(target_alt, rally_alt)
         if self._rtl_stage == RTL_CLIMB and alt_above_home < self._rtl_alt() - 0.5:
             nav.goto((n, e, hd - target_alt), self._rtl_speed())
         else:
             self._rtl_stage = RTL_RETURN
             nav.goto((hn, he, hd - target_alt), self._rtl_speed())
+
+    def rtl_speed_changed(self) -> None:
+        """DO_CHANGE_SPEED in RTL: the climb or the return goes on at the new speed."""
+        if self.mode == RTL and self.in_air() and self._rtl_stage in (RTL_CLIMB, RTL_RETURN):
+            self._rtl_start()
 
     def _rtl_update(self) -> None:
         nav = self.v.nav
@@ -562,9 +321,18 @@ class FlightModes:
     # --- periodic (navigation group) -----------------------------------------------------------
     def update(self) -> None:
         mode = self.mode
+        dt = self.v.step_of("flight_modes.update")
         if self.pilot is not None:
-            self.pilot.update(self.v.step_of("flight_modes.update"))
-        if mode == GUIDED:
+            self.pilot.update(dt)
+        self.smart_rtl.record(mode != SMART_RTL)
+        if mode in AUTO_YAW_MODES:
+            self.auto_yaw.update()
+        if mode == CIRCLE:
+            if self.in_air():
+                self.circle.update(dt)
+        elif mode == SMART_RTL:
+            self.smart_rtl.update()
+        elif mode == GUIDED:
             if not self.paused:
                 self.guided.update()
         elif mode == RTL:

@@ -18,8 +18,11 @@ from typing import Any
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
+from .circle_nav import CircleNav, define_circle_params
+from .mission_do import DoCommands, next_cmd
 from .mission_items import (
     ACCEPTED,
+    CONDITION_YAW,
     DO_CHANGE_SPEED,
     FENCE,
     FENCE_CIRCLE_EXCLUSION,
@@ -38,6 +41,8 @@ from .mission_items import (
     NAV_COMMANDS,
     NAV_LAND,
     NAV_LOITER_TIME,
+    NAV_LOITER_TURNS,
+    NAV_LOITER_UNLIM,
     NAV_RETURN_TO_LAUNCH,
     NAV_TAKEOFF,
     NAV_WAYPOINT,
@@ -127,6 +132,7 @@ def define_mission_params(params: Any) -> None:
     params.define("WPNAV_RADIUS", 200.0, 5.0, 1000.0, doc="waypoint acceptance radius (cm) when an item's "
                   "param2 is 0")
     define_rtl_alt(params)
+    define_circle_params(params)
 
 
 class MissionRunner:
@@ -139,8 +145,12 @@ class MissionRunner:
     of the plan the vehicle holds position in AUTO, or stays landed if the plan ended with a landing.
 
     Supported: NAV_TAKEOFF, NAV_WAYPOINT (param1 hold time s; param2 acceptance radius m, 0 =
-    WPNAV_RADIUS), NAV_LOITER_TIME (param1 s), NAV_LAND (at lat/lon if given), NAV_RETURN_TO_LAUNCH
-    (climb to RTL_ALT, return, land) and DO_CHANGE_SPEED (param2 m/s; -2 back to WPNAV_SPEED).
+    WPNAV_RADIUS), NAV_LOITER_TIME (param1 s), NAV_LOITER_UNLIM (never completes), NAV_LOITER_TURNS
+    (param1 turns, param3 radius m, negative counter-clockwise; 0 = CIRCLE_RADIUS), NAV_LAND (at lat/lon
+    if given), NAV_RETURN_TO_LAUNCH (climb to RTL_ALT, return, land); beside them (:mod:`.mission_do`)
+    DO_CHANGE_SPEED (param2 m/s), CONDITION_DELAY, CONDITION_YAW, DO_SET_ROI(_LOCATION, _NONE), and
+    DO_JUMP. Heading: towards the next waypoint (ArduCopter's WP_YAW_BEHAVIOR 2), unless a
+    CONDITION_YAW or an ROI holds it.
     """
 
     def __init__(self, vehicle: Any, store: MissionStore, endpoint: Any = None,
@@ -165,6 +175,12 @@ class MissionRunner:
         self._hold_s = 0.0
         self._jumping = False
         self._modes: Any = None
+        self.do = DoCommands(self)
+        self.jumps: dict[int, int] = {}
+        """Jumps taken per DO_JUMP item (AP_Mission's jump tracking)."""
+        self.circle = CircleNav(vehicle)
+        self._turns = 0.0
+        self._reached_pending: int | None = None
         self.reached: list[int] = []
         """Sequence numbers reached so far (also sent as MISSION_ITEM_REACHED)."""
         store.on_current(self._on_current)
@@ -238,9 +254,9 @@ class MissionRunner:
         return True, ""
 
     def resume(self) -> None:
-        """MAV_CMD_DO_PAUSE_CONTINUE(continue): fly the current item again from where the vehicle is."""
-        if self.state == RUNNING and self._item is not None:
-            self._run_from(self._item.seq)
+        """MAV_CMD_DO_PAUSE_CONTINUE(continue): fly on to the target the pause stopped short of."""
+        if self.state == RUNNING and self._item is not None and self._phase == "goto":
+            self._goto(self._target)
 
     def stop(self) -> None:
         """Leaving AUTO: stop commanding; the current item stays current (resumed by the next start)."""
@@ -264,8 +280,49 @@ class MissionRunner:
             self.state = WAITING  # disarmed under us: wait for a new start
             self.store.running = False
             return
+        self._reached_pending = None
         if self._check_done():
             self._complete_item()
+        # AP_Mission::update: the do command beside the navigation command
+        if self.state == RUNNING:
+            if self.do.item is None:
+                self.do.advance(self.store, self.jumps)
+            elif self.do.verified():
+                self._reached(self.do.item)
+                self.do.item = None
+        if self._reached_pending is not None and self.endpoint is not None:
+            self.endpoint.send(self.endpoint.mav.mission_item_reached_encode(self._reached_pending))
+        self._reached_pending = None
+
+    # --- what the do commands use --------------------------------------------------------------------
+    @property
+    def nav_item(self) -> MissionItem:
+        assert self._item is not None
+        return self._item
+
+    def now(self) -> float:
+        return self._now()
+
+    def home_alt(self) -> float:
+        return self._geo()[1]
+
+    def auto_yaw(self) -> Any:
+        return getattr(self._modes, "auto_yaw", None)
+
+    def change_speed(self, item: MissionItem) -> None:
+        """DO_CHANGE_SPEED: also the leg being flown (ArduCopter's set_speed_NE changes it at once)."""
+        self._change_speed(item)
+        if self._phase in ("goto", "approach", "climb", "return"):
+            self._goto(self._target)
+
+    def change_speed_now(self) -> None:
+        """MAV_CMD_DO_CHANGE_SPEED in AUTO: the leg being flown takes the new speed."""
+        if self.state == RUNNING and self._phase in ("goto", "approach", "climb", "return"):
+            self._goto(self._target)
+
+    def can_pause(self) -> bool:
+        """``ModeAuto::pause``: only while flying to a waypoint not yet reached."""
+        return self.state == RUNNING and self._phase == "goto" and not self._arrived()
 
     # --- internals ----------------------------------------------------------------------------------
     def _on_ground(self) -> bool:
@@ -278,16 +335,39 @@ class MissionRunner:
         return first is not None and first.command == NAV_TAKEOFF
 
     def _run_from(self, seq: int) -> None:
-        n = self.store.count(MISSION)
+        """``advance_current_nav_cmd`` from ``seq``: start the first do command passed on the way (following
+        DO_JUMPs) and the navigation command found; past the end, the mission is complete."""
         seq = max(1, seq)
-        if seq >= n:
-            self._finish()
-            return
+        if seq <= 1:
+            self.jumps.clear()
+        self.do.reset()
+        say = None
+        if self.endpoint is not None:
+            def say(text: str) -> None:
+                self.endpoint.statustext(mavlink.MAV_SEVERITY_INFO, text)
+        first_do: MissionItem | None = None
+        idx = seq
+        while True:
+            it = next_cmd(self.store, idx, self.jumps, increment=True, say=say)
+            if it is None:
+                if first_do is not None:
+                    self.do.start(first_do)
+                self._finish()
+                return
+            if it.command in NAV_COMMANDS:
+                break
+            if first_do is None:
+                first_do = it
+            idx = it.seq + 1
         self.state = RUNNING
         self.finished = False
         self.store.running = True
-        self._set_current(seq)
-        self._begin(self.store.item(seq))
+        self._set_current(it.seq)
+        if first_do is not None:
+            self.do.start(first_do)
+        else:
+            self.do.all_done = True
+        self._begin(it)
 
     def _set_current(self, seq: int) -> None:
         self._jumping = True
@@ -323,14 +403,20 @@ class MissionRunner:
         """(origin, home altitude AMSL, home NED)."""
         return vehicle_frames(self.vehicle)
 
-    def _goto(self, target: tuple[float, float, float]) -> None:
+    def _goto(self, target: tuple[float, float, float], face: bool = False) -> None:
         self._target = target
         self._t_settled = None
         speed = self.speed
         override = getattr(self._modes, "speed_override_h", None)
         if override is not None:
             speed = override
-        self.vehicle.nav.goto(target, speed=speed)
+        nav = self.vehicle.nav
+        nav.goto(target, speed=speed)
+        yaw = self.auto_yaw()
+        if face and yaw is not None and yaw.mode == "none" and hasattr(nav, "yaw"):
+            n, e, _ = self._pos()
+            if math.hypot(target[0] - n, target[1] - e) > 2.0:  # WP_YAW_BEHAVIOR 2: face the next WP
+                nav.yaw(math.atan2(target[1] - e, target[0] - n), None)
 
     def _phase_to(self, phase: str) -> None:
         self._phase = phase
@@ -344,10 +430,11 @@ class MissionRunner:
         pos = self._pos()
         c = item.command
         log.info("mission: item %d, command %d", item.seq, c)
-        if c == DO_CHANGE_SPEED:
-            self._change_speed(item)
-            self._phase_to("done")
-        elif c == NAV_TAKEOFF:
+        yaw = self.auto_yaw()
+        if yaw is not None and yaw.mode == "fixed" and not (
+                self.do.item is not None and self.do.item.command == CONDITION_YAW):
+            yaw.reset()  # wp_start: auto yaw back to the default (an ROI stays)
+        if c == NAV_TAKEOFF:
             alt_home = item.z if item.frame in RELATIVE_FRAMES else item.z - home_alt
             target_d = -(alt_home + home_alt - origin[2])
             self._target = (pos[0], pos[1], target_d)
@@ -359,12 +446,23 @@ class MissionRunner:
                 nav.takeoff(-target_d)
             else:
                 self._goto(self._target)
-        elif c in (NAV_WAYPOINT, NAV_LOITER_TIME):
+        elif c in (NAV_WAYPOINT, NAV_LOITER_TIME, NAV_LOITER_UNLIM):
             self._phase_to("goto")
-            self._goto(item_to_ned(item, origin, home_alt, pos))
+            self._goto(item_to_ned(item, origin, home_alt, pos), face=True)
             r = _finite(item.param2) if c == NAV_WAYPOINT else 0.0
             self._radius = r if r > 0 else self.params.get("WPNAV_RADIUS") / 100.0
-            self._hold_s = max(0.0, _finite(item.param1))
+            self._hold_s = math.inf if c == NAV_LOITER_UNLIM else max(0.0, _finite(item.param1))
+        elif c == NAV_LOITER_TURNS:
+            centre = item_to_ned(item, origin, home_alt, pos)
+            r = abs(_finite(item.param3))
+            self._circle_r = r if r > 0 else self.params.get("CIRCLE_RADIUS") / 100.0
+            rate = math.radians(abs(self.params.get("CIRCLE_RATE")))
+            self._circle_rate = -rate if _finite(item.param3) < 0 else rate
+            self._circle_centre = centre
+            self._turns = max(_finite(item.param1), 0.0)
+            self._radius = 1.0
+            self._phase_to("edge")
+            self._goto(self.circle.edge_point(centre, self._circle_r), face=True)
         elif c == NAV_LAND:
             if item.x == 0 and item.y == 0:
                 self._phase_to("landing")
@@ -425,6 +523,18 @@ class MissionRunner:
             return False
         if phase == "hold":
             return self._now() - self._t_phase >= self._hold_s
+        if phase == "edge":
+            if self._arrived():
+                self._phase_to("circle")
+                self.circle.start_at(self._circle_centre, self._circle_r, self._circle_rate)
+            return False
+        if phase == "circle":
+            step = getattr(self.vehicle, "step_of", None)
+            self.circle.update(step("flight_modes.update") if step is not None else 0.02)
+            if self.circle.turns >= self._turns:
+                self.vehicle.nav.hold()
+                return True
+            return False
         if phase == "approach" and self._arrived():
             self._phase_to("landing")
             nav.land()
@@ -442,21 +552,21 @@ class MissionRunner:
             return nav.landed_state == _LANDED_ON_GROUND or not nav.armed
         return False
 
+    def _reached(self, item: MissionItem) -> None:
+        """``verify_command`` succeeded (every command, as ArduCopter): MISSION_ITEM_REACHED at the end of
+        the cycle. ArduCopter queues one such message per cycle (``send_mission_item_reached_message``
+        keeps the last index), so a navigation item verified in the same cycle as the do command started
+        with the next one is overtaken by it; the model reports the same way."""
+        self.reached.append(item.seq)
+        self._reached_pending = item.seq
+        if self.endpoint is not None and item.command in (NAV_WAYPOINT, NAV_LOITER_TIME):
+            self.endpoint.statustext(mavlink.MAV_SEVERITY_INFO, f"Reached command #{item.seq}")
+
     def _complete_item(self) -> None:
         item = self._item
         assert item is not None
-        if item.command in NAV_COMMANDS:
-            self.reached.append(item.seq)
-            if self.endpoint is not None:
-                self.endpoint.send(self.endpoint.mav.mission_item_reached_encode(item.seq))
-                if item.command == NAV_WAYPOINT:
-                    self.endpoint.statustext(mavlink.MAV_SEVERITY_INFO, f"Reached command #{item.seq}")
-        nxt = item.seq + 1
-        if nxt >= self.store.count(MISSION):
-            self._finish()
-            return
-        self._set_current(nxt)
-        self._begin(self.store.item(nxt))
+        self._reached(item)
+        self._run_from(item.seq + 1)
 
     def _finish(self) -> None:
         """End of the plan: hold in the air (ArduCopter loiters in AUTO), or stay landed."""

@@ -35,13 +35,26 @@ FENCE_POLYGON_EXCLUSION = mavlink.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_EXCLUSION
 FENCE_CIRCLE_INCLUSION = mavlink.MAV_CMD_NAV_FENCE_CIRCLE_INCLUSION
 FENCE_CIRCLE_EXCLUSION = mavlink.MAV_CMD_NAV_FENCE_CIRCLE_EXCLUSION
 RALLY_POINT = mavlink.MAV_CMD_NAV_RALLY_POINT
+NAV_LOITER_UNLIM = mavlink.MAV_CMD_NAV_LOITER_UNLIM
+NAV_LOITER_TURNS = mavlink.MAV_CMD_NAV_LOITER_TURNS
+DO_JUMP = mavlink.MAV_CMD_DO_JUMP
+CONDITION_DELAY = mavlink.MAV_CMD_CONDITION_DELAY
+CONDITION_YAW = mavlink.MAV_CMD_CONDITION_YAW
+DO_SET_ROI = mavlink.MAV_CMD_DO_SET_ROI
+DO_SET_ROI_LOCATION = mavlink.MAV_CMD_DO_SET_ROI_LOCATION
+DO_SET_ROI_NONE = mavlink.MAV_CMD_DO_SET_ROI_NONE
 
-NAV_COMMANDS = frozenset({NAV_WAYPOINT, NAV_LOITER_TIME, NAV_RETURN_TO_LAUNCH, NAV_LAND, NAV_TAKEOFF})
+NAV_COMMANDS = frozenset({NAV_WAYPOINT, NAV_LOITER_TIME, NAV_RETURN_TO_LAUNCH, NAV_LAND, NAV_TAKEOFF,
+                          NAV_LOITER_UNLIM, NAV_LOITER_TURNS})
 """Navigation commands: they move the vehicle and need a position (except RTL)."""
-POSITIONLESS = frozenset({NAV_RETURN_TO_LAUNCH, DO_CHANGE_SPEED})
+DO_COMMANDS = frozenset({DO_CHANGE_SPEED, DO_JUMP, CONDITION_DELAY, CONDITION_YAW, DO_SET_ROI,
+                         DO_SET_ROI_LOCATION, DO_SET_ROI_NONE})
+""""Do" and "condition" commands: run beside the navigation command they follow (AP_Mission)."""
+POSITIONLESS = frozenset({NAV_RETURN_TO_LAUNCH, DO_CHANGE_SPEED, DO_JUMP, CONDITION_DELAY, CONDITION_YAW,
+                          DO_SET_ROI_NONE})
 """Commands whose x/y/z are unused (any frame accepted, as ArduPilot does)."""
 SUPPORTED: dict[int, frozenset[int]] = {
-    MISSION: NAV_COMMANDS | {DO_CHANGE_SPEED},
+    MISSION: NAV_COMMANDS | DO_COMMANDS,
     FENCE: frozenset({FENCE_RETURN_POINT, FENCE_POLYGON_INCLUSION, FENCE_POLYGON_EXCLUSION,
                       FENCE_CIRCLE_INCLUSION, FENCE_CIRCLE_EXCLUSION}),
     RALLY: frozenset({RALLY_POINT}),
@@ -149,7 +162,7 @@ def validate_item(item: MissionItem) -> int:
     if not math.isfinite(item.z) and item.mission_type != FENCE:
         return mavlink.MAV_MISSION_INVALID_PARAM7
     c = item.command
-    if c in (NAV_WAYPOINT, NAV_LOITER_TIME) and item.param1 < 0:
+    if c in (NAV_WAYPOINT, NAV_LOITER_TIME, NAV_LOITER_TURNS) and item.param1 < 0:
         return mavlink.MAV_MISSION_INVALID_PARAM1  # hold / loiter time
     if c == NAV_WAYPOINT and item.param2 < 0:
         return mavlink.MAV_MISSION_INVALID_PARAM2  # acceptance radius
@@ -163,7 +176,14 @@ def validate_item(item: MissionItem) -> int:
 
 
 def validate_plan(mission_type: int, items: list[MissionItem]) -> int:
-    """Whole-plan checks done when an upload completes (fence polygons must be whole)."""
+    """Whole-plan checks done when an upload completes: fence polygons must be whole; a DO_JUMP must
+    name an item of the plan other than home (ArduPilot: MAV_MISSION_ERROR)."""
+    if mission_type == MISSION:
+        for it in items:
+            if it.command == DO_JUMP and not (
+                    math.isfinite(it.param1) and 1 <= int(it.param1) < len(items)):
+                return mavlink.MAV_MISSION_ERROR
+        return ACCEPTED
     if mission_type != FENCE:
         return ACCEPTED
     i = 0

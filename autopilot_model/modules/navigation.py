@@ -49,6 +49,7 @@ class Navigator:
         self.landed_state = LANDED_ON_GROUND
         self.action = IDLE
         self.takeoff_alt = 0.0
+        self.home_locked = False  # set by MAV_CMD_DO_SET_HOME (``ahrs.lock_home``)
         self._land_timer = 0.0
         self._idle_timer = 0.0
         self._listeners: list[Callable[[str], None]] = []
@@ -89,6 +90,11 @@ class Navigator:
         self._idle_timer = 0.0
         self.v.control.reset()
         self.v.guidance_reset_here()
+        # ArduCopter (AP_Arming_Copter::arm): home is set again where the vehicle is armed, unless a
+        # ground station locked it (MAV_CMD_DO_SET_HOME sets it locked)
+        if self.v.estimator.healthy and not self.home_locked:
+            lat, lon, alt = self.v.state.position_geodetic
+            self.v.home = (float(lat), float(lon), float(alt))
         self._emit("Arming motors")
         return True, ""
 

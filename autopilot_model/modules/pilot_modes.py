@@ -47,7 +47,8 @@ log = logging.getLogger(__name__)
 GRAVITY = 9.80665
 STABILIZE, ALT_HOLD, AUTO, GUIDED, LOITER, RTL, LAND, POSHOLD, BRAKE = 0, 2, 3, 4, 5, 6, 9, 16, 17
 PILOT_MODES = frozenset({STABILIZE, ALT_HOLD, LOITER, POSHOLD})
-#: FS_THR_ENABLE -> failsafe mode (the model has no SmartRTL or DO_LAND_START: RTL, or LAND)
+SMART_RTL = 21
+#: FS_THR_ENABLE -> failsafe mode (4, 5: SmartRTL first, then this one; the model has no DO_LAND_START: 6 RTL)
 _FS_THR_MODES = {1: RTL, 2: RTL, 3: LAND, 4: RTL, 5: LAND, 6: RTL, 7: BRAKE}
 # FS_OPTIONS bits (Copter::FailsafeOption)
 RC_CONTINUE_IF_AUTO = 1
@@ -406,6 +407,8 @@ class PilotModes:
             self._say(mavlink.MAV_SEVERITY_CRITICAL, "Radio Failsafe - Continuing Guided Mode")
             return
         self._say(mavlink.MAV_SEVERITY_CRITICAL, "Radio Failsafe")
+        if int(params.get("FS_THR_ENABLE")) in (4, 5) and self.modes.set_mode(SMART_RTL, "Radio Failsafe")[0]:
+            return
         ok, _why = self.modes.set_mode(action, "Radio Failsafe")
         if not ok and action != LAND:
             self.modes.set_mode(LAND, "Radio Failsafe")
