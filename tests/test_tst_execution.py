@@ -242,3 +242,30 @@ def test_each_executor_queues_the_flight_commands_of_fig_11_to_14() -> None:
         assert got == expected, leaf
         if plan.task == "land":
             assert w.queue.commands[-1].vertical.allow_landing
+
+
+def test_a_node_waits_for_the_behavior_it_needs_fig5_waiting() -> None:
+    """Before the autopilot's estimate is healthy SELF_LOCALIZE is not active and TAKE_OFF is refused by
+    precedence: the take-off node waits (Fig. 5 ``waiting``) and runs once the estimate is healthy."""
+    w = World()
+    w.localized = False
+    w.run(2.0)
+    assert "SELF_LOCALIZE" not in w.active()
+    m = Mission(SCAN_MISSION, scan_plans(), w)
+    m.ts.start()
+    assert m.node("to")["status"]["waiting"] and m.node("to")["state"] == "waiting"
+    w.run(1.0)
+    assert m.node("to")["state"] == "waiting"
+    w.localized = True
+    w.run_until(lambda: m.node("to")["state"] == "executing", 3.0, "the take-off running")
+    w.run_until(lambda: m.ts.active_node() == "scan", 30, "the scan")
+    assert "node_waiting" in m.kinds()
+
+
+def test_a_wait_condition_that_never_holds_fails_the_node() -> None:
+    w = World()
+    w.localized = False
+    m = Mission(SCAN_MISSION, scan_plans(), w)
+    m.ts.start()
+    assert m.run_until_done(60) == "failed"  # after the wait limit
+    assert "precedence" in m.ts.status()["fail_reason"] and "SELF_LOCALIZE" in m.ts.status()["fail_reason"]

@@ -30,6 +30,8 @@ def f(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory) 
                             missions=True)
     try:
         wait_for(lambda: session.node.link.mirror.snapshot().home is not None, session.wall(30), "home")
+        assert session.layer is not None  # a healthy estimate: the motion behaviors need SELF_LOCALIZE
+        wait_for(lambda: session.layer.coordinator.is_active("SELF_LOCALIZE"), session.wall(60), "localized")
         yield session
     finally:
         session.close()
@@ -74,6 +76,7 @@ def test_fly_the_mission_with_break_in_resume_and_enough(f: FlightSession) -> No
     scan = node(body["tree"], "scan")
     assert scan["expansion"] >= 8 and scan["info"] is None and scan["state"] == "idle"
     assert f.post("/mission/start").status_code == 200
+    assert mission(f)["state"] == "executing", mission(f)
     r = f.post("/mission/pause")
     assert r.status_code == 409 and "can_be_paused is false" in r.json()["error"]  # the take-off
     wait_for(lambda: mission(f)["active_node"] == "scan", f.wall(60), "the scan")

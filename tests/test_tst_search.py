@@ -27,6 +27,8 @@ def f(tmp_path: Path) -> Iterator[FlightSession]:
                             scenario=Scenario.load(ROOT / "mission_specs" / "scenario_person.yaml"))
     try:
         wait_for(lambda: session.node.link.mirror.snapshot().home is not None, session.wall(30), "home")
+        assert session.layer is not None  # a healthy estimate: the motion behaviors need SELF_LOCALIZE
+        wait_for(lambda: session.layer.coordinator.is_active("SELF_LOCALIZE"), session.wall(60), "localized")
         yield session
     finally:
         session.close()

@@ -46,6 +46,14 @@ if TYPE_CHECKING:
 log = logging.getLogger(__name__)
 
 BREAK_IN = "REQUEST_OPERATOR_ASSISTANCE"
+#: how long a node waits for its behavior's precedence or situation (seconds of autopilot time)
+WAIT_LIMIT_S = 15.0
+
+
+def _transient(reason: str) -> bool:
+    """A rejection that time may lift: a needed behavior not active yet (precedence), or the situation
+    (the belief memory still says taking_off a tick after the take-off ended)."""
+    return reason.startswith(("precedence:", "situation:"))
 
 
 @dataclass
@@ -99,6 +107,7 @@ class TstExecutor:
         self.behavior: str | None = None
         self.break_in_id: str | None = None
         self._own_ends: set[str] = set()  # activations we ended ourselves (enough, abort, continue)
+        self._waiting_since = 0.0
 
     # --- what a subclass says -------------------------------------------------------------------------
     def activation(self) -> str:
@@ -127,17 +136,46 @@ class TstExecutor:
         return self.lifecycle.prepare()
 
     def start(self) -> NodeExecutionStatus:
+        """Fig. 3 start(): the behavior is asked for. A rejection for precedence (a behavior it needs is
+        not active yet, e.g. SELF_LOCALIZE before the autopilot's estimate is healthy) or for its
+        situation (the beliefs lag the vehicle by an update) is a *wait condition*: the node is
+        ``waiting`` (Fig. 5) and asks again every tick, for up to :data:`WAIT_LIMIT_S`; any other
+        rejection (a higher-priority behavior active, a bad request) fails it with the reason."""
         if not self.lifecycle.status.active:
             self.prepare()
-        self.lifecycle.start()
         try:
             self.on_start()
         except ValueError as exc:
+            self.lifecycle.start()
             self._fail(str(exc))
             return self.status
-        self._ask(self.activation())
-        self.ctx.mark("node_started", node=self.node.id, task=self.task, activation=self.activation_id)
+        text = self.activation()
+        result = self.ctx.coordinator.activate(text, "mission")
+        if not result.accepted and _transient(result.reason):
+            self.lifecycle.start(wait_conditions_met=False)
+            self._waiting_since = self.ctx.now()
+            self.ctx.mark("node_waiting", node=self.node.id, reason=result.reason)
+            return self.status
+        self.lifecycle.start()
+        self._accepted(text, result)
         return self.status
+
+    def _accepted(self, text: str, result: Any) -> None:
+        if not result.accepted:
+            self._fail(f"{text}: {result.reason}")
+            return
+        self.activation_id, self.behavior = result.activation_id, result.behavior
+        self.ctx.mark("node_started", node=self.node.id, task=self.task, activation=self.activation_id)
+
+    def _retry(self, now_s: float) -> None:
+        """Waiting: ask again; executing once accepted, failed after :data:`WAIT_LIMIT_S`."""
+        text = self.activation()
+        result = self.ctx.coordinator.activate(text, "mission")
+        if result.accepted:
+            self.lifecycle.conditions_met()
+            self._accepted(text, result)
+        elif not _transient(result.reason) or now_s - self._waiting_since > WAIT_LIMIT_S:
+            self._fail(f"{text}: {result.reason}")
 
     def _ask(self, text: str) -> bool:
         result = self.ctx.coordinator.activate(text, "mission")
@@ -148,6 +186,8 @@ class TstExecutor:
         return True
 
     def tick(self, now_s: float) -> None:
+        if self.status.waiting and not self.finished:
+            self._retry(now_s)
         if self.finished or not self.status.executing:
             return
         if self.break_in_id is not None:
