@@ -61,6 +61,20 @@ def setup(tmp_path: Path):
         sitl.stop()
 
 
+def _typed_until(mp: MavProxy, command: str, done: Any, what: str, tries: int = 3) -> None:
+    """Type ``command`` into MAVProxy until ``done()``: the observer's downloads are paced (1 s) so they
+    do not hold the mission protocol while MAVProxy writes; a write lost on a loaded machine is typed
+    again (MAVProxy does not retry a partial write itself)."""
+    for attempt in range(tries):
+        mp.type(command)
+        try:
+            wait_for(done, 15, what, poll_s=1.0)
+            return
+        except AssertionError:
+            if attempt == tries - 1:
+                raise
+
+
 def test_mavproxy_wp_partial_edit(setup: tuple[MavProxy, Gcs, Path]) -> None:
     mp, gcs, d = setup
     mp.out.wait("Detected vehicle 1:1", 30)
@@ -75,22 +89,21 @@ def test_mavproxy_wp_partial_edit(setup: tuple[MavProxy, Gcs, Path]) -> None:
     assert [m.command for m in before] == [c for c, *_ in plan]
     assert before[2].param1 == 0.0 and before[3].z == pytest.approx(15.0)
 
-    mp.type("wp param 2 1 7")  # hold 7 s at item 2: MISSION_WRITE_PARTIAL_LIST 2..2
     after: list[Any] = []
 
     def edited() -> bool:
         after[:] = _download(gcs)
         return after[2].param1 == 7.0
 
-    wait_for(edited, 30, "item 2's hold time edited")
+    _typed_until(mp, "wp param 2 1 7", edited, "item 2's hold time edited")  # MISSION_WRITE_PARTIAL_LIST 2..2
     assert len(after) == 5
     for seq in (1, 3, 4):
         a, b = after[seq], before[seq]
         assert (a.command, a.x, a.y, a.z, a.param1) == (b.command, b.x, b.y, b.z, b.param1), seq
 
-    mp.type("wp changealt 3 25")  # one item's altitude: MISSION_WRITE_PARTIAL_LIST 3..3
-    wait_for(lambda: (after.__setitem__(slice(None), _download(gcs)), after[3].z == 25.0)[1], 30,
-             "item 3's altitude edited")
+    _typed_until(mp, "wp changealt 3 25",  # one item's altitude: MISSION_WRITE_PARTIAL_LIST 3..3
+                 lambda: (after.__setitem__(slice(None), _download(gcs)), after[3].z == 25.0)[1],
+                 "item 3's altitude edited")
     assert len(after) == 5 and after[2].param1 == 7.0
     assert (after[3].x, after[3].y) == (before[3].x, before[3].y)
     assert not any("Mission" in t and "denied" in t.lower() for t in gcs.texts)
