@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import logging
 import math
+from abc import ABC, abstractmethod
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from enum import Enum
@@ -203,7 +204,7 @@ class BehaviorExecutionController:
         return str(value) if value is not None else None
 
 
-class FlightBehavior(BehaviorExecutionController):
+class FlightBehavior(BehaviorExecutionController, ABC):
     """A flight maneuver: its commands on the queue, followed through the queue's events.
 
     Subclasses give :meth:`commands`; ``goal_distance`` (optional) is the measured distance to the
@@ -219,8 +220,9 @@ class FlightBehavior(BehaviorExecutionController):
         self._best_at = 0.0
         self.unreachable: str | None = None
 
+    @abstractmethod
     def commands(self, params: Mapping[str, Any]) -> list[FlightCommand]:
-        raise NotImplementedError
+        """The flight commands that perform the behavior (seed 000 Fig. 11-14)."""
 
     def goal_distance(self, vehicle: VehicleState) -> float | None:
         return None

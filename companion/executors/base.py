@@ -26,6 +26,7 @@ break-in the operator ends with ``user_confirm`` continues the node.
 from __future__ import annotations
 
 import logging
+from abc import ABC, abstractmethod
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, ClassVar
@@ -93,7 +94,7 @@ def supported_tasks() -> list[str]:
     return sorted(_EXECUTORS)
 
 
-class TstExecutor:
+class TstExecutor(ABC):
     """One leaf's executor (see module docstring). Subclasses give ``task`` and :meth:`activation`."""
 
     task: ClassVar[str] = ""
@@ -110,18 +111,20 @@ class TstExecutor:
         self._waiting_since = 0.0
 
     # --- what a subclass says -------------------------------------------------------------------------
+    @abstractmethod
     def activation(self) -> str:
         """The behavior activation (text form) that performs the task."""
-        raise NotImplementedError
 
     def progress(self) -> dict[str, Any]:
         return {}
 
     def on_start(self) -> None:
-        """Before the behavior is asked for (e.g. the camera labels its results)."""
+        """Before the behavior is asked for (e.g. the camera labels its results); by default nothing."""
+        return None
 
     def on_end(self) -> None:
-        """After the node finished, whichever way."""
+        """After the node finished, whichever way; by default nothing."""
+        return None
 
     # --- Fig. 3 ------------------------------------------------------------------------------------------
     @property
