@@ -91,8 +91,8 @@ class Fleet:
 
         if n < 1:
             raise ValueError(f"a fleet has at least one vehicle, got {n}")
-        if base_instance < 0:
-            raise ValueError(f"the base instance must be >= 0, got {base_instance}")
+        if not 0 <= base_instance <= 255 - n:
+            raise ValueError(f"instances {base_instance}..{base_instance + n - 1} are not all within 0..254")
         if not 1 <= first_sysid <= 256 - n:
             raise ValueError(f"system ids {first_sysid}..{first_sysid + n - 1} are not all within 1..255")
         if batch < 1:
