@@ -196,3 +196,19 @@ def test_homes_and_templates() -> None:
         ["tcpin:0.0.0.0:5790", "udpin:0.0.0.0:14580"]
     with pytest.raises(ValueError):
         fleet_homes(2, (1.0, 2.0))
+
+
+def test_real_time_fleet_sleeps_instead_of_spinning(tmp_path: Path) -> None:
+    """Paced on the wall (1 s simulated takes 1 s), with one sleep per period and no spinning: the
+    process's CPU stays far below the ~45 % of one core a single spinning vehicle costs."""
+    import time
+
+    with Fleet(3, speedup=1.0, state_dir=tmp_path, urls=[["udpin:127.0.0.1:0"]] * 3, persist=False) as f:
+        f.run(0.1)  # warm-up round and first periods
+        t0, c0 = time.perf_counter(), time.process_time()
+        f.run(1.0)
+        wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+        assert wall >= 0.98, f"not paced: 1 s simulated in {wall:.2f} s"
+        assert cpu / wall < 0.25, f"{100 * cpu / wall:.0f} % of a core for 3 idle vehicles"
+        assert len(f.lateness_s) >= 495 and f.lateness_quantiles((0.5,))[0] < 0.002
+        assert [s.vehicle.clock.now_us for s in f.vehicles] == [1_100_000] * 3
