@@ -2,11 +2,12 @@
 
 For N = 1, 3, 12, 50 at real time and N = 12, 50 in lockstep, a fleet process (this script with ``--child``)
 runs a warm-up, then a measured wall interval, and reports: its CPU share (``os.times``, user + system,
-over the interval, in percent of one core), its memory (RSS), simulated seconds per wall second, the main
-loop's period lateness (wall time by which a period started after its deadline: p50, p99; real time only)
-and the periods it gave up (slips). Meanwhile this process is a ground station on every vehicle's UDP
-port (pymavlink, one ``udpout`` link each, GCS heartbeats at 1 Hz, the model's default telemetry set
-streaming back) and counts the vehicles heard: a HEARTBEAT from system id i+1 on vehicle i's port.
+over the interval, in percent of one core, and per vehicle and 2 ms period), its memory (RSS), simulated
+seconds per wall second, the main loop's period lateness (wall time by which a period started after its
+deadline: p50, p99; real time only) and the periods it gave up (slips). Meanwhile this process is a ground
+station on every vehicle's UDP port (plain sockets, GCS heartbeats at 1 Hz, the model's default telemetry
+set streaming back, only the MAVLink headers read) and counts the vehicles heard: a HEARTBEAT from system
+id i+1 on vehicle i's port.
 
 For comparison, the single-vehicle model (``python -m autopilot_model.sitl``, paced by sleeping and then
 spinning through the last millisecond of each period) is measured the same way from outside
@@ -74,7 +75,9 @@ def child(args: argparse.Namespace) -> int:
         c1 = os.times()
         cpu = (c1.user - c0.user) + (c1.system - c0.system)
         p50, p99 = fleet.lateness_quantiles((0.5, 0.99))
+        periods = (fleet.rounds - r0) * len(fleet)
         result = {"cpu_pct": 100.0 * cpu / wall, "rss_mb": _rss_mb(), "wall_s": wall,
+                  "cpu_us_per_vehicle_period": 1e6 * cpu / max(periods, 1),
                   "sim_s": (fleet.rounds - r0) * fleet.period_us * 1e-6, "late_p50_us": p50 * 1e6,
                   "late_p99_us": p99 * 1e6, "slips": fleet.slips}
         print("RESULT " + json.dumps(result), flush=True)
@@ -256,6 +259,7 @@ def measure_single(warmup: float, window: float) -> dict[str, Any]:
             proc.terminate()
             proc.wait(30)
     return {"cpu_pct": 100.0 * cpu / wall, "rss_mb": rss, "sim_s": float("nan"), "wall_s": wall,
+            "cpu_us_per_vehicle_period": 1e6 * cpu / (wall * 500),
             "late_p50_us": float("nan"), "late_p99_us": float("nan"), "slips": "-", "heard": heard,
             "startup_s": float("nan")}
 
@@ -286,12 +290,14 @@ def main() -> None:
     print(f"bench_fleet: one fleet process per case, {args.window:g} s measured after {args.warmup:g} s, "
           "a ground station on every vehicle's UDP port")
     print(f"machine: {machine()}")
-    headers = ("vehicles", "pacing", "CPU % of one core", "RSS MB", "sim s per wall s", "lateness p50 us",
+    headers = ("vehicles", "pacing", "CPU % of one core", "CPU us per vehicle-period", "RSS MB",
+               "sim s per wall s", "lateness p50 us",
                "lateness p99 us", "slips", "heard", "start-up s")
     out = []
     for n, pacing, r in rows:
         speed = r["sim_s"] / r["wall_s"]
-        row = (n, pacing, r["cpu_pct"], r["rss_mb"], speed, r["late_p50_us"], r["late_p99_us"], r["slips"],
+        row = (n, pacing, r["cpu_pct"], r["cpu_us_per_vehicle_period"], r["rss_mb"], speed, r["late_p50_us"],
+               r["late_p99_us"], r["slips"],
                f"{r['heard']}/{n.split()[0]}", r["startup_s"])
         out.append(tuple("-" if isinstance(c, float) and c != c else c for c in row))  # NaN: not measured
     print(table(headers, out))
