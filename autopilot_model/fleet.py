@@ -173,17 +173,19 @@ class Fleet:
 
         ``stop`` is checked every 8 periods. Pacing is anchored at the call, after the very first period
         (each vehicle's first iteration loads compiled kernels: tenths of a second, not a late period)."""
+        if duration_s is not None and not duration_s >= 0:
+            raise ValueError(f"duration must be >= 0 s (None: until stopped), got {duration_s}")
         steps: tuple[Callable[[], None], ...] = tuple(s.vehicle.start().step for s in self.vehicles)
-        if self.rounds == 0 and duration_s != 0:
-            for step in steps:
-                step()
-            self.clock.advance(self.period_us)
-            self.rounds = 1
-            if duration_s is not None:
-                duration_s -= self.period_us * 1e-6
         clock = self.clock
         period = self.period_us
         todo = -1 if duration_s is None else round(duration_s * 1e6 / period)
+        warm = 0
+        if self.rounds == 0 and todo != 0:
+            for step in steps:
+                step()
+            clock.advance(period)
+            self.rounds = warm = 1
+            todo = max(todo - 1, 0) if todo > 0 else todo
         paced = clock.speedup > 0
         batch = self.batch
         late = self.lateness_s.append
@@ -209,7 +211,7 @@ class Fleet:
             if paced and done % batch == 0:
                 clock.pace()
         self.rounds += done
-        return done
+        return warm + done
 
     def close(self) -> None:
         """Close every vehicle's endpoint (its ports are free on return)."""

@@ -165,10 +165,13 @@ def test_stopping_the_fleet_releases_every_port(tmp_path: Path) -> None:
 def test_lockstep_fleet_in_process_advances_every_vehicle_together(tmp_path: Path) -> None:
     with Fleet(2, speedup=0.0, state_dir=tmp_path, urls=[["udpin:127.0.0.1:0"]] * 2, persist=False) as f:
         done = f.run(1.0)
-        assert done == 499 and f.rounds == 500  # the first period is the warm-up round
+        assert done == 500 and f.rounds == 500  # the first period is the warm-up round, unpaced
         assert [s.vehicle.clock.now_us for s in f.vehicles] == [1_000_000, 1_000_000]
         assert [s.endpoint.sysid for s in f.vehicles] == [1, 2]
         assert f.lateness_s == type(f.lateness_s)()  # lockstep: never paced
+        assert f.run(0.001) == 0 and f.run(0.003) == 2
+        with pytest.raises(ValueError, match="duration"):
+            f.run(-1.0)
 
 
 def test_bad_input_is_refused_before_any_port_is_bound(tmp_path: Path) -> None:
