@@ -215,3 +215,21 @@ def test_real_time_fleet_sleeps_instead_of_spinning(tmp_path: Path) -> None:
         assert cpu / wall < 0.25, f"{100 * cpu / wall:.0f} % of a core for 3 idle vehicles"
         assert len(f.lateness_s) >= 495 and f.lateness_quantiles((0.5,))[0] < 0.002
         assert [s.vehicle.clock.now_us for s in f.vehicles] == [1_100_000] * 3
+
+
+def test_sim_clock_without_spinning_sleeps_to_the_deadline() -> None:
+    """``SimClock(spin_s=0)`` (the fleet's pacing) sleeps out each period, never spins; bad spins refused."""
+    import time
+
+    from taskflight.clock import SimClock
+
+    clock = SimClock(1.0, spin_s=0.0)
+    c0 = time.process_time()
+    for _ in range(25):
+        clock.advance(2000)
+        clock.pace()
+        assert clock.wall_lag() >= 0.0  # never returns before the deadline
+    assert time.process_time() - c0 < 0.025  # 50 ms paced; a spinning clock burns about half of it
+    for bad in (-0.001, 0.5):
+        with pytest.raises(ValueError, match="spin_s"):
+            SimClock(1.0, spin_s=bad)
