@@ -19,11 +19,13 @@ spinning through the last millisecond of each period) is measured the same way f
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import logging
 import os
 import random
 import socket
+import struct
 import subprocess
 import sys
 import tempfile
@@ -34,7 +36,7 @@ from typing import Any
 
 os.environ.setdefault("MAVLINK20", "1")
 
-from bench.common import machine, table
+from bench.common import machine, pct, table
 
 ROOT = Path(__file__).resolve().parents[1]
 #: (vehicles, speedup) measured by default; speedup 0 = lockstep
@@ -69,6 +71,7 @@ def child(args: argparse.Namespace) -> int:
 
         run_for(args.warmup)
         fleet.reset_stats()
+        print("WINDOW", flush=True)
         r0, c0, t0 = fleet.rounds, os.times(), time.perf_counter()
         run_for(args.window)
         wall = time.perf_counter() - t0
@@ -85,27 +88,42 @@ def child(args: argparse.Namespace) -> int:
 
 
 # --- the ground stations ----------------------------------------------------------------------------------
+#: the datagram's kernel receive time (Linux SO_TIMESTAMPNS = SCM_TIMESTAMPNS)
+SO_TIMESTAMPNS = getattr(socket, "SO_TIMESTAMPNS", 35)
+#: telemetry rate the stations ask every vehicle for (REQUEST_DATA_STREAM, all streams), Hz
+STREAM_HZ = 10
+ATTITUDE_ID = 30
+
+
 class Stations:
     """A ground station per UDP port, on plain sockets pumped by a thread; vehicles heard by port.
 
-    It sends a GCS HEARTBEAT (pymavlink-encoded) to every port each second and reads only the MAVLink 2
-    headers of what comes back (length, system id, message id), so that even 50 vehicles' telemetry in
-    lockstep costs this process little of the core the fleet shares with it."""
+    Each second it sends every port a GCS HEARTBEAT, the first two with a REQUEST_DATA_STREAM (all streams
+    at :data:`STREAM_HZ`, as the tests' ground station asks), pymavlink-encoded. Of what comes back it reads
+    only the MAVLink 2 headers (length, system id, message id), so that even 50 vehicles' telemetry in
+    lockstep costs this process little of the core the fleet shares with it, and it keeps the kernel's
+    receive time of every ATTITUDE: the telemetry's wall-clock timing, unaffected by this thread's delays."""
 
-    def __init__(self, ports: list[int]) -> None:
+    def __init__(self, ports: list[int], targets: list[int] | None = None) -> None:
         from pymavlink.dialects.v20 import ardupilotmega as m
 
+        self.targets = targets or [i + 1 for i in range(len(ports))]
         mav = m.MAVLink(None, 255, 190)
-        self.heartbeat = mav.heartbeat_encode(m.MAV_TYPE_GCS, m.MAV_AUTOPILOT_INVALID, 0, 0, 0).pack(mav)
+        hb = mav.heartbeat_encode(m.MAV_TYPE_GCS, m.MAV_AUTOPILOT_INVALID, 0, 0, 0).pack(mav)
+        self.hb = hb
+        self.hello = [hb + mav.request_data_stream_encode(t, 1, m.MAV_DATA_STREAM_ALL, STREAM_HZ, 1).pack(mav)
+                      for t in self.targets]
         self.ports = ports
         self.socks = []
         for _ in ports:
             sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
             sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 20)
+            sock.setsockopt(socket.SOL_SOCKET, SO_TIMESTAMPNS, 1)
             sock.bind(("127.0.0.1", 0))
             sock.setblocking(False)
             self.socks.append(sock)
         self.sysids: list[set[int]] = [set() for _ in ports]
+        self.attitude_ns: list[list[int]] = [[] for _ in ports]
         self.messages = 0
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="stations", daemon=True)
@@ -118,36 +136,60 @@ class Stations:
         for i, sock in enumerate(self.socks):
             sel.register(sock, selectors.EVENT_READ, i)
         hb_next = 0.0
+        sent = 0
         while not self._stop.is_set():
             now = time.monotonic()
             if now >= hb_next:
                 hb_next = now + 1.0
-                for sock, port in zip(self.socks, self.ports, strict=True):
-                    sock.sendto(self.heartbeat, ("127.0.0.1", port))
+                sent += 1
+                for sock, port, hello in zip(self.socks, self.ports, self.hello, strict=True):
+                    # the request twice (a lost datagram), then heartbeats only: a repeated request
+                    # restarts the streams' phase, which would show as jitter
+                    sock.sendto(hello if sent <= 2 else self.hb, ("127.0.0.1", port))
             for key, _ in sel.select(0.05):
                 sock, i = key.fileobj, key.data
                 while True:
                     try:
-                        data = sock.recv(4096)  # type: ignore[union-attr]
+                        data, anc, _flags, _addr = sock.recvmsg(4096, 64)  # type: ignore[union-attr]
                     except BlockingIOError:
                         break
-                    self._headers(data, self.sysids[i])
+                    stamp = 0
+                    for level, kind, raw in anc:
+                        if level == socket.SOL_SOCKET and kind == SO_TIMESTAMPNS and len(raw) >= 16:
+                            sec, nsec = struct.unpack("qq", raw[:16])
+                            stamp = sec * 1_000_000_000 + nsec
+                    self._headers(data, i, stamp)
         sel.close()
 
-    def _headers(self, data: bytes, sysids: set[int]) -> None:
-        """Walk the MAVLink 2 frames of one datagram; note the sender of every HEARTBEAT (message id 0)."""
+    def _headers(self, data: bytes, i: int, stamp_ns: int) -> None:
+        """Walk the MAVLink 2 frames of one datagram: the sender of every HEARTBEAT (message id 0), the
+        receive time of every ATTITUDE."""
         k, n = 0, len(data)
         while k + 10 <= n and data[k] == 0xFD:
             length, incompat, sysid = data[k + 1], data[k + 2], data[k + 5]
             msgid = data[k + 7] | data[k + 8] << 8 | data[k + 9] << 16
             if msgid == 0:
-                sysids.add(sysid)
+                self.sysids[i].add(sysid)
+            elif msgid == ATTITUDE_ID and stamp_ns:
+                self.attitude_ns[i].append(stamp_ns)
             self.messages += 1
             k += 12 + length + (13 if incompat & 1 else 0)
 
+    def restart_timing(self) -> None:
+        """Forget the ATTITUDE times so far (the measured interval starts)."""
+        for times in self.attitude_ns:
+            times.clear()
+
+    def attitude_jitter_us(self, speedup: float) -> tuple[float, float]:
+        """p50, p99 over every vehicle of |interval between two ATTITUDEs - its nominal 1/STREAM_HZ|."""
+        nominal = 1e9 / STREAM_HZ / speedup
+        dev = [abs((b - a) - nominal) / 1000.0 for times in self.attitude_ns
+               for a, b in itertools.pairwise(times)]
+        return pct(dev, 0.5), pct(dev, 0.99)
+
     def heard(self) -> int:
-        """Vehicles whose port carried a HEARTBEAT from their own system id (i+1), and nobody else's."""
-        return sum(1 for i, s in enumerate(self.sysids) if s == {i + 1})
+        """Vehicles whose port carried a HEARTBEAT from their own system id, and nobody else's."""
+        return sum(1 for s, t in zip(self.sysids, self.targets, strict=True) if s == {t})
 
     def close(self) -> None:
         self._stop.set()
@@ -206,10 +248,14 @@ def measure_fleet(n: int, speedup: float, warmup: float, window: float) -> dict[
         startup = time.perf_counter() - t0
         stations = Stations([14550 + 10 * i for i in range(base, base + n)])
         try:
-            result = json.loads(_wait_line(proc, "RESULT", warmup + window + 120).split(" ", 1)[1])
+            _wait_line(proc, "WINDOW", warmup + 120)
+            stations.restart_timing()
+            result = json.loads(_wait_line(proc, "RESULT", window + 120).split(" ", 1)[1])
         finally:
             stations.close()
         result["heard"] = stations.heard()
+        result["att_p50_us"], result["att_p99_us"] = (stations.attitude_jitter_us(speedup) if speedup
+                                                      else (float("nan"), float("nan")))
         result["startup_s"] = startup
         return result
     finally:
@@ -245,22 +291,25 @@ def measure_single(warmup: float, window: float) -> dict[str, Any]:
             _wait_line(proc, "READY", 120)
             assert proc.stdout is not None
             threading.Thread(target=proc.stdout.read, daemon=True).start()  # keep the pipe drained
-            stations = Stations([14550 + 10 * base])
+            stations = Stations([14550 + 10 * base], [base + 1])
             try:
                 time.sleep(warmup)  # a bench: the wall window is the measure
+                stations.restart_timing()
                 c0, t0 = _proc_cpu_s(proc.pid), time.perf_counter()
                 time.sleep(window)
                 cpu, wall = _proc_cpu_s(proc.pid) - c0, time.perf_counter() - t0
                 rss = _proc_rss_mb(proc.pid)
             finally:
                 stations.close()
-            heard = 1 if stations.sysids[0] == {base + 1} else 0
+            heard = stations.heard()
+            att = stations.attitude_jitter_us(1.0)
         finally:
             proc.terminate()
             proc.wait(30)
     return {"cpu_pct": 100.0 * cpu / wall, "rss_mb": rss, "sim_s": float("nan"), "wall_s": wall,
             "cpu_us_per_vehicle_period": 1e6 * cpu / (wall * 500),
             "late_p50_us": float("nan"), "late_p99_us": float("nan"), "slips": "-", "heard": heard,
+            "att_p50_us": att[0], "att_p99_us": att[1],
             "startup_s": float("nan")}
 
 
@@ -292,12 +341,13 @@ def main() -> None:
     print(f"machine: {machine()}")
     headers = ("vehicles", "pacing", "CPU % of one core", "CPU us per vehicle-period", "RSS MB",
                "sim s per wall s", "lateness p50 us",
-               "lateness p99 us", "slips", "heard", "start-up s")
+               "lateness p99 us", "ATTITUDE jitter p50 us", "ATTITUDE jitter p99 us", "slips", "heard",
+               "start-up s")
     out = []
     for n, pacing, r in rows:
         speed = r["sim_s"] / r["wall_s"]
         row = (n, pacing, r["cpu_pct"], r["cpu_us_per_vehicle_period"], r["rss_mb"], speed, r["late_p50_us"],
-               r["late_p99_us"], r["slips"],
+               r["late_p99_us"], r["att_p50_us"], r["att_p99_us"], r["slips"],
                f"{r['heard']}/{n.split()[0]}", r["startup_s"])
         out.append(tuple("-" if isinstance(c, float) and c != c else c for c in row))  # NaN: not measured
     print(table(headers, out))
