@@ -233,3 +233,18 @@ def test_sim_clock_without_spinning_sleeps_to_the_deadline() -> None:
     for bad in (-0.001, 0.5):
         with pytest.raises(ValueError, match="spin_s"):
             SimClock(1.0, spin_s=bad)
+
+
+def test_command_line_refuses_bad_input_and_is_a_taskflight_command(
+        tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
+    from autopilot_model.fleet import main
+    from taskflight.cli import build_parser
+
+    assert main(["--vehicles", "0", "--state-dir", str(tmp_path)]) == 2
+    assert "at least one vehicle" in caplog.text
+    assert main(["--vehicles", "2", "--base-instance", "254", "--state-dir", str(tmp_path)]) == 2
+    assert "not all within 0..254" in caplog.text
+    assert not list(tmp_path.iterdir())
+    args = build_parser().parse_args(["fleet", "--vehicles", "4", "--speedup", "2", "--spacing", "8"])
+    assert (args.command, args.vehicles, args.speedup, args.spacing) == ("fleet", 4, 2.0, 8.0)
+    assert args._handlers["fleet"].__name__ == "_cmd_fleet"
