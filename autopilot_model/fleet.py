@@ -9,7 +9,8 @@ vehicle's iteration (seed 002 Sec. 4.2, Fig. 4: events, task groups, world, cloc
 fleet sleeps ONCE for all of them until the next period's deadline on its own :class:`SimClock`, with no
 spinning (``spin_s=0``): a period starts late by the OS's wake-up jitter (~0.1 ms, measured by
 ``bench/bench_fleet.py``), which telemetry at <= 50 Hz does not see, and an idle vehicle costs its
-iteration's work only (~8 us of 2000). ``batch`` > 1 runs that many periods back to back before one sleep.
+iteration's work only (~8 us of 2000). ``batch`` > 1 runs that many periods back to back before one sleep;
+``spin_s`` > 0 spins through the last ``spin_s`` of each wait (less lateness, that much more CPU).
 
 When behind (a loaded machine), periods run back to back until the fleet has caught up; more than
 ``max_lag_s`` behind, the fleet gives up the lost time (re-anchors its pacing, counted in ``slips``)
@@ -87,7 +88,8 @@ class Fleet:
                  base_instance: int = 0, state_dir: str | Path | None = None, *,
                  home: Sequence[float] | None = None, spacing_m: float = 5.0,
                  urls: Sequence[Sequence[str]] | None = None, url_templates: Sequence[str] | None = None,
-                 first_sysid: int = 1, batch: int = 1, max_lag_s: float = 0.5, **sitl_options: Any) -> None:
+                 first_sysid: int = 1, batch: int = 1, max_lag_s: float = 0.5, spin_s: float = 0.0,
+                 **sitl_options: Any) -> None:
         from autopilot_model.sitl import Sitl, default_urls
 
         if n < 1:
@@ -104,7 +106,7 @@ class Fleet:
             raise ValueError(f"{len(homes)} homes for {n} vehicles")
         if urls is not None and len(urls) != n:
             raise ValueError(f"{len(urls)} URL lists for {n} vehicles")
-        self.clock = SimClock(speedup, spin_s=0.0)
+        self.clock = SimClock(speedup, spin_s=spin_s)
         self.batch = batch
         self.max_lag_s = max_lag_s
         self.vehicles: list[Sitl] = []
@@ -258,6 +260,8 @@ def add_fleet_arguments(parser: argparse.ArgumentParser) -> None:
                              "(default $TASKFLIGHT_STATE or ~/.taskflight)")
     parser.add_argument("--no-persist", action="store_true", help="do not load or save parameters")
     parser.add_argument("--batch", type=int, default=1, help="periods run back to back per sleep (default 1)")
+    parser.add_argument("--spin-us", type=float, default=0.0,
+                        help="microseconds spun before each deadline instead of slept (default 0)")
     parser.add_argument("--duration", type=float, default=None, help="stop after this many simulated seconds")
     parser.add_argument("--stats", action="store_true", help="print the fleet's pacing statistics at exit")
 
@@ -272,7 +276,8 @@ def run_fleet(args: argparse.Namespace) -> int:
         fleet = Fleet(args.vehicles, speedup, base_instance=args.base_instance, state_dir=args.state_dir,
                       first_sysid=args.first_sysid, home=args.home, spacing_m=args.spacing,
                       url_templates=args.mavlink_template,
-                      batch=args.batch, airframe=args.airframe, modules=args.modules, sensors=args.sensors,
+                      batch=args.batch, spin_s=args.spin_us * 1e-6, airframe=args.airframe,
+                      modules=args.modules, sensors=args.sensors,
                       use_truth=args.truth, seed=args.seed, persist=not args.no_persist)
     except (ConfigError, ValueError, OSError) as exc:
         log.error("%s", exc)

@@ -59,6 +59,7 @@ def child(args: argparse.Namespace) -> int:
     logging.basicConfig(level=logging.WARNING)
     with tempfile.TemporaryDirectory() as tmp, \
             Fleet(args.vehicles, args.speedup, base_instance=args.base, state_dir=tmp, persist=False,
+                  spin_s=args.spin_us * 1e-6,
                   url_templates=["tcpin:127.0.0.1:{tcp}", "udpin:127.0.0.1:{udp}"]) as fleet:
         print("READY", flush=True)
 
@@ -238,10 +239,12 @@ def _wait_line(proc: subprocess.Popen[str], prefix: str, timeout_s: float) -> st
     raise RuntimeError(f"no {prefix} line; output: {' | '.join(seen[-8:])}")
 
 
-def measure_fleet(n: int, speedup: float, warmup: float, window: float) -> dict[str, Any]:
+def measure_fleet(n: int, speedup: float, warmup: float, window: float, spin_us: float = 0.0
+                  ) -> dict[str, Any]:
     base = _free_base(n)
     proc = _spawn(["-m", "bench.bench_fleet", "--child", "--vehicles", str(n), "--speedup", str(speedup),
-                   "--base", str(base), "--warmup", str(warmup), "--window", str(window)])
+                   "--base", str(base), "--warmup", str(warmup), "--window", str(window),
+                   "--spin-us", str(spin_us)])
     try:
         t0 = time.perf_counter()
         _wait_line(proc, "READY", 180)
@@ -318,24 +321,30 @@ def main() -> None:
     ap.add_argument("--window", type=float, default=10.0, help="measured wall seconds per case (default 10)")
     ap.add_argument("--warmup", type=float, default=3.0, help="wall seconds before measuring (default 3)")
     ap.add_argument("--no-baseline", action="store_true", help="skip the single-vehicle process baseline")
-    ap.add_argument("--cases", default=None, help="N:SPEEDUP,... (default 1:1,3:1,12:1,50:1,12:0,50:0)")
+    ap.add_argument("--cases", default=None,
+                    help="N:SPEEDUP[:SPIN_US],... (default 1:1,3:1,12:1,50:1,12:0,50:0; SPIN_US: "
+                         "microseconds spun before each deadline, default 0)")
     ap.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
     ap.add_argument("--vehicles", type=int, default=1, help=argparse.SUPPRESS)
     ap.add_argument("--speedup", type=float, default=1.0, help=argparse.SUPPRESS)
     ap.add_argument("--base", type=int, default=0, help=argparse.SUPPRESS)
+    ap.add_argument("--spin-us", type=float, default=0.0, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child:
         sys.exit(child(args))
     logging.basicConfig(level=logging.WARNING)
-    cases = CASES if args.cases is None else tuple(
-        (int(c.split(":")[0]), float(c.split(":")[1])) for c in args.cases.split(","))
+    cases = [(n, k, 0.0) for n, k in CASES] if args.cases is None else [
+        (int(f[0]), float(f[1]), float(f[2]) if len(f) > 2 else 0.0)
+        for f in (c.split(":") for c in args.cases.split(","))]
     rows = []
     if not args.no_baseline:
         r = measure_single(args.warmup, args.window)
         rows.append(("1 (single-vehicle process, spin pacing)", "real time", r))
-    for n, speedup in cases:
-        rows.append((str(n), "real time" if speedup == 1 else f"x{speedup:g}" if speedup else "lockstep",
-                     measure_fleet(n, speedup, args.warmup, args.window)))
+    for n, speedup, spin_us in cases:
+        pacing = "real time" if speedup == 1 else f"x{speedup:g}" if speedup else "lockstep"
+        if spin_us:
+            pacing += f", spin {spin_us:g} us"
+        rows.append((str(n), pacing, measure_fleet(n, speedup, args.warmup, args.window, spin_us)))
     print(f"bench_fleet: one fleet process per case, {args.window:g} s measured after {args.warmup:g} s, "
           "a ground station on every vehicle's UDP port")
     print(f"machine: {machine()}")
