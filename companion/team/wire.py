@@ -15,24 +15,27 @@ Layout (all integers big-endian, ``struct``)::
     row      member u8 | stamp f64 | seq u32 | lat i32 (1e-7 deg) | lon i32 (1e-7 deg) | alt i32 (cm)
              | vn ve vd i16 (cm/s, clamped to +-327 m/s) | status u8 | task u32 | voc u8
              | name (u8 length + <= 16 bytes utf-8) | n_claims u8, n_claims x (task u32, version u16,
-             cost f32, state u8)
+             cost f64, state u8)
     board    stamp f64 | seq u32 | body crc32 u32 | part index u8 | part count u8 | chunk length u16
              | chunk (a slice of the zlib-compressed board body)
     body     n_tasks u16, n_tasks x (id u32, version u16, kind u8, state u8, group u32, group_size u16,
-             altitude f32, speed f32, name (u8 length + <= 16 bytes), n_points u16, n_points x (lat i32,
-             lon i32, alt f32), tst (u32 length, 0xFFFFFFFF for none, + utf-8 text))
+             altitude f64, speed f64, name (u8 length + <= 16 bytes), n_points u16, n_points x (lat i32,
+             lon i32, alt i32 cm), tst (u32 length, 0xFFFFFFFF for none, + utf-8 text))
 
-A row is 39 bytes plus its name and 11 bytes a claim: 20 members with one claim and an 8-byte name
-take 1171 bytes (one packet); a board of nine area parts of six points compresses to about 170 bytes. The board (its whole body zlib-compressed, TST JSON included) travels inline in
-the last STATE packet when it fits there in one part; otherwise :func:`encode_packets` cuts the
-compressed body into chunks sent as BOARD packets (up to 255 parts), each naming the board's
-(stamp, seq) and the body's CRC, so a receiver (:class:`BoardAssembler`) joins parts from any relays
-as long as they carry the same body. Rows beyond one packet's room go into further STATE packets
-(rows are independent). Every packet is at most ``max_size`` bytes (:data:`MAX_PACKET`, 1400: one
-Ethernet frame with room for the IP and UDP headers).
+A row is 39 bytes plus its name and 15 bytes a claim: 20 members with one claim and an 8-byte name
+take 1251 bytes (one packet); a board of nine tasks of one to six points compresses to about 170
+bytes. The board (its whole body zlib-compressed, TST JSON included) travels inline in the last STATE
+packet when it fits there in one part; otherwise :func:`encode_packets` cuts the compressed body into
+chunks sent as BOARD packets (up to 255 parts), each naming the board's (stamp, seq) and the body's
+CRC, so a receiver (:class:`BoardAssembler`) joins parts from any relays as long as they carry the
+same body. Rows beyond one packet's room go into further STATE packets (rows are independent). Every
+packet is at most ``max_size`` bytes (:data:`MAX_PACKET`, 1400: one Ethernet frame with room for the
+IP and UDP headers).
 
 Names longer than 16 bytes are cut at a character boundary; positions are rounded to 1e-7 deg and 1 cm,
-velocities to 1 cm/s. :func:`decode_packet` raises :class:`WireError` (a ``ValueError``) for any
+velocities to 1 cm/s. Costs are float64: members compare each other's bids in a conflict (seed 003
+Sec. III-B), and a float32 bid would differ from the bidder's own value, so two bidders could each
+think the other cheaper. :func:`decode_packet` raises :class:`WireError` (a ``ValueError``) for any
 input it cannot take: garbage, truncation, a bad magic, a bad CRC, a foreign version
 (:class:`ForeignVersionError`), an unknown kind, status or task kind, bad utf-8; never another
 exception.
@@ -71,10 +74,10 @@ BOARD_BODY_MAX = 1 << 20
 _HEADER = struct.Struct("!2sBBB")
 _CRC = struct.Struct("!I")
 _ROW = struct.Struct("!BdIiiihhhBIB")
-_CLAIM = struct.Struct("!IHfB")
+_CLAIM = struct.Struct("!IHdB")
 _PART = struct.Struct("!dIIBBH")
-_TASK = struct.Struct("!IHBBIHff")
-_POINT = struct.Struct("!iif")
+_TASK = struct.Struct("!IHBBIHdd")
+_POINT = struct.Struct("!iii")
 _NO_TST = 0xFFFFFFFF
 
 _KIND_CODES: dict[TaskKind, int] = {TaskKind.VISIT: 0, TaskKind.PATROL_LINE: 1, TaskKind.BORDER_PIECE: 2,
@@ -198,7 +201,7 @@ def encode_board_body(board: TaskBoard) -> bytes:
         out.append(struct.pack("!H", _u(len(t.points), 16, "point count")))
         for lat, lon, alt in t.points:
             out.append(_POINT.pack(_deg7(lat, "task latitude"), _deg7(lon, "task longitude"),
-                                   _finite(alt, "task point altitude")))
+                                   _i32(alt * 100.0, "task point altitude")))
         if t.tst is None:
             out.append(struct.pack("!I", _NO_TST))
         else:
@@ -422,7 +425,7 @@ def _decode_board(body: bytes, stamp: float, seq: int, body_crc: int) -> TaskBoa
         pts: list[GeoPoint] = []
         for _ in range(npts):
             lat, lon, alt = r.unpack(_POINT, "task point")
-            pts.append((lat / 1e7, lon / 1e7, _finite_in(alt, "task point altitude")))
+            pts.append((lat / 1e7, lon / 1e7, alt / 100.0))
         (tlen,) = r.unpack(struct.Struct("!I"), "tst length")
         tst = None if tlen == _NO_TST else r.text(tlen, "tst text")
         tasks.append(TeamTask(id=tid, version=ver, kind=_KINDS[kind], points=tuple(pts), state=_STATES[state],
