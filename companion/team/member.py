@@ -32,15 +32,18 @@ from dataclasses import replace
 from typing import TYPE_CHECKING, Any
 
 from companion.link.guided import Phase
+from companion.tst.delegation import delegate
+from companion.tst.status import ExecutionRequestError
 
 from .switchboard import Controller, Switchboard
+from .task_tst import mission_for
 from .types import Claim, ClaimState, GeoPoint, MemberEntry, MemberStatus, TaskBoard, TaskState, TeamTask
 
 if TYPE_CHECKING:
     from companion.mission_service import MissionService
 
     from .allocation import AllocationPolicy
-    from .link import TeamLink
+    from .transport import Transport
 
 log = logging.getLogger(__name__)
 
@@ -49,14 +52,19 @@ log = logging.getLogger(__name__)
 class TeamMember:
     """See module docstring."""
 
-    def __init__(self, missions: MissionService, link: TeamLink, policy: AllocationPolicy,
+    def __init__(self, missions: MissionService, transport: Transport, policy: AllocationPolicy,
                  cost: Callable[[GeoPoint, TeamTask], float], *, member_id: int, name: str = "",
-                 decide_period_s: float = 0.25, settle_s: float | None = None,
-                 clock: Callable[[], float] = time.time) -> None:
+                 period_s: float | None = None, decide_period_s: float = 0.25, settle_s: float | None = None,
+                 voc_max: int | None = None, clock: Callable[[], float] = time.time) -> None:
+        from .groupstate import GroupState
+        from .link import DEFAULT_PERIOD_S, TeamLink
+
         self.missions = missions
         self.node = missions.node
-        self.link = link
-        self.state = link.state
+        self.state = GroupState(member_id, **({} if voc_max is None else {"voc_max": voc_max}))
+        self.link = TeamLink(self.state, transport, period_s=period_s or DEFAULT_PERIOD_S, clock=clock,
+                             own=self.own_row)
+        link = self.link
         self.policy = policy
         self.cost = cost
         self.id = member_id
@@ -75,10 +83,10 @@ class TeamMember:
         self.failed: dict[int, str] = {}    # task id -> why this vehicle could not fly it
         self.events: list[dict[str, Any]] = []
         self._claimed_at: dict[int, float] = {}
+        self._verdicts: dict[tuple[int, int], str] = {}  # (task, version) -> "" (can) or why not
         self._lock = threading.RLock()
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
-        link.own = self.own_row
 
     # --- lifecycle ------------------------------------------------------------------------------------
     def start(self) -> TeamMember:
@@ -150,6 +158,8 @@ class TeamMember:
                 return
             if not self._tier(s):
                 return
+            if self.switchboard.controller is Controller.TEAM and self._paused():
+                return  # a break-in by the operator: the claims stand until it is resumed
             board = self.state.board
             rows = {m: e for m, e in self.state.alive().items() if m != self.id}
             self._progress(board)
@@ -165,6 +175,9 @@ class TeamMember:
             lat, lon, _alt, rel = s.global_position
             self.position = (lat, lon, rel)
         self.velocity = tuple(float(v) for v in s.velocity)  # type: ignore[assignment]
+
+    def _paused(self) -> bool:
+        return self.missions.execution.status().get("state") == "paused"
 
     def _tier(self, s: Any) -> bool:
         """Set the status from the hierarchy; True if the team may give this vehicle tasks."""
@@ -204,8 +217,25 @@ class TeamMember:
         """The board without what is over: tasks reported done by anyone, and those this vehicle failed."""
         reported_done = {c.task for e in rows.values() for c in e.claims if c.state is ClaimState.DONE}
         live = tuple(t for t in board.tasks if t.live and t.id not in reported_done and t.id not in self.done
-                     and t.id not in self.failed)
+                     and t.id not in self.failed and self._acceptable(t))
         return replace(board, tasks=live)
+
+    def _acceptable(self, task: TeamTask) -> bool:
+        """Seed 000 Sec. III across the team: bid only for what this platform's delegation accepts (its
+        check() and constraints on the task's tree); cached per task version."""
+        key = (task.id, task.version)
+        verdict = self._verdicts.get(key)
+        if verdict is None:
+            try:
+                mission = mission_for(task, True, self.switchboard.standard_altitude)
+                result = delegate(mission, self.missions.platform())
+                verdict = "" if result.accepted else "; ".join(result.reasons) or "rejected"
+            except (ValueError, ExecutionRequestError) as exc:
+                verdict = str(exc) or "rejected"
+            self._verdicts[key] = verdict
+            if verdict:
+                self._event("cannot", task=task.id, reason=verdict)
+        return not verdict
 
     def _publish(self, decided: tuple[Claim, ...], board: TaskBoard, now: float) -> None:
         flying = self.switchboard.task.id if (self.switchboard.task is not None
