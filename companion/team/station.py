@@ -93,7 +93,6 @@ class TeamControlStation:
         self._lock = threading.RLock()
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
-        self._publish()
 
     # --- lifecycle --------------------------------------------------------------------------------------
     def start(self) -> TeamControlStation:
@@ -164,7 +163,9 @@ class TeamControlStation:
             return changes
 
     def _publish(self) -> None:
-        self.state.set_board(self.ledger.board(self.clock()))
+        board = self.ledger.board(self.clock())
+        if board.newer_than(self.state.board):
+            self.state.set_board(board)
 
     def _on_link(self, ev: LinkEvent) -> None:
         if ev.kind in ("gone", "joined"):
