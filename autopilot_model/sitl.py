@@ -47,13 +47,16 @@ def default_state_dir() -> Path:
 
 
 class Sitl:
-    """One simulated ArduCopter-like vehicle reachable over MAVLink."""
+    """One simulated ArduCopter-like vehicle reachable over MAVLink.
+
+    ``sysid`` (default: MAV_SYSID, itself instance + 1 unless saved) is the system id; a fleet
+    (:mod:`autopilot_model.fleet`) numbers its vehicles 1..N whatever their instance numbers."""
 
     def __init__(self, instance: int = 0, urls: Sequence[str] | None = None, speedup: float = 0.0,
                  home: Sequence[float] | None = None, airframe: str | Path | None = None,
                  modules: str | Path | None = None, state_dir: str | Path | None = None,
                  signing_key: bytes | None = None, sensors: str | None = None, use_truth: bool = False,
-                 seed: int | None = 0, persist: bool = True) -> None:
+                 seed: int | None = 0, persist: bool = True, sysid: int | None = None) -> None:
         from autopilot_model.mavlink.endpoint import MavlinkEndpoint
         from autopilot_model.mavlink.guided import GuidedTargetsProtocol
         from autopilot_model.mavlink.pilot import PilotLink
@@ -78,8 +81,10 @@ class Sitl:
         self.vehicle = v = Vehicle.from_files(airframe, mod_file, **kwargs)
         self.modes = FlightModes(v)
         v.register("flight_modes.update", self.modes.update)
-        self.endpoint = MavlinkEndpoint(v, list(urls) if urls else default_urls(instance),
+        self.endpoint = MavlinkEndpoint(v, list(urls) if urls else default_urls(instance), sysid=sysid,
                                         signing_key=signing_key)
+        if sysid is not None:  # a fleet's numbering: wins over a saved MAV_SYSID, as MAV_SYSID's default
+            v.params.set_default("MAV_SYSID", sysid)
         self.telemetry = VehicleTelemetry(self.endpoint, self.modes)
         self.commands = VehicleCommands(self.endpoint, self.modes)
         self.guided = GuidedTargetsProtocol(self.endpoint, self.modes)
@@ -134,6 +139,11 @@ class Sitl:
     def run(self, duration_s: float | None = None, stop: threading.Event | None = None) -> None:
         """Run the main loop (paced by the clock's speedup; 0 = as fast as possible)."""
         self.vehicle.run_realtime(duration_s, stop)
+
+    def step(self) -> None:
+        """One main-loop iteration (paced only if the vehicle's clock has a speedup; the fleet's do not:
+        :class:`autopilot_model.fleet.Fleet` steps its vehicles and paces once for all of them)."""
+        self.vehicle.start().step()
 
     def close(self) -> None:
         self.endpoint.close()

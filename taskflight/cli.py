@@ -17,6 +17,12 @@ def _cmd_autopilot(args: argparse.Namespace) -> int:
     return run_autopilot(args)
 
 
+def _cmd_fleet(args: argparse.Namespace) -> int:
+    from autopilot_model.fleet import run_fleet
+
+    return run_fleet(args)
+
+
 def _cmd_demo(args: argparse.Namespace) -> int:
     from taskflight.demo import run_demo
 
@@ -93,6 +99,15 @@ def build_parser() -> argparse.ArgumentParser:
         from autopilot_model.demo import add_model_arguments as add_autopilot_arguments
     add_autopilot_arguments(ap)
     handlers["autopilot"] = _cmd_autopilot
+    try:
+        from autopilot_model.fleet import add_fleet_arguments
+    except ImportError:
+        add_fleet_arguments = None
+    if add_fleet_arguments is not None:
+        fp = sub.add_parser("fleet", help="run N simulated vehicles in one process on one clock "
+                                          "(system ids 1..N, ports 5760+10i and 14550+10i)")
+        add_fleet_arguments(fp)
+        handlers["fleet"] = _cmd_fleet
 
     dp = sub.add_parser("demo", help="a demonstration flight on embedded defaults (model + companion)")
     from taskflight.demo import add_demo_arguments

@@ -38,10 +38,16 @@ class WallClock:
 class SimClock:
     """Simulated time in microseconds, advanced by the owner of the main loop and paced on the wall."""
 
-    def __init__(self, speedup: float = 1.0) -> None:
+    def __init__(self, speedup: float = 1.0, spin_s: float = 0.001) -> None:
         if speedup < 0:
             raise ValueError(f"speedup must be >= 0 (0 = as fast as possible), got {speedup}")
+        if not 0.0 <= spin_s <= 0.01:
+            raise ValueError(f"spin_s must be within 0..0.01 s, got {spin_s}")
         self.speedup = float(speedup)
+        self.spin_s = float(spin_s)
+        """Wall seconds :meth:`pace` spins (busy-waits) before a deadline instead of sleeping: 1 ms by
+        default (one vehicle, tens of microseconds of jitter, half a core); 0 = sleep only (the fleet,
+        :mod:`autopilot_model.fleet`: the OS's wake-up jitter, a few percent of a core)."""
         self.now_us = 0
         self._wall0 = time.perf_counter()
         self._sim0_us = 0
@@ -79,17 +85,21 @@ class SimClock:
     def pace(self) -> float:
         """Wait until the wall has caught up with simulated time; returns the seconds slept.
 
-        Sleeps in one call when ahead by more than a millisecond and spins for the remainder, which
-        keeps a 500 Hz real-time loop within tens of microseconds of its period.
+        Sleeps in one call when ahead by more than ``spin_s`` + 0.5 ms and spins for the remainder: with
+        the default ``spin_s`` (1 ms) a 500 Hz real-time loop stays within tens of microseconds of its
+        period. With ``spin_s=0`` it only sleeps (late by the OS's wake-up jitter, ~0.1 ms).
         """
         if self.speedup <= 0:
             return 0.0
         target_wall = self._wall0 + (self.now_us - self._sim0_us) * 1e-6 / self.speedup
+        spin = self.spin_s
         slept = 0.0
         while True:
             remaining = target_wall - time.perf_counter()
             if remaining <= 0:
                 return slept
-            if remaining > 0.0015:
-                time.sleep(remaining - 0.001)
+            if spin == 0.0:
+                time.sleep(remaining)
+            elif remaining > spin + 0.0005:
+                time.sleep(remaining - spin)
             slept += max(0.0, remaining - max(0.0, target_wall - time.perf_counter()))

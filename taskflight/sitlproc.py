@@ -46,14 +46,16 @@ def stop_child(proc: subprocess.Popen[Any], timeout_s: float = 10.0, name: str =
 
 
 class ModelProcess:
-    """``python -m autopilot_model.sitl ARGS`` (see :func:`autopilot_model.sitl.add_autopilot_arguments`).
+    """``python -m autopilot_model.sitl ARGS`` (see :func:`autopilot_model.sitl.add_autopilot_arguments`),
+    or another ``module`` printing the same READY line (``autopilot_model.fleet``: many vehicles).
 
     :meth:`start` returns once the child has printed ``READY`` (RuntimeError, with the child's last
     output in the log, if it exits or stays silent first); :meth:`stop` is idempotent. A context manager:
     leaving the block (normally, on an error or on Ctrl-C) stops the child."""
 
-    def __init__(self, args: Sequence[str], *, name: str = "autopilot-model") -> None:
-        self.args = [sys.executable, "-m", "autopilot_model.sitl", *args]
+    def __init__(self, args: Sequence[str], *, name: str = "autopilot-model",
+                 module: str = "autopilot_model.sitl") -> None:
+        self.args = [sys.executable, "-m", module, *args]
         self.name = name
         self.ready_line = ""
         self.returncode: int | None = None

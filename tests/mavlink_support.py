@@ -101,17 +101,20 @@ class Gcs:
 
     By default it pumps only inside :meth:`wait` (and the helpers built on it) or :meth:`pump`; with
     ``background=True`` a thread pumps all the time (for tests that wait on something else) and
-    :meth:`pump` does nothing. ``key`` signs what it sends (MAVLink 2 signing).
+    :meth:`pump` does nothing. ``key`` signs what it sends (MAVLink 2 signing). ``target`` is the
+    vehicle's system id (1 unless it is one of a fleet's, :mod:`autopilot_model.fleet`).
     """
 
     def __init__(self, port: int, speedup: float = SPEEDUP, *, sysid: int = 255, key: bytes | None = None,
-                 heartbeat_hz: float = 1.0, background: bool = False, url: str | None = None) -> None:
+                 heartbeat_hz: float = 1.0, background: bool = False, url: str | None = None,
+                 target: int = 1) -> None:
         mavutil.set_dialect("ardupilotmega")
         self.conn = mavutil.mavlink_connection(url or f"udpout:127.0.0.1:{port}", source_system=sysid,
                                                source_component=190)
         if key is not None:
             self.conn.setup_signing(key, sign_outgoing=True)
         self.speedup = speedup
+        self.target = target
         self.heartbeats = threading.Event()
         self.heartbeats.set()
         self.last: dict[str, Any] = {}
@@ -153,7 +156,7 @@ class Gcs:
                 self.reached.append(m.seq)
             elif t.startswith("MISSION_") and t != "MISSION_CURRENT":
                 self.mission.append(m)
-            elif t == "HEARTBEAT" and m.get_srcSystem() == 1:
+            elif t == "HEARTBEAT" and m.get_srcSystem() == self.target:
                 if not self.modes_seen or self.modes_seen[-1] != m.custom_mode:
                     self.modes_seen.append(m.custom_mode)
             elif t == "LOCAL_POSITION_NED":
@@ -213,7 +216,7 @@ class Gcs:
         params = list(p) + [0.0] * (7 - len(p))
         with self._lock:
             self.acks.clear()
-        self.conn.mav.command_long_send(1, 1, cmd, 0, *params)
+        self.conn.mav.command_long_send(self.target, 1, cmd, 0, *params)
 
         def ack() -> Any:
             with self._lock:
@@ -232,7 +235,7 @@ class Gcs:
         """PARAM_SET; returns when the vehicle echoes the new value."""
         with self._lock:
             self.last.pop("PARAM_VALUE", None)
-        self.conn.mav.param_set_send(1, 1, name.encode(), value, M.MAV_PARAM_TYPE_REAL32)
+        self.conn.mav.param_set_send(self.target, 1, name.encode(), value, M.MAV_PARAM_TYPE_REAL32)
 
         def echoed() -> bool:
             m = self.last.get("PARAM_VALUE")
@@ -243,17 +246,18 @@ class Gcs:
 
     def request_streams(self, hz: int) -> None:
         """REQUEST_DATA_STREAM for every group (ArduCopter streams on a fresh link only when asked)."""
-        self.conn.mav.request_data_stream_send(1, 1, M.MAV_DATA_STREAM_ALL, hz, 1)
+        self.conn.mav.request_data_stream_send(self.target, 1, M.MAV_DATA_STREAM_ALL, hz, 1)
 
     def local_target(self, frame: int, mask: int, x: float = 0, y: float = 0, z: float = 0,
                      vx: float = 0, vy: float = 0, vz: float = 0) -> None:
-        self.conn.mav.set_position_target_local_ned_send(0, 1, 1, frame, mask, x, y, z, vx, vy, vz,
+        self.conn.mav.set_position_target_local_ned_send(0, self.target, 1, frame, mask, x, y, z, vx, vy, vz,
                                                          0, 0, 0, 0, 0)
 
     # --- the vehicle's state -------------------------------------------------------------------------
     def heartbeat(self) -> Any:
         """The vehicle's next HEARTBEAT."""
-        return self.wait(lambda: (m := self.fresh("HEARTBEAT")) and m.get_srcSystem() == 1 and m, 5, "HB")
+        return self.wait(lambda: (m := self.fresh("HEARTBEAT")) and m.get_srcSystem() == self.target and m, 5,
+                         "HB")
 
     def mode(self) -> int:
         return self.heartbeat().custom_mode

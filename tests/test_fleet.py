@@ -1,0 +1,198 @@
+"""Many vehicles in one process on one clock (:mod:`autopilot_model.fleet`, issue 12 item 8).
+
+The fleet runs in its own process (``python -m autopilot_model.fleet``, as ``taskflight up`` will start it)
+and is reached over real loopback sockets with pymavlink: each vehicle on its own UDP and TCP ports with its
+own system id, each flown independently, every port released when the fleet stops.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import random
+import socket
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+from mavlink_support import GUIDED, Gcs, M, wait_for
+from pymavlink import mavutil
+
+from autopilot_model.fleet import Fleet, fleet_homes, template_urls
+from taskflight.geo import geodetic_to_ned
+from taskflight.sitlproc import ModelProcess
+
+SPEEDUP = 5.0
+N = 3
+_rng = random.Random(os.getpid())
+
+
+def _ports(instance: int) -> tuple[int, int]:
+    """(TCP, UDP) ports of an instance, as ArduPilot SITL numbers them."""
+    return 5760 + 10 * instance, 14550 + 10 * instance
+
+
+def _free(kind: int, port: int) -> bool:
+    with socket.socket(socket.AF_INET, kind) as sock:
+        try:
+            sock.bind(("127.0.0.1", port))
+        except OSError:
+            return False
+    return True
+
+
+def _base_free(base: int, n: int) -> bool:
+    """Every port of instances base..base+n-1 is free (cf. ``_instance_free`` in autopilot_support)."""
+    return all(_free(socket.SOCK_STREAM, _ports(i)[0]) and _free(socket.SOCK_DGRAM, _ports(i)[1])
+               for i in range(base, base + n))
+
+
+def start_fleet(tmp: Path, n: int = N, speedup: float = SPEEDUP) -> tuple[ModelProcess, int]:
+    """A fleet of ``n`` on loopback at instances base..base+n-1 (base picked at random in 60..253 where
+    every port is free, so parallel runs and ArduCopter's instances 10..59 do not collide); retried on
+    another base if a port is taken meanwhile."""
+    for _ in range(6):
+        base = _rng.randrange(60, 254 - n)
+        if not _base_free(base, n):
+            continue
+        proc = ModelProcess(["--vehicles", str(n), "--base-instance", str(base), "--speedup", str(speedup),
+                             "--state-dir", str(tmp), "--no-persist",
+                             "--mavlink-template", "tcpin:127.0.0.1:{tcp}",
+                             "--mavlink-template", "udpin:127.0.0.1:{udp}"],
+                            name="fleet", module="autopilot_model.fleet")
+        try:
+            return proc.start(90.0), base
+        except RuntimeError:
+            if _base_free(base, n):
+                raise  # not a port taken meanwhile
+    raise RuntimeError("no free block of instance numbers for the fleet")
+
+
+@pytest.fixture(scope="module")
+def fleet(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[ModelProcess, int, list[Gcs]]]:
+    proc, base = start_fleet(tmp_path_factory.mktemp("fleet"))
+    stations: list[Gcs] = []
+    try:
+        for i in range(N):
+            g = Gcs(_ports(base + i)[1], SPEEDUP, background=True, target=i + 1)
+            stations.append(g)
+        for i, g in enumerate(stations):
+            wait_for(lambda g=g: g.last.get("HEARTBEAT") is not None, 30, f"vehicle {i}'s first heartbeat")
+            g.request_streams(10)
+        yield proc, base, stations
+    finally:
+        for g in stations:
+            g.close()
+        proc.stop()
+
+
+def test_ready_line_names_every_vehicle(fleet: tuple[ModelProcess, int, list[Gcs]]) -> None:
+    proc, base, _ = fleet
+    assert proc.ready_line.startswith(f"READY vehicles={N} ")
+    for i in range(N):
+        tcp, udp = _ports(base + i)
+        assert f"sysid={i + 1} tcpin:127.0.0.1:{tcp},udpin:127.0.0.1:{udp}" in proc.ready_line
+
+
+def test_each_vehicle_answers_on_its_own_udp_port_with_its_own_sysid(
+        fleet: tuple[ModelProcess, int, list[Gcs]]) -> None:
+    _, _, stations = fleet
+    for i, g in enumerate(stations):
+        hb = g.wait(lambda g=g: g.last.get("HEARTBEAT"), 10, "HEARTBEAT")
+        assert hb.get_srcSystem() == i + 1
+        assert hb.type == M.MAV_TYPE_QUADROTOR
+        # a parameter read through this port is this vehicle's own
+        g.conn.mav.param_request_read_send(i + 1, 1, b"MAV_SYSID", -1)
+        g.wait(lambda g=g: "MAV_SYSID" in g.params, 10, "PARAM_VALUE MAV_SYSID")
+        assert g.params["MAV_SYSID"][0] == i + 1
+
+
+def test_homes_are_spaced_east(fleet: tuple[ModelProcess, int, list[Gcs]]) -> None:
+    _, _, stations = fleet
+    homes = [g.home() for g in stations]
+    for i, h in enumerate(homes):
+        n, e, d = geodetic_to_ned(homes[0], *h)
+        assert abs(n) < 0.05 and abs(d) < 0.05
+        assert e == pytest.approx(5.0 * i, abs=0.05)
+
+
+def test_each_vehicle_flies_independently(fleet: tuple[ModelProcess, int, list[Gcs]]) -> None:
+    """Vehicle 1 arms and takes off in GUIDED; vehicles 0 and 2 stay disarmed on the ground."""
+    _, _, stations = fleet
+    flier = stations[1]
+    flier.wait_prearm(flier.wall(60))
+    flier.takeoff(5.0)
+    for i in (0, 2):
+        g = stations[i]
+        assert not g.armed(), f"vehicle {i} armed with vehicle 1"
+        assert g.mode() != GUIDED, f"vehicle {i} switched to GUIDED with vehicle 1"
+        gp = g.fresh("GLOBAL_POSITION_INT")
+        assert gp.get_srcSystem() == i + 1
+        assert abs(gp.relative_alt) < 300, f"vehicle {i} left the ground: {gp.relative_alt} mm"
+    assert flier.mode() == GUIDED
+    gp = flier.fresh("GLOBAL_POSITION_INT")
+    assert gp.get_srcSystem() == 2 and gp.relative_alt > 4000
+    flier.land_and_disarm()
+
+
+def test_mavproxy_tcp_port_answers_for_each_vehicle(fleet: tuple[ModelProcess, int, list[Gcs]]) -> None:
+    _, base, _ = fleet
+    for i in range(N):
+        conn = mavutil.mavlink_connection(f"tcp:127.0.0.1:{_ports(base + i)[0]}", source_system=254)
+        try:
+            hb = conn.recv_match(type="HEARTBEAT", blocking=True, timeout=15)
+            assert hb is not None, f"no HEARTBEAT on vehicle {i}'s TCP port"
+            assert hb.get_srcSystem() == i + 1
+        finally:
+            conn.close()
+
+
+def test_stopping_the_fleet_releases_every_port(tmp_path: Path) -> None:
+    proc, base = start_fleet(tmp_path, n=2, speedup=2.0)
+    try:
+        assert not _base_free(base, 2)
+        g = Gcs(_ports(base + 1)[1], 2.0, background=True, target=2)
+        try:
+            wait_for(lambda: g.last.get("HEARTBEAT") is not None, 30, "vehicle 1's heartbeat")
+        finally:
+            g.close()
+    finally:
+        assert proc.stop() == 0
+    wait_for(lambda: _base_free(base, 2), 10, "every port of the stopped fleet free again")
+
+
+# --- in process: construction and lockstep ----------------------------------------------------------------
+def test_lockstep_fleet_in_process_advances_every_vehicle_together(tmp_path: Path) -> None:
+    with Fleet(2, speedup=0.0, state_dir=tmp_path, urls=[["udpin:127.0.0.1:0"]] * 2, persist=False) as f:
+        done = f.run(1.0)
+        assert done == 499 and f.rounds == 500  # the first period is the warm-up round
+        assert [s.vehicle.clock.now_us for s in f.vehicles] == [1_000_000, 1_000_000]
+        assert [s.endpoint.sysid for s in f.vehicles] == [1, 2]
+        assert f.lateness_s == type(f.lateness_s)()  # lockstep: never paced
+
+
+def test_bad_input_is_refused_before_any_port_is_bound(tmp_path: Path) -> None:
+    with pytest.raises(ValueError, match="at least one vehicle"):
+        Fleet(0, state_dir=tmp_path)
+    with pytest.raises(ValueError, match="2 homes for 3 vehicles"):
+        Fleet(3, homes=[(0, 0, 0), (0, 0, 0)], state_dir=tmp_path)
+    with pytest.raises(ValueError, match="system ids"):
+        Fleet(3, first_sysid=254, state_dir=tmp_path)
+    with pytest.raises(ValueError, match="speedup"):
+        Fleet(1, speedup=-1, state_dir=tmp_path)
+    with pytest.raises(ValueError, match="bad MAVLink URL template"):
+        template_urls(["udpin:127.0.0.1:{port}"], 0)
+    assert not list(tmp_path.iterdir())
+
+
+def test_homes_and_templates() -> None:
+    homes = fleet_homes(3, (-35.0, 149.0, 500.0, 90.0), spacing_m=10.0)
+    assert homes[0] == (-35.0, 149.0, 500.0, 90.0)
+    for i, h in enumerate(homes):
+        assert len(h) == 4 and h[3] == 90.0
+        n, e, d = geodetic_to_ned(homes[0][:3], *h[:3])
+        assert math.isclose(e, 10.0 * i, abs_tol=1e-3) and abs(n) < 1e-6 and d == 0
+    assert template_urls(["tcpin:0.0.0.0:{tcp}", "udpin:0.0.0.0:{udp}"], 3) == \
+        ["tcpin:0.0.0.0:5790", "udpin:0.0.0.0:14580"]
+    with pytest.raises(ValueError):
+        fleet_homes(2, (1.0, 2.0))
