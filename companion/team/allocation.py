@@ -78,6 +78,17 @@ def _kept(board: TaskBoard, current: Sequence[Claim]) -> tuple[list[Claim], list
     return held, parked
 
 
+def _position(me: int, entries: Mapping[int, MemberEntry]) -> GeoPoint | None:
+    """My position from my own row, if the caller passed it (else None: see :func:`_first_point`)."""
+    e = entries.get(me)
+    return e.position if e is not None else None
+
+
+def _first_point(task: TeamTask) -> GeoPoint:
+    """Where a path's first task is entered when my own row was not passed: its first point."""
+    return task.points[0] if task.points else (0.0, 0.0, 0.0)
+
+
 class AllocationPolicy(ABC):
     """One member's allocation rule: its new claims from the group state (pure, see module doc)."""
 
@@ -200,18 +211,18 @@ class CbbaPolicy(AllocationPolicy):
         self.margin_abs = margin_abs
 
     # --- path ----------------------------------------------------------------------------------------
-    def _path_time(self, at: GeoPoint, path: Sequence[TeamTask], cost: CostFn) -> float:
+    def _path_time(self, at: GeoPoint | None, path: Sequence[TeamTask], cost: CostFn) -> float:
         if not path:
             return 0.0
         total = cost(path[0]) + self.model.work_time(path[0])
-        here = exit_point(path[0], at)
+        here = exit_point(path[0], at if at is not None else _first_point(path[0]))
         for t in path[1:]:
             total += self.model.cost(here, t) + self.model.work_time(t)
             here = exit_point(t, here)
         return total
 
-    def _insert(self, at: GeoPoint, path: list[TeamTask], task: TeamTask, cost: CostFn, first_fixed: bool
-                ) -> tuple[float, int]:
+    def _insert(self, at: GeoPoint | None, path: list[TeamTask], task: TeamTask, cost: CostFn,
+                first_fixed: bool) -> tuple[float, int]:
         """(marginal time, index) of the best insertion of ``task`` into ``path`` (inf when none fits)."""
         base = self._path_time(at, path, cost)
         lo = 1 if first_fixed and path else 0
@@ -227,7 +238,7 @@ class CbbaPolicy(AllocationPolicy):
                 best = (d, i)
         return best
 
-    def _path(self, at: GeoPoint, bundle: Sequence[Claim], live: Mapping[int, TeamTask], cost: CostFn
+    def _path(self, at: GeoPoint | None, bundle: Sequence[Claim], live: Mapping[int, TeamTask], cost: CostFn
               ) -> list[TeamTask]:
         """The path: the ACTIVE task first, then the bundle's tasks inserted in bundle order."""
         path: list[TeamTask] = []
@@ -245,7 +256,7 @@ class CbbaPolicy(AllocationPolicy):
               claims: tuple[Claim, ...]) -> tuple[int, ...]:
         live = {t.id: t for t in board.live()}
         held, _ = _kept(board, claims)
-        at = entries[me].position if me in entries else (0.0, 0.0, 0.0)
+        at = _position(me, entries)
         return tuple(t.id for t in self._path(at, held, live, cost))
 
     # --- decision ---------------------------------------------------------------------------------------
@@ -254,7 +265,7 @@ class CbbaPolicy(AllocationPolicy):
         held, parked = _kept(board, current)
         riv = rivals(me, entries, board)
         live = {t.id: t for t in board.live()}
-        at = entries[me].position if me in entries else (0.0, 0.0, 0.0)
+        at = _position(me, entries)
         # 1. release: outbid on a task -> drop it and everything added after it (ACTIVE ones stay)
         bundle: list[Claim] = []
         lost = False

@@ -122,10 +122,10 @@ def validate(defn: TaskDef, fence: Fence | None = None) -> tuple[GeoPoint, ...]:
         if len(pts) < 3:
             raise ValueError(f"points: an area needs at least 3 points, got {len(pts)}")
         poly = LocalFrame.around(pts).polygon(pts)
+        if poly.area <= 1e-9:
+            raise ValueError("points: the area polygon has zero area")
         if not poly.is_valid or not poly.exterior.is_simple:
             raise ValueError("points: the area polygon is not simple (its edges cross)")
-        if poly.area <= 0.0:
-            raise ValueError("points: the area polygon has zero area")
     if fence is not None:
         for i, p in enumerate(pts):
             if not fence.contains(p):
