@@ -310,7 +310,12 @@ class TeamMember:
                     "board": {"seq": self.state.board.seq,
                               "tasks": [{"id": t.id, "version": t.version, "kind": t.kind.value,
                                          "state": t.state.value} for t in self.state.board.tasks]},
-                    "handovers": self.switchboard.handovers, "errors": list(self.switchboard.errors)}
+                    "handovers": self.switchboard.handovers, "errors": list(self.switchboard.errors),
+                    "conflicts": self.policy.conflicts,
+                    "link": {"packets_sent": self.link.stats.packets_sent,
+                             "packets_received": self.link.stats.packets_received,
+                             "garbage": self.link.stats.garbage,
+                             "foreign_version": self.link.stats.foreign_version}}
 
 
 def _on_ground(s: Any) -> bool:
