@@ -64,6 +64,7 @@ class LinkStats:
     boards_taken: int = 0
     send_errors: int = 0
     broadcasts: int = 0
+    announcements: int = 0        #: broadcasts between periods (a member announcing new claims)
     first_send: float | None = None
     last_send: float | None = None
     max_packet: int = 0
@@ -184,6 +185,15 @@ class TeamLink:
             self._broadcast(now)
         self._notify([LinkEvent("gone", member=m) for m in gone])
         return True
+
+    def announce(self, now: float | None = None) -> None:
+        """Broadcast the own row now, between periods (seed 003 Sec. III-B: a vehicle "selects the task ...
+        and then broadcasts its selection"); the vocs are not aged (that is the periodic step's job)."""
+        now = self.clock() if now is None else now
+        with self._step_lock:
+            self._refresh_own(now)
+            self._broadcast(now)
+        self.stats.announcements += 1
 
     def _refresh_own(self, now: float) -> None:
         cur = self.state.own()

@@ -86,7 +86,9 @@ class TeamMember:
         self._verdicts: dict[tuple[int, int], str] = {}  # (task, version) -> "" (can) or why not
         self._lock = threading.RLock()
         self._stop = threading.Event()
+        self._wake = threading.Event()
         self._thread: threading.Thread | None = None
+        self.link.listeners.append(self._on_link)
 
     # --- lifecycle ------------------------------------------------------------------------------------
     def start(self) -> TeamMember:
@@ -97,16 +99,29 @@ class TeamMember:
 
     def close(self) -> None:
         self._stop.set()
+        self._wake.set()
         if self._thread is not None:
             self._thread.join(timeout=5.0)
         self.link.close()
 
     def _loop(self) -> None:
-        while not self._stop.wait(self.decide_period_s):
+        while not self._stop.is_set():
+            self._wake.wait(self.decide_period_s)
+            self._wake.clear()
+            if self._stop.is_set():
+                return
             try:
+                before = self.claims
                 self.step(self.clock())
+                if [(c.task, c.state) for c in self.claims] != [(c.task, c.state) for c in before]:
+                    self.link.announce()  # seed 003: "selects the task ... and then broadcasts its selection"
             except Exception:
                 log.exception("team member %d: decision step failed", self.id)
+
+    def _on_link(self, event: Any) -> None:
+        """A new board or a member gone: decide now, not at the next decision period."""
+        if event.kind in ("board", "gone"):
+            self._wake.set()
 
     # --- the interface hierarchy (process monitor tier) ----------------------------------------------------
     def take(self, reason: str = "process monitor") -> None:
@@ -306,6 +321,7 @@ class TeamMember:
                     "claims": [{"task": c.task, "version": c.version, "cost": round(c.cost, 2),
                                 "state": c.state.name.lower()} for c in self.claims],
                     "done": sorted(self.done), "failed": dict(self.failed),
+                    "cannot": {t: why for (t, _v), why in self._verdicts.items() if why},
                     "members": sorted(rows), "alive": sorted(self.state.alive()),
                     "board": {"seq": self.state.board.seq,
                               "tasks": [{"id": t.id, "version": t.version, "kind": t.kind.value,
