@@ -193,8 +193,9 @@ class Vehicle:
             config = self._config
             schedule = build_schedule(config, self._functions, select=self.selection(config.select),
                                       heuristic=self._heuristic)
+            source = self._position_source_of(schedule)  # checked before anything is changed
             self._set_steps(schedule)
-            self._set_position_source(schedule)
+            self._set_position_source(*source)
             self.loop = MainLoop(schedule, self.clock, self._world_step)
             self.loop.run_init()
         return self.loop
@@ -212,19 +213,25 @@ class Vehicle:
         self.control.dt = steps.get("control.periodic", self.control.dt)
         self.nav_dt = steps.get("nav.periodic", self.nav_dt)
 
-    def _set_position_source(self, schedule: Schedule) -> None:
-        """Hand the position source the resolver loaded (the module providing ``@position_source``) and
-        the step of its function to the sensor and the estimator."""
+    @staticmethod
+    def _position_source_of(schedule: Schedule) -> tuple[str, str]:
+        """The module the resolver loaded for ``@position_source`` and its periodic function's name."""
         providers = schedule.resolution.provided.get("@position_source", ())
         if len(providers) != 1:
             raise SchedulerError(f"exactly one module must provide '@position_source', the resolution "
                                  f"loaded {len(providers)}: {', '.join(providers) or 'none'}")
         module = providers[0]
-        fns = [p for p in schedule.periodic if p.module == module]
+        fns = [p.name for p in schedule.periodic if p.module == module]
         if len(fns) != 1:
             raise SchedulerError(f"position source module '{module}' must have exactly one periodic "
                                  f"function (its sample rate), it has {len(fns)}")
-        dt = self.steps[fns[0].name]
+        return module, fns[0]
+
+    def _set_position_source(self, module: str, function: str) -> None:
+        """Hand the position source the resolver loaded and the step of its function to the sensor and
+        the estimator (with the barometer's and compass's steps; NaN for one not scheduled: its
+        correction never runs)."""
+        dt = self.steps[function]
         self.gps.configure(module, dt)
         est = self.estimator
         est.set_position_source(module)

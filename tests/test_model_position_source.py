@@ -114,3 +114,18 @@ def test_a_profile_missing_from_the_library_is_a_clear_error(tmp_path: Path) -> 
     v = Vehicle(load_airframe(), modules_file=library, sensors="indoor", seed=1)
     with pytest.raises(SchedulerError, match=r"selected module.*not in the library: indoor"):
         v.start()
+
+
+def test_two_position_sources_without_a_conflict_declared_are_refused(tmp_path: Path) -> None:
+    """A library that forgets the conflict still cannot fly two position sources: the vehicle checks
+    that exactly one module provides ``@position_source`` before it changes anything."""
+    text = DEFAULT_MODULES.read_text(encoding="utf-8")
+    text, n = re.subn(r"(?m)^    conflicts: (gps|mocap)\n", "", text)
+    assert n == 2
+    library = tmp_path / "modules.yaml"
+    library.write_text(text, encoding="utf-8")
+    v = Vehicle(load_airframe(), modules_file=library, sensors="outdoor", seed=1, extra_select=["mocap"])
+    dt = v.estimator.dt
+    with pytest.raises(SchedulerError, match=r"exactly one module must provide '@position_source'.*2: "):
+        v.start()
+    assert v.loop is None and v.steps == {} and v.estimator.dt == dt and v.gps.module == ""

@@ -277,8 +277,12 @@ class Estimator:
 
     def set_periods(self, pos_dt: float, baro_dt: float, heading_dt: float) -> None:
         """The periods (s) of the position, barometer and compass samples: their functions' steps in the
-        schedule (main loop period times prescaler)."""
-        for name, value in (("pos_dt", pos_dt), ("baro_dt", baro_dt), ("heading_dt", heading_dt)):
+        schedule (main loop period times prescaler). ``baro_dt`` / ``heading_dt`` may be NaN when that
+        sensor is not scheduled (its samples never arrive, its correction never runs)."""
+        for name, value, optional in (("pos_dt", pos_dt, False), ("baro_dt", baro_dt, True),
+                                      ("heading_dt", heading_dt, True)):
+            if optional and math.isnan(value):
+                continue
             if not (value > 0.0 and math.isfinite(value)):
                 raise ValueError(f"estimator {name} must be a positive period in seconds, got {value!r}")
         self.pos_dt, self.baro_dt, self.heading_dt = float(pos_dt), float(baro_dt), float(heading_dt)
@@ -336,7 +340,7 @@ class Estimator:
         """Start from the first position fix, level, on the compass heading."""
         if self.pos.sample is None or not self.compass.fresh:
             return
-        if math.isnan(self.pos_dt + self.baro_dt + self.heading_dt):
+        if math.isnan(self.pos_dt):
             raise RuntimeError("the estimator's sensor periods are not set: Vehicle.start() sets them from "
                                "the schedule (Estimator.set_periods)")
         s = self.pos.sample
