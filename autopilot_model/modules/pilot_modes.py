@@ -88,7 +88,7 @@ class PilotModes:
         self.v = modes.v
         self.rc = rc
         define_pilot_params(self.v.params)
-        self._dt = 0.02
+        self._dt = 0.0  # the step of flight_modes.update in the schedule, given by update()
         self._land_timer = 0.0
         self._loiter_vel = (0.0, 0.0)
         self._brake_timer = 0.0
