@@ -17,7 +17,12 @@ through for debugging). Structure, as in small autopilots' INS/AHRS pair (seed 0
   accelerometer only while resting on the ground (where it is exact).
 * Altitude from the barometer is blended when the position source is GPS.
 
-The 500 Hz prediction is a numba kernel; the corrections run at the sensors' (lower) rates.
+The 500 Hz prediction is a numba kernel; the corrections run at the sensors' (lower) rates, their periods
+the steps of the sensors' functions in the schedule (:meth:`Estimator.set_periods`).
+
+Output (seed 002 Sec. 3.1): ``est`` is the filter's working state. What the rest of the autopilot reads
+is the state interface, whose vector the finite-check kernel writes (``out``) after every update that
+passed the check; the vehicle then publishes it (``StateInterface.publish``).
 
 Health, as ArduPilot's EKF reports it to ``Copter::ekf_check``:
 
@@ -359,7 +364,8 @@ class Estimator:
         """A filter fault (non-finite state): restore the last finite state, reset the biases and the
         latency history, and distrust the position for ``RECONVERGE_S`` (ArduPilot's EKF resets itself on
         a fault and reports itself unhealthy while its variances are large). Nothing non-finite is ever
-        published: this runs before the state interface reads the estimate."""
+        published: the check kernel writes ``out`` (the state interface's vector) only for a finite state,
+        and the restored state is written to it here."""
         self.diverged += 1
         log.error("estimator diverged (%d): last finite state restored", self.diverged)
         self.est[:] = self._good
