@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 from mavlink_support import GUIDED, LOITER, wait_for
-from team_support import TeamRig, distance_m, geo
+from team_support import TeamRig, distance_m, fly_nine_tasks, geo
 
 from companion.team.tasks import TaskDef
 
@@ -30,43 +30,6 @@ def rig(tmp_path_factory: pytest.TempPathFactory) -> Iterator[TeamRig]:
         yield r
     finally:
         r.close()
-
-
-def fly_nine_tasks(rig: TeamRig) -> None:
-    """Seed 003 Sec. V: "A series of nine tasks was assigned to the three UAVs, including multiple-agent
-    tasks such as cooperative border patrol. On three occasions, conflicts were declared ..."."""
-    st = rig.station
-    assert st is not None
-    visits = [rig.add(TaskDef("visit", (geo(25, -15, 8),), name="visit-1"))[0],
-              rig.add(TaskDef("visit", (geo(-20, 25, 8),), name="visit-2"))[0]]
-    area = rig.add(TaskDef("area_scan", (geo(15, 40), geo(15, 60), geo(45, 60), geo(45, 40)), n=2,
-                           name="area"))
-    wait_for(lambda: all(rig.state(t) == "done" for t in visits), rig.wall(120), "the first visits done")
-    patrol = rig.add(TaskDef("patrol_line", (geo(0, -30, 8), geo(20, -30, 8)), name="patrol"))[0]
-    border = rig.add(TaskDef("border_patrol", (geo(-30, -10, 8), geo(-30, 10, 8), geo(-30, 30, 8)), n=2,
-                             name="border"))
-    visits += [rig.add(TaskDef("visit", (geo(35, 10, 8),), name="visit-3"))[0],
-               rig.add(TaskDef("visit", (geo(-10, -25, 8),), name="visit-4"))[0]]
-    ids = [*visits, *area, patrol, *border]
-    assert len(ids) >= 8  # nine when the border kept N = 2 (a smaller N was offered otherwise)
-    wait_for(lambda: rig.state(patrol) == "active", rig.wall(120), "the patrol flown")
-    wait_for(lambda: all(rig.state(t) in ("done", "active") for t in [*visits, *area]), rig.wall(240),
-             "visits and area parts flown")
-    st.cancel(patrol)
-    st.cancel(st.tasks()[[v.id for v in st.tasks()].index(border[0])].group or border[0])
-    wait_for(lambda: all(rig.state(t) in ("done", "cancelled") for t in ids), rig.wall(240),
-             "every task done or cancelled")
-    assert {rig.state(t) for t in visits + list(area)} == {"done"}
-    assert rig.state(patrol) == "cancelled" and {rig.state(t) for t in border} == {"cancelled"}
-    # every visit was flown to: some vehicle's track came within 2 m of it (GLOBAL_POSITION_INT)
-    # idle vehicles loiter: each in the team, holding no task, hovering where it is
-    def loitering() -> bool:
-        teams = [rig.team(i) for i in range(rig.n)]
-        return all(t["status"] in ("idle", "landed") and not t["claims"] and t["controller"] == "loiter"
-                   for t in teams)
-    wait_for(loitering, rig.wall(60), "every vehicle idle")
-    held = [c["task"] for i in range(rig.n) for c in rig.team(i)["claims"] if c["state"] != "done"]
-    assert len(held) == len(set(held))  # no task held twice
 
 
 def test_nine_tasks_of_every_type_added_flown_and_cancelled(rig: TeamRig) -> None:

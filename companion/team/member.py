@@ -331,7 +331,8 @@ class TeamMember:
                     "link": {"packets_sent": self.link.stats.packets_sent,
                              "packets_received": self.link.stats.packets_received,
                              "garbage": self.link.stats.garbage,
-                             "foreign_version": self.link.stats.foreign_version}}
+                             "foreign_version": self.link.stats.foreign_version,
+                             "dropped_by_test_loss": getattr(self.link.transport, "dropped_loss", 0)}}
 
 
 def _on_ground(s: Any) -> bool:
