@@ -4,8 +4,9 @@
 in-process :class:`~companion.team.transport.MemoryBus`, each receiving through its own seeded
 :class:`~companion.team.transport.LossyTransport`, run by :class:`~companion.team.link.TeamLink` in
 simulated time (``--seconds`` of it, 120 by default, stepped every 50 ms; no sleeping). Each member
-starts at a random phase of the period; the vehicles fly slowly (2-5 m/s) in random directions and
-each holds one claim, so a row carries a position, a velocity and a claim as in flight.
+starts at a random phase of the period; the vehicles fly slowly (2-5 m/s) in random directions in
+a 2 x 2 km square (turning back at its edges) and each holds one claim, so a row carries a
+position, a velocity and a claim as in flight.
 
 Figures, after a 10 s warm-up, sampled every 0.5 s:
 
@@ -14,7 +15,7 @@ Figures, after a 10 s warm-up, sampled every 0.5 s:
 * bytes per second sent per vehicle (UDP payload; "on air" adds the 28 bytes of IP and UDP headers
   per packet), packets per second, the largest packet;
 * gone events: a live vehicle whose voc ran out at some member (0 on the full mesh; with a short radio
-  range the vehicles, flying straight on, drift apart and the team can split, so some are real).
+  range a vehicle at a corner can be out of everyone's reach for a while, so some are real).
 
 The first table sweeps the loss (0, 10, 20, 40 %) at the default period; the second sweeps the period
 at 20 % loss (the choice of the default); the third repeats it with a radio range (``--range``, 700 m)
@@ -55,6 +56,7 @@ SAMPLE_S = 0.5
 UDP_IP_HEADERS = 28
 ORIGIN = (58.39, 15.57)
 M_PER_DEG = 111_320.0
+HALF_SIDE_M = 1000.0  #: the vehicles fly in a 2 x 2 km square
 
 
 @dataclass
@@ -77,7 +79,7 @@ class Vehicle:
 
     def __init__(self, member: int, rng: random.Random) -> None:
         self.member = member
-        self.n, self.e = rng.uniform(-1000, 1000), rng.uniform(-1000, 1000)
+        self.n, self.e = rng.uniform(-HALF_SIDE_M, HALF_SIDE_M), rng.uniform(-HALF_SIDE_M, HALF_SIDE_M)
         speed, heading = rng.uniform(2.0, 5.0), rng.uniform(0, 2 * math.pi)
         self.vn, self.ve = speed * math.cos(heading), speed * math.sin(heading)
         self.claim = Claim(task=member % 9 + 1, version=1, cost=rng.uniform(50, 900))
@@ -85,6 +87,10 @@ class Vehicle:
     def move(self, dt: float) -> None:
         self.n += self.vn * dt
         self.e += self.ve * dt
+        if abs(self.n) > HALF_SIDE_M:  # turn back at the edge of the area: the team stays together
+            self.vn = -self.vn
+        if abs(self.e) > HALF_SIDE_M:
+            self.ve = -self.ve
 
     def entry(self) -> MemberEntry:
         lat = ORIGIN[0] + self.n / M_PER_DEG
