@@ -477,3 +477,20 @@ def test_udp_loopback_two_links_in_threads(kind: str) -> None:
     finally:
         for lk in links:
             lk.close()
+
+
+def test_late_member_gets_the_board_from_relays_when_the_station_is_silent() -> None:
+    members = [STATION_ID, 2, 3]
+    pos = line_positions([*members, 4], 10.0)
+    team = Team(members, pos)
+    b1 = big_board(team.t, 1)
+    team.links[STATION_ID].state.set_board(b1)
+    team.run(2.0)
+    assert team.links[3].state.board == b1
+    late = TeamLink(GroupState(4), team.bus.attach(), period_s=0.5, clock=lambda: team.t,
+                    own=lambda: MemberEntry(member=4, stamp=0.0, seq=0, position=pos[4]))
+    team.links[4] = late
+    sent_before = team.links[2].stats.packets_sent + team.links[3].stats.packets_sent
+    team.run(0.5 * 4 + 0.2, skip=frozenset({STATION_ID}))  # relays send the board every 4th broadcast
+    assert late.state.board == b1
+    assert team.links[2].stats.packets_sent + team.links[3].stats.packets_sent > sent_before
