@@ -18,9 +18,9 @@ along with its knowledge of its own state" (controlled flooding). :class:`TeamLi
 
 The default period, 0.5 s, meets both targets of the bench (bench/bench_teamlink.py, 20 vehicles and a
 station, 20 % loss) with margin: p95 age of each member's view of every other 0.5 s on a full mesh and
-1.6 s when a 700 m radio range makes rows travel over relays (each hop adds up to a period), at
+1.5 s when a 700 m radio range makes rows travel over relays (each hop adds up to a period), at
 2.7 kB/s per vehicle (a 21-row packet of ~1.3 kB twice a second, the board every 4th). A 1 s period
-halves the bandwidth but its multi-hop p95 age is over 3 s, and it doubles the time to declare a dead
+halves the bandwidth but its multi-hop p95 age is 3 s, and it doubles the time to declare a dead
 vehicle gone (``voc_max`` periods: 5 s at 0.5 s); 0.25 s would cost 5.4 kB/s, over the bound.
 """
 
