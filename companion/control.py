@@ -32,6 +32,9 @@ process-unique command ids (:mod:`companion.flight.events`).
                                            :mod:`companion.control_behaviors`
 ``/mission``, ``/mission/...``             the mission layer (seed 000 Sec. III, VII), when served:
                                            see :mod:`companion.control_mission`
+``/team``, ``/team/...``, ``/processes``,  the process monitor (seed 003 Fig. 1): the team member when
+``/params/{name}``                         served, the processes, in-flight parameter tuning: see
+                                           :mod:`companion.control_team`
 =========================================  ===========================================================
 
 Errors
@@ -100,6 +103,7 @@ from companion.control_models import (
     StatusResponse,
     VerbResponse,
 )
+from companion.control_team import add_param_routes, add_team_routes
 from companion.flight import (
     STREAMS,
     CommandError,
@@ -112,8 +116,10 @@ from companion.flight import (
     command_to_dict,
 )
 from companion.flight.events import TERMINAL
+from companion.link.params import ParamClient
 from companion.mission_service import MissionService
 from companion.node import QuadNode
+from companion.team.member import TeamMember
 from taskflight.yamlio import ConfigError
 
 log = logging.getLogger(__name__)
@@ -255,12 +261,13 @@ def _kinds(text: str | None) -> frozenset[EventKind]:
 
 
 def create_app(node: QuadNode, token: str | None = None, behaviors: ExecutiveLayer | None = None,
-               missions: MissionService | None = None) -> FastAPI:
+               missions: MissionService | None = None, team: TeamMember | None = None) -> FastAPI:
     """The FastAPI application serving ``node``'s QAPI (see module docstring).
 
     ``token``: require ``Authorization: Bearer <token>`` on every endpoint (None: no authentication).
     ``behaviors``: also serve the executive layer (:mod:`companion.control_behaviors`); ``missions``: the
-    mission layer (:mod:`companion.control_mission`).
+    mission layer (:mod:`companion.control_mission`); ``team``: the vehicle's team member (the process
+    monitor's routes, :mod:`companion.control_team`). Autopilot parameters are always served.
     ``app.state.closing`` (a :class:`threading.Event`) ends pending ``/events/wait`` requests when set.
     """
     if token is not None and (not isinstance(token, str) or not token.strip()):
@@ -415,7 +422,11 @@ def create_app(node: QuadNode, token: str | None = None, behaviors: ExecutiveLay
     if behaviors is not None:
         add_behavior_routes(app, behaviors, RequestError)
     if missions is not None:
-        add_mission_routes(app, missions, RequestError)
+        add_mission_routes(app, missions, RequestError, team)
+    if team is not None:
+        add_team_routes(app, team, RequestError)
+    add_param_routes(app, ParamClient(node.link), RequestError,
+                     behaviors.processes if behaviors is not None else None)
     return app
 
 
@@ -434,8 +445,8 @@ class ControlServer:
 
     def __init__(self, node: QuadNode, port: int = 8765, host: str = "127.0.0.1",
                  token: str | None = None, behaviors: ExecutiveLayer | None = None,
-                 missions: MissionService | None = None) -> None:
-        self.app = create_app(node, token, behaviors, missions)
+                 missions: MissionService | None = None, team: TeamMember | None = None) -> None:
+        self.app = create_app(node, token, behaviors, missions, team)
         config = uvicorn.Config(self.app, host=host, port=port, log_level="warning", lifespan="off",
                                 timeout_graceful_shutdown=2)
         self.server = uvicorn.Server(config)

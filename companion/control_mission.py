@@ -62,8 +62,17 @@ class MissionAccepted(BaseModel):
     delegation: dict[str, Any]
 
 
-def add_mission_routes(app: FastAPI, service: MissionService, refuse: type[Exception]) -> None:
-    """Add the routes above to ``app``; ``refuse(status, message)`` is the surface's error type."""
+def add_mission_routes(app: FastAPI, service: MissionService, refuse: type[Exception],
+                       team: Any = None) -> None:
+    """Add the routes above to ``app``; ``refuse(status, message)`` is the surface's error type.
+
+    With ``team`` (the vehicle's :class:`~companion.team.member.TeamMember`), a mission given here is a
+    directed command of the process monitor (seed 003 Fig. 1): the vehicle leaves the team first.
+    """
+
+    def directed() -> None:
+        if team is not None:
+            team.take("directed mission")
 
     def verb(fn: Any, *args: Any) -> MissionVerbResponse:
         try:
@@ -88,6 +97,7 @@ def add_mission_routes(app: FastAPI, service: MissionService, refuse: type[Excep
             raise refuse(400, f"malformed JSON: {exc}") from None
         except (ConfigError, TreeError, ValueError) as exc:
             raise refuse(400, str(exc)) from None
+        directed()
         try:
             result = service.submit(mission)
         except ExecutionRequestError as exc:
@@ -99,6 +109,7 @@ def add_mission_routes(app: FastAPI, service: MissionService, refuse: type[Excep
 
     @app.post("/mission/start", response_model=MissionVerbResponse)
     def start(body: StartRequest | None = None) -> MissionVerbResponse:
+        directed()
         return verb(service.start, (body or StartRequest()).break_in)
 
     @app.post("/mission/pause", response_model=MissionVerbResponse)

@@ -8,7 +8,9 @@ over HTTP on ``--control-host`` (default ``127.0.0.1``) port P (see :mod:`compan
 users cannot read from the process list) makes every endpoint require ``Authorization: Bearer
 <token>``; serving on a non-loopback host without one logs a warning. ``--max-validity S`` caps the
 validity of external-data samples. ``--commands FILE`` queues a YAML list of flight commands at
-start; ``--run`` starts executing them.
+start; ``--run`` starts executing them. ``--team URL`` joins a team (seed 003;
+:mod:`companion.team.join`): the vehicle shares its state on the team link and flies the team tasks the
+allocation gives it.
 """
 
 from __future__ import annotations
@@ -68,6 +70,12 @@ def add_companion_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--mission", default=None, metavar="YAML",
                         help="a Task Specification Tree to delegate once the vehicle is heard (seed 000)")
     parser.add_argument("--start", action="store_true", help="with --mission: start it once accepted")
+    parser.add_argument("--team", default=None, metavar="URL",
+                        help="join a team on this team link (seed 003): udp://239.255.70.1:14650 "
+                             "(multicast), bcast://255.255.255.255:14650, options ?loss=F&seed=S&range=M")
+    parser.add_argument("--team-policy", default="greedy", choices=("greedy", "cbba"),
+                        help="task allocation policy (default greedy, seed 003 Sec. III-B)")
+    parser.add_argument("--name", default="", help="the vehicle's name in the team (default uav<sysid>)")
     parser.add_argument("--commands", default=None, metavar="YAML", help="flight commands to queue at start")
     parser.add_argument("--run", action="store_true", help="run the queue at start")
 
@@ -103,6 +111,13 @@ def run_companion(args: argparse.Namespace) -> int:
         mission = load_mission(args.mission) if args.mission else None
         if mission is not None and behavior_catalog is None:
             raise ValueError("--mission needs the executive layer (drop --no-behaviors)")
+        if args.team and behavior_catalog is None:
+            raise ValueError("--team needs the executive layer (drop --no-behaviors)")
+        if args.team:
+            from companion.team.transport import open_transport
+
+            # a bad URL fails here, before anything flies
+            open_transport(args.team, member=0, position_of=lambda m: None).close()
         node = QuadNode(args.autopilot, rate_hz=args.rate, limits=limits, envelope=envelope, catalog=catalog,
                         baud=args.baud, source_system=args.source_system,
                         max_validity_s=(DEFAULT_MAX_VALIDITY_S if args.max_validity is None
@@ -115,6 +130,7 @@ def run_companion(args: argparse.Namespace) -> int:
     layer = None
     recorder = None
     missions = None
+    member = None
     try:
         if args.flight_log:
             from companion.flightlog import FlightRecorder
@@ -127,12 +143,15 @@ def run_companion(args: argparse.Namespace) -> int:
             missions = MissionService(node, layer, platform, recorder=recorder)
             if mission is not None and not _fly_mission(missions, mission, args.start, stop):
                 return 1
+            if args.team:
+                member = _join(missions, args, stop)
         node.add_commands(commands)
         if args.run:
             node.run()
         if args.control_port >= 0:
             server = ControlServer(node, args.control_port, host=args.control_host,
-                                   token=control_token(args), behaviors=layer, missions=missions).start()
+                                   token=control_token(args), behaviors=layer, missions=missions,
+                                   team=member).start()
             log.info("companion: autopilot %s, %g Hz, control %s", args.autopilot, args.rate, server.url)
         while not stop.wait(0.5):
             pass
@@ -142,6 +161,8 @@ def run_companion(args: argparse.Namespace) -> int:
     finally:
         if server is not None:
             server.close()
+        if member is not None:
+            member.close()
         if missions is not None:
             missions.close()
         if layer is not None:
@@ -150,6 +171,19 @@ def run_companion(args: argparse.Namespace) -> int:
         if recorder is not None:
             recorder.close()
     return 0
+
+
+def _join(missions: Any, args: argparse.Namespace, stop: Any) -> Any:
+    """Join the team once the autopilot is heard (the member id is its system id)."""
+    from companion.team.join import join_team
+
+    link = missions.node.link
+    while link.target_system is None:
+        if stop.wait(0.2):
+            return None
+    member = join_team(missions, args.team, link.target_system, policy=args.team_policy, name=args.name)
+    log.info("team %s: member %d (%s), policy %s", args.team, member.id, member.name, args.team_policy)
+    return member
 
 
 def _fly_mission(missions: Any, mission: Any, start: bool, stop: Any) -> bool:

@@ -86,6 +86,39 @@ def add_mission_arguments(parser: argparse.ArgumentParser) -> None:
     add_fig16_arguments(msub)
 
 
+def _cmd_team(args: argparse.Namespace) -> int:
+    return args.team_handler(args)
+
+
+def _cmd_team_sim(args: argparse.Namespace) -> int:
+    from companion.team.sim_cli import run_sim
+
+    return run_sim(args)
+
+
+def _cmd_team_control(args: argparse.Namespace) -> int:
+    from companion.team.control_cli import run_control
+
+    return run_control(args)
+
+
+def add_team_arguments(parser: argparse.ArgumentParser) -> None:
+    """``taskflight team SUBCOMMAND`` (seed 003): each sub-command sets ``team_handler``."""
+    tsub = parser.add_subparsers(dest="team_command", required=True, metavar="SUBCOMMAND")
+    sp = tsub.add_parser("sim", help="allocation alone: kinematic vehicles and a station in one process, "
+                                     "simulated time, a lossy in-memory team link")
+    from companion.team.sim_cli import add_sim_arguments
+
+    add_sim_arguments(sp)
+    sp.set_defaults(team_handler=_cmd_team_sim)
+    cp = tsub.add_parser("control", help="a team-control station: give the team the tasks of a file and "
+                                         "print the assignment as it changes")
+    from companion.team.control_cli import add_control_arguments
+
+    add_control_arguments(cp)
+    cp.set_defaults(team_handler=_cmd_team_control)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="taskflight", description=__doc__.splitlines()[0])
     parser.add_argument("-v", "--verbose", action="count", default=0, help="more log output (-vv: debug)")
@@ -131,6 +164,10 @@ def build_parser() -> argparse.ArgumentParser:
     mp = sub.add_parser("mission", help="Task Specification Tree missions: check, plot, fig16 (seed 000)")
     add_mission_arguments(mp)
     handlers["mission"] = _cmd_mission
+
+    tp = sub.add_parser("team", help="team control: the team simulator (seed 003)")
+    add_team_arguments(tp)
+    handlers["team"] = _cmd_team
 
     parser.set_defaults(_handlers=handlers)
     return parser

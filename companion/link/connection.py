@@ -280,6 +280,20 @@ class MavlinkLink:
         self.sync.sent(now_s, f)
         return f
 
+    def send_param_set(self, name: str, value: float, param_type: int) -> None:
+        """PARAM_SET (the parameter protocol; :mod:`.params` waits for the autopilot's PARAM_VALUE)."""
+        ts, tc = self._target()
+        with self._send_lock:
+            self._conn.mav.param_set_send(ts, tc, name.encode("ascii"), float(value), param_type)
+        self.stats["tx_param"] += 1
+
+    def send_param_request(self, name: str) -> None:
+        """PARAM_REQUEST_READ by name (index -1)."""
+        ts, tc = self._target()
+        with self._send_lock:
+            self._conn.mav.param_request_read_send(ts, tc, name.encode("ascii"), -1)
+        self.stats["tx_param"] += 1
+
     # --- vehicle commands ---------------------------------------------------------------------------
     def set_mode(self, custom_mode: int, now_s: float) -> CommandRequest:
         """MAV_CMD_DO_SET_MODE with an ArduCopter custom mode (GUIDED 4, LAND 9 ...)."""

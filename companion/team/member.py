@@ -1,0 +1,342 @@
+"""One vehicle's place in the team (seed 003 Sec. III): its row, its claims, its tier, its switchboard.
+
+:class:`TeamMember` joins, on one companion,
+
+* the team link (:mod:`companion.team.link`): the group state flooded over a lossy radio-like link, the
+  vehicle's own row refreshed from its MAVLink mirror (position, velocity), its status and its claims;
+* the allocation policy (:mod:`companion.team.allocation`, greedy as in seed 003 Sec. III-B or CBBA),
+  asked every decision period for the claims this vehicle makes given the task board and everyone's rows;
+* the interface hierarchy of seed 003 Fig. 1: the team (broadcast tasks) < the process monitor (a directed
+  command: :meth:`take`, :meth:`release`, :meth:`assign`) < the autopilot's own ground station (a mode
+  change seen by the node's :class:`~companion.link.guided.GuidedSupervisor` as an override). "A lower
+  interface overrides a higher one": a taken or overridden vehicle publishes no claims and says so in its
+  row, so the others re-allocate its task; released (or put back into GUIDED), it rejoins;
+* the :class:`~companion.team.switchboard.Switchboard`, the one writer of which tree flies the vehicle.
+
+A claim is flown once it has been held for ``settle_s`` (one broadcast period by default) without being
+out-bid, so that most conflicts are declared and resolved before the vehicle turns (seed 003 Sec. V: "On
+three occasions, conflicts were declared when two UAVs claimed the same task. These conflicts were
+resolved"). A task whose tree succeeded is reported DONE in the row until the board says it is done; a task
+whose tree failed (rejected by delegation, or failed in flight) is reported FAILED and never claimed again
+by this vehicle.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import threading
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import replace
+from typing import TYPE_CHECKING, Any
+
+from companion.link.guided import Phase
+from companion.tst.delegation import delegate
+from companion.tst.status import ExecutionRequestError
+
+from .switchboard import Controller, Switchboard
+from .task_tst import mission_for
+from .types import Claim, ClaimState, GeoPoint, MemberEntry, MemberStatus, TaskBoard, TaskState, TeamTask
+
+if TYPE_CHECKING:
+    from companion.mission_service import MissionService
+
+    from .allocation import AllocationPolicy
+    from .transport import Transport
+
+log = logging.getLogger(__name__)
+
+
+
+class TeamMember:
+    """See module docstring."""
+
+    def __init__(self, missions: MissionService, transport: Transport, policy: AllocationPolicy,
+                 cost: Callable[[GeoPoint, TeamTask], float], *, member_id: int, name: str = "",
+                 period_s: float | None = None, decide_period_s: float = 0.25, settle_s: float | None = None,
+                 voc_max: int | None = None, clock: Callable[[], float] = time.time) -> None:
+        from .groupstate import GroupState
+        from .link import DEFAULT_PERIOD_S, TeamLink
+
+        self.missions = missions
+        self.node = missions.node
+        self.state = GroupState(member_id, **({} if voc_max is None else {"voc_max": voc_max}))
+        self.link = TeamLink(self.state, transport, period_s=period_s or DEFAULT_PERIOD_S, clock=clock,
+                             own=self.own_row)
+        link = self.link
+        self.policy = policy
+        self.cost = cost
+        self.id = member_id
+        self.name = name or f"uav{member_id}"
+        self.decide_period_s = decide_period_s
+        self.settle_s = link.period_s if settle_s is None else settle_s
+        self.clock = clock
+        platform = missions.platform()
+        self.switchboard = Switchboard(missions, float(platform.altitudes.get("standard", 10.0)))
+        self.status = MemberStatus.IDLE
+        self.taken_reason: str | None = None
+        self.claims: tuple[Claim, ...] = ()
+        self.position: GeoPoint | None = None
+        self.velocity: tuple[float, float, float] = (0.0, 0.0, 0.0)
+        self.done: dict[int, int] = {}      # task id -> version this vehicle finished
+        self.failed: dict[int, str] = {}    # task id -> why this vehicle could not fly it
+        self.events: list[dict[str, Any]] = []
+        self._claimed_at: dict[int, float] = {}
+        self._verdicts: dict[tuple[int, int], str] = {}  # (task, version) -> "" (can) or why not
+        self._lock = threading.RLock()
+        self._stop = threading.Event()
+        self._wake = threading.Event()
+        self._thread: threading.Thread | None = None
+        self.link.listeners.append(self._on_link)
+
+    # --- lifecycle ------------------------------------------------------------------------------------
+    def start(self) -> TeamMember:
+        self.link.start()
+        self._thread = threading.Thread(target=self._loop, name=f"team-member-{self.id}", daemon=True)
+        self._thread.start()
+        return self
+
+    def close(self) -> None:
+        self._stop.set()
+        self._wake.set()
+        if self._thread is not None:
+            self._thread.join(timeout=5.0)
+        self.link.close()
+
+    def _loop(self) -> None:
+        while not self._stop.is_set():
+            self._wake.wait(self.decide_period_s)
+            self._wake.clear()
+            if self._stop.is_set():
+                return
+            try:
+                before = self.claims
+                self.step(self.clock())
+                if [(c.task, c.state) for c in self.claims] != [(c.task, c.state) for c in before]:
+                    self.link.announce()  # seed 003: "selects the task ... and then broadcasts its selection"
+            except Exception:
+                log.exception("team member %d: decision step failed", self.id)
+
+    def _on_link(self, event: Any) -> None:
+        """A new board or a member gone: decide now, not at the next decision period."""
+        if event.kind in ("board", "gone"):
+            self._wake.set()
+
+    # --- the interface hierarchy (process monitor tier) ----------------------------------------------------
+    def take(self, reason: str = "process monitor") -> None:
+        """Out of the team (a directed command): the team's tree is aborted, no claims are published."""
+        with self._lock:
+            self.taken_reason = reason
+            self.switchboard.hand_to(Controller.DIRECTED)
+            self._set_status(MemberStatus.TAKEN, reason)
+
+    def release(self) -> None:
+        """Back into the team: a directed tree still running is aborted, the team allocates again."""
+        with self._lock:
+            if self.taken_reason is None:
+                return
+            self.taken_reason = None
+            if self.switchboard.controller is Controller.DIRECTED and self.missions.execution.running:
+                self.missions.abort("released to the team")
+            self.switchboard.hand_to(Controller.LOITER)
+            self._set_status(MemberStatus.IDLE, "released")
+
+    def assign(self, task: TeamTask) -> bool:
+        """A directed task: the vehicle leaves the team and flies ``task`` (False if its tree is refused)."""
+        with self._lock:
+            self.take(f"directed task {task.id}")
+            s = self.node.link.mirror.snapshot()
+            return self.switchboard.fly(task, _on_ground(s), Controller.DIRECTED)
+
+    @property
+    def taken(self) -> bool:
+        return self.taken_reason is not None
+
+    # --- the row -----------------------------------------------------------------------------------------
+    def own_row(self) -> MemberEntry | None:
+        """This vehicle's row as it is now (the link stamps and numbers it); None before a position."""
+        with self._lock:
+            if self.position is None:
+                return None
+            task = self.switchboard.task.id if self.switchboard.task is not None else 0
+            return MemberEntry(member=self.id, stamp=0.0, seq=0, position=self.position,
+                               velocity=self.velocity, status=self.status, task=task, claims=self.claims,
+                               name=self.name)
+
+    # --- one decision (seed 003 Sec. III-B) -----------------------------------------------------------------
+    def step(self, now: float) -> None:
+        s = self.node.link.mirror.snapshot()
+        with self._lock:
+            self._observe(s)
+            if self.position is None:
+                return
+            if not self._tier(s):
+                return
+            if self.switchboard.controller is Controller.TEAM and self._paused():
+                return  # a break-in by the operator: the claims stand until it is resumed
+            board = self.state.board
+            rows = {m: e for m, e in self.state.alive().items() if m != self.id}
+            self._progress(board)
+            candidates = self._candidates(board, rows)
+            current = tuple(c for c in self.claims if c.state in (ClaimState.CLAIMED, ClaimState.ACTIVE))
+            position = self.position
+            decided = self.policy.decide(self.id, rows, candidates, lambda t: self.cost(position, t), current)
+            self._publish(decided, board, now)
+            self._switch(board, now, _on_ground(s))
+
+    def _observe(self, s: Any) -> None:
+        if s.global_position is not None:
+            lat, lon, _alt, rel = s.global_position
+            self.position = (lat, lon, rel)
+        self.velocity = tuple(float(v) for v in s.velocity)  # type: ignore[assignment]
+
+    def _paused(self) -> bool:
+        return self.missions.execution.status().get("state") == "paused"
+
+    def _tier(self, s: Any) -> bool:
+        """Set the status from the hierarchy; True if the team may give this vehicle tasks."""
+        if self.node.supervisor.phase is Phase.OVERRIDDEN:
+            if self.status is not MemberStatus.OVERRIDDEN:
+                self.switchboard.hand_to(Controller.NONE)
+                self._set_status(MemberStatus.OVERRIDDEN, "a ground station changed the mode")
+            self.claims = ()
+            return False
+        if self.taken:
+            self.claims = ()
+            return False
+        if self.status is MemberStatus.OVERRIDDEN:
+            self.switchboard.hand_to(Controller.LOITER)
+            self._set_status(MemberStatus.IDLE, "given back (GUIDED)")
+        return True
+
+    def _progress(self, board: TaskBoard) -> None:
+        """The current tree's outcome becomes DONE or FAILED; DONE claims end when the board agrees."""
+        out = self.switchboard.outcome()
+        task = self.switchboard.task
+        if out is not None and task is not None and self.switchboard.controller is Controller.TEAM:
+            if out.state == "succeeded":
+                self.done[task.id] = task.version
+                self._event("done", task=task.id)
+                self.switchboard.loiter()
+            elif out.state in ("failed", "aborted"):
+                self.failed[task.id] = out.reason or out.state
+                self._event("failed", task=task.id, reason=out.reason)
+                self.switchboard.loiter()
+        for tid in list(self.done):
+            t = board.get(tid)
+            if t is None or t.state.final:
+                del self.done[tid]
+
+    def _candidates(self, board: TaskBoard, rows: Mapping[int, MemberEntry]) -> TaskBoard:
+        """The board without what is over: tasks reported done by anyone, and those this vehicle failed."""
+        reported_done = {c.task for e in rows.values() for c in e.claims if c.state is ClaimState.DONE}
+        live = tuple(t for t in board.tasks if t.live and t.id not in reported_done and t.id not in self.done
+                     and t.id not in self.failed and self._acceptable(t))
+        return replace(board, tasks=live)
+
+    def _acceptable(self, task: TeamTask) -> bool:
+        """Seed 000 Sec. III across the team: bid only for what this platform's delegation accepts (its
+        check() and constraints on the task's tree); cached per task version."""
+        key = (task.id, task.version)
+        verdict = self._verdicts.get(key)
+        if verdict is None:
+            try:
+                mission = mission_for(task, True, self.switchboard.standard_altitude)
+                result = delegate(mission, self.missions.platform())
+                verdict = "" if result.accepted else "; ".join(result.reasons) or "rejected"
+            except (ValueError, ExecutionRequestError) as exc:
+                verdict = str(exc) or "rejected"
+            self._verdicts[key] = verdict
+            if verdict:
+                self._event("cannot", task=task.id, reason=verdict)
+        return not verdict
+
+    def _publish(self, decided: tuple[Claim, ...], board: TaskBoard, now: float) -> None:
+        flying = self.switchboard.task.id if (self.switchboard.task is not None
+                                              and self.switchboard.controller is Controller.TEAM) else None
+        claims = []
+        for c in decided:
+            self._claimed_at.setdefault(c.task, now)
+            cost = c.cost if math.isfinite(c.cost) else 1e9
+            state = ClaimState.ACTIVE if c.task == flying else ClaimState.CLAIMED
+            claims.append(Claim(c.task, c.version, cost, state))
+        held = {c.task for c in claims}
+        for tid in list(self._claimed_at):
+            if tid not in held:
+                del self._claimed_at[tid]
+        for tid, version in self.done.items():
+            claims.append(Claim(tid, version, 0.0, ClaimState.DONE))
+        for tid in self.failed:
+            t = board.get(tid)
+            if t is not None and t.live:
+                claims.append(Claim(tid, t.version, 1e9, ClaimState.FAILED))
+        if [(c.task, c.state) for c in claims] != [(c.task, c.state) for c in self.claims]:
+            self._event("claims", claims=[(c.task, c.state.name) for c in claims])
+        self.claims = tuple(claims)
+
+    def _switch(self, board: TaskBoard, now: float, on_ground: bool) -> None:
+        """Fly the first live claim once it has settled; loiter with none."""
+        first = next((c for c in self.claims if c.state in (ClaimState.CLAIMED, ClaimState.ACTIVE)), None)
+        if first is None:
+            if self.switchboard.controller is Controller.TEAM:
+                self.switchboard.loiter()
+            self._set_status(MemberStatus.LANDED if on_ground else MemberStatus.IDLE)
+            return
+        current = self.switchboard.task
+        if (current is not None and current.id == first.task
+                and self.switchboard.controller is Controller.TEAM):
+            self._set_status(MemberStatus.BUSY)
+            return
+        if now - self._claimed_at.get(first.task, now) < self.settle_s:
+            return
+        task = board.get(first.task)
+        if task is None:
+            return
+        if self.switchboard.fly(task, on_ground):
+            self._event("fly", task=task.id, version=task.version)
+            self._set_status(MemberStatus.BUSY)
+        else:
+            self.failed[task.id] = self.switchboard.errors[-1] if self.switchboard.errors else "refused"
+
+    # --- bookkeeping -------------------------------------------------------------------------------------
+    def _set_status(self, status: MemberStatus, why: str = "") -> None:
+        if status is not self.status:
+            self._event("status", status=status.name, why=why)
+            self.status = status
+
+    def _event(self, kind: str, **fields: Any) -> None:
+        self.events.append({"t": self.clock(), "member": self.id, "event": kind, **fields})
+        del self.events[:-200]
+        log.info("team member %d: %s %s", self.id, kind, fields)
+
+    def report(self) -> dict[str, Any]:
+        """For the control surface: status, claims, switchboard, what the link knows."""
+        with self._lock:
+            rows = self.state.entries()
+            return {"member": self.id, "name": self.name, "status": self.status.name.lower(),
+                    "taken_reason": self.taken_reason,
+                    "controller": self.switchboard.controller.value,
+                    "task": self.switchboard.task.id if self.switchboard.task is not None else None,
+                    "claims": [{"task": c.task, "version": c.version, "cost": round(c.cost, 2),
+                                "state": c.state.name.lower()} for c in self.claims],
+                    "done": sorted(self.done), "failed": dict(self.failed),
+                    "cannot": {t: why for (t, _v), why in self._verdicts.items() if why},
+                    "members": sorted(rows), "alive": sorted(self.state.alive()),
+                    "board": {"seq": self.state.board.seq,
+                              "tasks": [{"id": t.id, "version": t.version, "kind": t.kind.value,
+                                         "state": t.state.value} for t in self.state.board.tasks]},
+                    "handovers": self.switchboard.handovers, "errors": list(self.switchboard.errors),
+                    "conflicts": self.policy.conflicts,
+                    "link": {"packets_sent": self.link.stats.packets_sent,
+                             "packets_received": self.link.stats.packets_received,
+                             "garbage": self.link.stats.garbage,
+                             "foreign_version": self.link.stats.foreign_version,
+                             "dropped_by_test_loss": getattr(self.link.transport, "dropped_loss", 0)}}
+
+
+def _on_ground(s: Any) -> bool:
+    return s.landed_state == 1 or not s.armed
+
+
+__all__ = ["TaskState", "TeamMember"]

@@ -1,0 +1,358 @@
+"""The team simulator: distributed allocation with kinematic vehicles in one process on simulated time.
+
+Issue 11 item 7, ``taskflight team sim``: N point-mass vehicles (speed, acceleration and climb limits)
+and a team-control station, each with its own :class:`~companion.team.groupstate.GroupState` and
+:class:`~companion.team.link.TeamLink` over one :class:`~companion.team.transport.MemoryBus` behind a
+:class:`~companion.team.transport.LossyTransport` (the real flooding, voc and wire format of seed 003
+Sec. III-A). Every period each vehicle runs its allocation policy (Sec. III-B) on its own view and flies
+what it holds: a visit is done on arrival, a patrol (line or border piece) is flown back and forth until
+cancelled, an area part is done after flying its scan length at scan speed, a TST task visits its
+points in order. The station adds and cancels the scripted tasks at their times, follows the rows
+(:func:`~companion.team.tasks.derive_states`) and publishes the board. Nothing sleeps: time is a number.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import random
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from companion.team.allocation import AllocationPolicy, CbbaPolicy, GreedyPolicy
+from companion.team.cost import CostModel, endless, entry_point, tst_points, work_length
+from companion.team.geometry import LocalFrame
+from companion.team.groupstate import GroupState
+from companion.team.link import TeamLink
+from companion.team.taskfile import TaskScript
+from companion.team.tasks import TaskLedger, derive_states
+from companion.team.transport import LossyTransport, MemoryBus
+from companion.team.types import (
+    STATION_ID,
+    Claim,
+    ClaimState,
+    MemberEntry,
+    MemberStatus,
+    TaskBoard,
+    TaskKind,
+    TaskState,
+    TeamTask,
+)
+
+log = logging.getLogger(__name__)
+
+#: a vehicle is at a point when nearer than this (m)
+ARRIVE_M = 2.0
+
+
+def make_policy(name: str, model: CostModel, max_tasks: int = 3) -> AllocationPolicy:
+    if name == "greedy":
+        return GreedyPolicy()
+    if name == "cbba":
+        return CbbaPolicy(model, max_tasks=max_tasks)
+    raise ValueError(f"policy: must be greedy or cbba, got {name!r}")
+
+
+@dataclass
+class Work:
+    """What a vehicle does on the task it flies: the waypoints left (local m) and the metres to fly."""
+
+    task: int
+    waypoints: list[np.ndarray]
+    loop: list[np.ndarray] | None = None   #: a patrol's points, flown back and forth
+    scan_left: float = 0.0                 #: an area part: metres still to scan
+
+
+class SimVehicle:
+    """One kinematic vehicle with its own group state, link and policy."""
+
+    def __init__(self, member: int, pos: np.ndarray, sim: TeamSim) -> None:
+        self.member = member
+        self.pos = pos.astype(float)
+        self.vel = np.zeros(3)
+        self.sim = sim
+        self.state = GroupState(member, voc_max=sim.voc_max)
+        inner = sim.bus.attach()
+        self.transport = LossyTransport(inner, sim.loss, seed=sim.rng.randrange(1 << 30))
+        self.link = TeamLink(self.state, self.transport, period_s=sim.period_s, clock=lambda: sim.now,
+                             own=self._own)
+        self.policy = make_policy(sim.policy_name, sim.model, sim.max_tasks)
+        self.claims: tuple[Claim, ...] = ()
+        self.work: Work | None = None
+        self.alive = True
+
+    def geo(self) -> tuple[float, float, float]:
+        return self.sim.frame.to_geo(self.pos[0], self.pos[1], self.pos[2])
+
+    def _own(self) -> MemberEntry:
+        busy = any(c.state in (ClaimState.CLAIMED, ClaimState.ACTIVE) for c in self.claims)
+        v = self.vel
+        return MemberEntry(member=self.member, stamp=0.0, seq=0, position=self.geo(),
+                           velocity=(float(v[1]), float(v[0]), float(-v[2])),
+                           status=MemberStatus.BUSY if busy else MemberStatus.IDLE,
+                           task=self.work.task if self.work else 0, claims=self.claims,
+                           name=f"v{self.member}")
+
+    def cost(self, t: TeamTask) -> float:
+        return self.sim.model.cost(self.geo(), t)
+
+    # --- decision -------------------------------------------------------------------------------
+    def decide(self) -> None:
+        board = self.state.board
+        entries = self.state.alive()
+        entries[self.member] = self._own()
+        self.claims = self.policy.decide(self.member, entries, board, self.cost, self.claims)
+        order = self.policy.order(self.member, entries, board, self.cost, self.claims)
+        live = {t.id: t for t in board.live()}
+        nxt = order[0] if order else None
+        if self.work is not None and self.work.task != nxt:
+            self.work = None  # dropped, lost or cancelled: the next one (or loiter)
+        if nxt is not None and self.work is None:
+            self.work = self._plan(live[nxt])
+
+    def _plan(self, t: TeamTask) -> Work:
+        f = self.sim.frame
+        z = lambda p: t.altitude if t.altitude else p[2]  # noqa: E731
+        loc = lambda p: np.array(f.to_local((p[0], p[1], z(p))))  # noqa: E731
+        entry = loc(entry_point(t, self.geo()))
+        if endless(t):
+            pts = [loc(p) for p in t.points]
+            if np.linalg.norm(pts[-1] - entry) < np.linalg.norm(pts[0] - entry):
+                pts.reverse()
+            return Work(t.id, [entry], loop=pts)
+        if t.kind is TaskKind.AREA_PART:
+            ring = [loc(p) for p in t.points]
+            return Work(t.id, [entry], loop=[*ring, ring[0]], scan_left=work_length(t))
+        if t.kind is TaskKind.TST:
+            pts = [loc(p) for p in tst_points(t.tst)] or [entry]
+            return Work(t.id, [entry, *pts[1:]])
+        return Work(t.id, [entry])
+
+    def _mark(self, task: int, state: ClaimState) -> None:
+        self.claims = tuple(replace(c, state=state) if c.task == task else c for c in self.claims)
+
+    # --- flight ---------------------------------------------------------------------------------
+    def fly(self, dt: float) -> None:
+        if not self.alive:
+            return
+        w = self.work
+        if w is None:
+            self._move_to(self.pos, dt)  # loiter where it is
+            return
+        target = w.waypoints[0] if w.waypoints else None
+        if target is None and w.loop:
+            target = w.loop[0]
+        if target is None:
+            return
+        moved = self._move_to(target, dt)
+        if w.scan_left > 0 and not w.waypoints:
+            w.scan_left -= moved
+            if w.scan_left <= 0:
+                self._mark(w.task, ClaimState.DONE)
+                self.sim.done_by.setdefault(w.task, self.member)
+                self.work = None
+                return
+        if np.linalg.norm(target - self.pos) > ARRIVE_M:
+            return
+        if w.waypoints:
+            w.waypoints.pop(0)
+            if not w.waypoints:
+                if w.loop is None:  # a visit or a TST's last point: done
+                    self._mark(w.task, ClaimState.DONE)
+                    self.sim.done_by.setdefault(w.task, self.member)
+                    self.work = None
+                else:
+                    self._mark(w.task, ClaimState.ACTIVE)
+                    self.sim.active_by.setdefault(w.task, self.member)
+        elif w.loop:
+            pt = w.loop.pop(0)
+            if w.scan_left > 0:
+                w.loop.append(pt)       # the scan goes round its part
+            elif not w.loop:
+                w.loop = self._reverse(pt)  # a patrol turns back at its end
+
+    def _reverse(self, last: np.ndarray) -> list[np.ndarray]:
+        t = self.state.board.get(self.work.task) if self.work else None
+        if t is None:
+            return [last]
+        f = self.sim.frame
+        pts = [np.array(f.to_local((p[0], p[1], t.altitude if t.altitude else p[2]))) for p in t.points]
+        if np.linalg.norm(pts[0] - last) < np.linalg.norm(pts[-1] - last):
+            return pts[1:]
+        return list(reversed(pts))[1:]
+
+    def _move_to(self, target: np.ndarray, dt: float) -> float:
+        """Point mass toward ``target``: speed and acceleration limits, stopping at it; metres moved."""
+        m = self.sim.model
+        d = target - self.pos
+        dh = np.array([d[0], d[1], 0.0])
+        dist = float(np.linalg.norm(dh))
+        v_des = np.zeros(3)
+        if dist > 1e-6:
+            v_des = dh / dist * min(m.speed, math.sqrt(2.0 * m.accel * dist), dist / dt)
+        dv = v_des - np.array([self.vel[0], self.vel[1], 0.0])
+        n = float(np.linalg.norm(dv))
+        if n > m.accel * dt:
+            dv *= m.accel * dt / n
+        vz = max(-m.climb_speed, min(m.climb_speed, d[2] / dt))
+        self.vel = np.array([self.vel[0] + dv[0], self.vel[1] + dv[1], vz])
+        step = self.vel * dt
+        self.pos = self.pos + step
+        return float(np.linalg.norm(step[:2]))
+
+
+@dataclass
+class SimResult:
+    """What a run gave: the station's final view, the conflicts, and the timings."""
+
+    tasks: dict[int, tuple[TeamTask, TaskState, int | None]]
+    conflicts: int
+    changes: list[tuple[float, int, str, int | None]]
+    conflict_free_at: float | None
+    duration: float
+    done_by: dict[int, int] = field(default_factory=dict)
+    held_twice_at_end: int = 0
+    claims: dict[int, tuple[Claim, ...]] = field(default_factory=dict)
+
+
+class TeamSim:
+    """N vehicles and a station over a lossy in-memory bus (module doc)."""
+
+    def __init__(self, script: TaskScript, vehicles: int, *, loss: float = 0.0, policy: str = "greedy",
+                 seed: int = 0, period_s: float = 0.5, dt: float = 0.25, model: CostModel | None = None,
+                 max_tasks: int = 3, voc_max: int = 10,
+                 starts: list[tuple[float, float, float]] | None = None,
+                 on_change: Callable[[float, int, TaskState, int | None], None] | None = None) -> None:
+        if vehicles < 1:
+            raise ValueError(f"vehicles: must be >= 1, got {vehicles}")
+        if not 0.0 <= loss <= 1.0:
+            raise ValueError(f"loss: must be in 0..1, got {loss}")
+        self.script = script
+        self.loss, self.policy_name, self.period_s, self.dt = loss, policy, period_s, dt
+        self.model = model or CostModel()
+        self.max_tasks, self.voc_max = max_tasks, voc_max
+        make_policy(policy, self.model)  # a bad name fails here
+        self.rng = random.Random(seed)
+        self.now = 0.0
+        home = script.home or (-35.363261, 149.165230)
+        self.frame = LocalFrame(home[0], home[1])
+        self.bus = MemoryBus(f"sim-{seed}-{id(self)}")
+        self.ledger = TaskLedger(script.fence)
+        self.station_state = GroupState(STATION_ID, voc_max=voc_max)
+        st = LossyTransport(self.bus.attach(), loss, seed=self.rng.randrange(1 << 30))
+        self.station_link = TeamLink(self.station_state, st, period_s=period_s, clock=lambda: self.now,
+                                     own=lambda: MemberEntry(member=STATION_ID, stamp=0.0, seq=0,
+                                                             position=(home[0], home[1], 0.0),
+                                                             status=MemberStatus.STATION, name="station"))
+        self.done_by: dict[int, int] = {}
+        self.active_by: dict[int, int] = {}
+        self.vehicles: list[SimVehicle] = []
+        for i in range(vehicles):
+            if starts is not None:
+                pos = np.array(starts[i], dtype=float)
+            else:
+                a = 2 * math.pi * i / vehicles
+                pos = np.array([15.0 * math.cos(a), 15.0 * math.sin(a), 20.0])
+            self.vehicles.append(SimVehicle(i + 1, pos, self))
+        self._pending = sorted(script.tasks, key=lambda s: s.at)
+        self._cancels: list[tuple[float, tuple[int, ...]]] = []
+        self.changes: list[tuple[float, int, str, int | None]] = []
+        self.on_change = on_change
+        self._last_bad = 0.0
+        self._next_decide = {v.member: self.rng.uniform(0, period_s) for v in self.vehicles}
+
+    # --- the station ------------------------------------------------------------------------------
+    def _station(self) -> None:
+        changed = False
+        while self._pending and self._pending[0].at <= self.now:
+            item = self._pending.pop(0)
+            ids = self.ledger.add(item.defn, self.now)
+            changed = True
+            if item.cancel_at is not None:
+                self._cancels.append((item.cancel_at, ids))
+        for entry in [c for c in self._cancels if c[0] <= self.now]:
+            self._cancels.remove(entry)
+            live = [i for i in entry[1] if not self.ledger.state(i).final]
+            for i in live:
+                self.ledger.cancel(i, self.now)
+                self._change(i, TaskState.CANCELLED, None)
+                changed = True
+        rows = {m: e for m, e in self.station_state.alive().items() if m != STATION_ID}
+        for tid, state, holder in self.ledger.apply(derive_states(self.ledger.board(), rows), self.now):
+            self._change(tid, state, holder)
+            changed = True
+        if changed:
+            self.station_state.set_board(self.ledger.board(self.now))
+
+    def _change(self, tid: int, state: TaskState, holder: int | None) -> None:
+        self.changes.append((self.now, tid, state.value, holder))
+        if self.on_change is not None:
+            self.on_change(self.now, tid, state, holder)
+
+    # --- running ------------------------------------------------------------------------------------
+    def conflict_free(self) -> bool:
+        """No live task held by two vehicles, and no vehicle idle while a live task is unclaimed and it
+        has room for it (the true claims, not a view)."""
+        board = self.ledger.board()
+        live = {t.id for t in board.live()}
+        holders: dict[int, int] = {}
+        for v in self.vehicles:
+            for c in v.claims:
+                if c.task in live and c.state is not ClaimState.FAILED:
+                    holders[c.task] = holders.get(c.task, 0) + 1
+        if any(n > 1 for n in holders.values()):
+            return False
+        free = live - set(holders)
+        room = [v for v in self.vehicles if v.alive and len(
+            [c for c in v.claims if c.task in live]) < (1 if self.policy_name == "greedy" else self.max_tasks)
+            and not any(c.task in live and endless(board.get(c.task)) for c in v.claims)]
+        return not (free and room)
+
+    def step(self) -> None:
+        self.now += self.dt
+        self._station()
+        self.station_link.step(self.now)
+        for v in self.vehicles:
+            if not v.alive:
+                continue
+            v.fly(self.dt)
+            if self.now >= self._next_decide[v.member]:
+                self._next_decide[v.member] += self.period_s
+                v.link.step(self.now)  # receive (and broadcast when a period has passed)
+                v.decide()
+        if not self.conflict_free():
+            self._last_bad = self.now
+
+    def run(self, duration: float, stop_when_done: bool = False) -> SimResult:
+        while self.now < duration:
+            self.step()
+            if stop_when_done and self.finished():
+                break
+        return self.result()
+
+    def finished(self) -> bool:
+        """Every scripted task added, and every task done or cancelled."""
+        return (not self._pending and not self._cancels and self.now > 1.0
+                and all(self.ledger.state(i).final for i in self.ledger.ids()))
+
+    def result(self) -> SimResult:
+        led = self.ledger
+        tasks = {i: (led.task(i), led.state(i), led.holder(i)) for i in led.ids()}
+        board = self.ledger.board()
+        live = {t.id for t in board.live()}
+        count: dict[int, int] = {}
+        for v in self.vehicles:
+            for c in v.claims:
+                if c.task in live and c.state in (ClaimState.CLAIMED, ClaimState.ACTIVE):
+                    count[c.task] = count.get(c.task, 0) + 1
+        return SimResult(tasks=tasks, conflicts=sum(v.policy.conflicts for v in self.vehicles),
+                         changes=list(self.changes),
+                         conflict_free_at=self._last_bad if self.conflict_free() else None,
+                         duration=self.now, done_by=dict(self.done_by),
+                         held_twice_at_end=sum(1 for n in count.values() if n > 1),
+                         claims={v.member: v.claims for v in self.vehicles})
+
+    def board(self) -> TaskBoard:
+        return self.ledger.board()

@@ -1,0 +1,239 @@
+"""The team-control station (seed 003 Fig. 1, the top of the interface hierarchy; Sec. II-III).
+
+Seed 003 Sec. II: "High-level control is commanded by the Team Control Interface, which is used to assign
+task-level commands to the entire fleet." The station is a member of the team link like the vehicles
+(its own row has status STATION): it is the one writer of the task board (:class:`~.tasks.TaskLedger`)
+and it hears the group state. It never assigns: the vehicles divide the tasks among themselves
+(Sec. III-B); the station follows what their rows say (:func:`~.tasks.derive_states`) to show each task's
+state, holder and cost, and marks a task done once its holder reports it so. When the station stops, the
+team goes on with the last board it flooded.
+
+Border patrols and area scans ask for N vehicles. Seed 003: "When the total number of assigned individual
+tasks is greater than the number of unassigned UAVs, the user is offered the choice of reducing the number
+of UAVs assigned to the border patrol task. In this event, the border task is automatically redivided into
+a smaller number of individual tasks and reassigned." :meth:`TeamControlStation.add` answers such a
+request with the offer and changes nothing; the operator adds it again with the smaller N, or with
+``force`` to keep N (the pieces wait for vehicles). :meth:`redivide` re-divides a task already added.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from .groupstate import GroupState
+from .link import DEFAULT_PERIOD_S, LinkEvent, TeamLink
+from .tasks import Fence, TaskDef, TaskLedger, derive_states, offer_smaller_n, validate
+from .transport import Transport
+from .types import STATION_ID, ClaimState, MemberEntry, MemberStatus, TaskState
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class AddResult:
+    """What :meth:`TeamControlStation.add` did: the new task ids, or an offer of a smaller N (nothing
+    added), with the number of vehicles free now."""
+
+    ids: tuple[int, ...] = ()
+    offer: int | None = None
+    free: int = 0
+
+    @property
+    def added(self) -> bool:
+        return bool(self.ids)
+
+
+@dataclass(frozen=True)
+class TaskView:
+    """One task as the operator sees it."""
+
+    id: int
+    kind: str
+    state: str
+    holder: int | None
+    cost: float | None
+    group: int
+    version: int
+    name: str
+    points: tuple[tuple[float, float, float], ...]
+
+
+@dataclass
+class StationLog:
+    """Assignment changes and link events, newest last (bounded)."""
+
+    entries: list[dict[str, Any]] = field(default_factory=list)
+
+    def add(self, **fields: Any) -> None:
+        self.entries.append(fields)
+        del self.entries[:-1000]
+
+
+class TeamControlStation:
+    """See module docstring. Thread-safe; :meth:`start` runs the link and the follow-up in threads."""
+
+    def __init__(self, transport: Transport, *, fence: Fence | None = None, period_s: float | None = None,
+                 clock: Callable[[], float] = time.time, voc_max: int | None = None, name: str = "station",
+                 first_id: int = 101) -> None:
+        self.clock = clock
+        self.name = name
+        self.ledger = TaskLedger(fence, first_id=first_id)
+        self.state = GroupState(STATION_ID, **({} if voc_max is None else {"voc_max": voc_max}))
+        self.link = TeamLink(self.state, transport, period_s=period_s or DEFAULT_PERIOD_S, clock=clock,
+                             own=self._own_row)
+        self.link.listeners.append(self._on_link)
+        self.log = StationLog()
+        self.listeners: list[Callable[[dict[str, Any]], None]] = []
+        self._costs: dict[int, float] = {}
+        self._conflicts: set[int] = set()
+        self.conflicts = 0
+        self._lock = threading.RLock()
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+
+    # --- lifecycle --------------------------------------------------------------------------------------
+    def start(self) -> TeamControlStation:
+        self.link.start()
+        self._thread = threading.Thread(target=self._loop, name="team-station", daemon=True)
+        self._thread.start()
+        return self
+
+    def close(self) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=5.0)
+        self.link.close()
+
+    def _loop(self) -> None:
+        while not self._stop.wait(self.link.period_s / 2.0):
+            try:
+                self.step()
+            except Exception:
+                log.exception("team station: follow-up failed")
+
+    def _own_row(self) -> MemberEntry:
+        return MemberEntry(member=STATION_ID, stamp=0.0, seq=0, status=MemberStatus.STATION, name=self.name)
+
+    # --- the operator's verbs ---------------------------------------------------------------------------
+    def add(self, defn: TaskDef, force: bool = False) -> AddResult:
+        """Add an operator task (ValueError naming the field for bad input; nothing changes then)."""
+        with self._lock:
+            validate(defn, self.ledger.fence)  # bad input is refused before any offer is made
+            free = self.free_vehicles()
+            if defn.kind in ("border_patrol", "area_scan") and not force:
+                offer = offer_smaller_n(defn.n, free)
+                if offer is not None:
+                    self._record("offer", kind=defn.kind, requested=defn.n, offer=offer, free=free)
+                    return AddResult(offer=offer, free=free)
+            ids = self.ledger.add(defn, self.clock())
+            self._record("added", kind=defn.kind, ids=list(ids), name=defn.name)
+            self._publish()
+            return AddResult(ids=ids, free=free)
+
+    def cancel(self, task_id: int) -> tuple[int, ...]:
+        """Cancel a task or a divided task's live pieces (ValueError for an unknown or finished task)."""
+        with self._lock:
+            ids = self.ledger.cancel(task_id, self.clock())
+            self._record("cancelled", ids=list(ids))
+            self._publish()
+            return ids
+
+    def redivide(self, group: int, n: int) -> tuple[int, ...]:
+        with self._lock:
+            ids = self.ledger.redivide(group, n, self.clock())
+            self._record("redivided", group=group, n=n, ids=list(ids))
+            self._publish()
+            return ids
+
+    # --- following the team ----------------------------------------------------------------------------
+    def step(self) -> list[tuple[int, TaskState, int | None]]:
+        """Derive each task's state from the rows; the board follows (done, holder changes)."""
+        with self._lock:
+            rows = self.vehicle_rows()
+            board = self.ledger.board(self.clock())
+            derived = derive_states(board, rows)
+            self._costs = {tid: cost for tid, (_s, _h, cost) in derived.items()}
+            self._watch_conflicts(rows)
+            changes = self.ledger.apply(derived, self.clock())
+            for tid, state, holder in changes:
+                self._record("task", task=tid, state=state.value, holder=holder)
+            if changes:
+                self._publish()
+            return changes
+
+    def _watch_conflicts(self, rows: dict[int, MemberEntry]) -> None:
+        """Seed 003 Sec. V: "conflicts were declared when two UAVs claimed the same task. These conflicts
+        were resolved": recorded as ``conflict`` (the claimants) and ``resolved`` (the one left)."""
+        claimants: dict[int, list[int]] = {}
+        for m, e in rows.items():
+            if e.status.available:
+                for c in e.claims:
+                    if c.state in (ClaimState.CLAIMED, ClaimState.ACTIVE):
+                        claimants.setdefault(c.task, []).append(m)
+        for tid, members in claimants.items():
+            if len(members) > 1 and tid not in self._conflicts:
+                self._conflicts.add(tid)
+                self.conflicts += 1
+                self._record("conflict", task=tid, members=sorted(members))
+        for tid in list(self._conflicts):
+            if len(claimants.get(tid, [])) <= 1:
+                self._conflicts.discard(tid)
+                holder = claimants.get(tid, [None])[0]
+                self._record("resolved", task=tid, holder=holder)
+
+    def _publish(self) -> None:
+        board = self.ledger.board(self.clock())
+        if board.newer_than(self.state.board):
+            self.state.set_board(board)
+
+    def _on_link(self, ev: LinkEvent) -> None:
+        if ev.kind in ("gone", "joined"):
+            self._record(ev.kind, member=ev.member)
+
+    def _record(self, event: str, **fields: Any) -> None:
+        entry = {"t": round(self.clock(), 3), "event": event, **fields}
+        self.log.add(**entry)
+        log.info("team station: %s %s", event, fields)
+        for fn in list(self.listeners):
+            try:
+                fn(entry)
+            except Exception:
+                log.exception("team station listener failed")
+
+    # --- views ---------------------------------------------------------------------------------------
+    def vehicle_rows(self) -> dict[int, MemberEntry]:
+        """The live vehicles' rows (not the station's, not the gone ones)."""
+        return {m: e for m, e in self.state.alive().items() if e.status is not MemberStatus.STATION}
+
+    def free_vehicles(self) -> int:
+        """Vehicles in the team holding no live claim (seed 003: the unassigned UAVs)."""
+        n = 0
+        for e in self.vehicle_rows().values():
+            busy = any(c.state in (ClaimState.CLAIMED, ClaimState.ACTIVE) for c in e.claims)
+            if e.status.available and not busy:
+                n += 1
+        return n
+
+    def tasks(self) -> list[TaskView]:
+        with self._lock:
+            out = []
+            for tid in self.ledger.ids():
+                t = self.ledger.task(tid)
+                state = self.ledger.state(tid)
+                holder = self.ledger.holder(tid)
+                cost = self._costs.get(tid) if holder is not None else None
+                out.append(TaskView(tid, t.kind.value, state.value, holder, cost, t.group, t.version, t.name,
+                                    t.points))
+            return out
+
+    def assignment(self) -> dict[int, tuple[str, int | None]]:
+        """task id -> (state, holder)."""
+        return {v.id: (v.state, v.holder) for v in self.tasks()}
+
+    def all_final(self) -> bool:
+        return all(TaskState(v.state).final for v in self.tasks())

@@ -1,0 +1,215 @@
+"""Distributed allocation (seed 003 Sec. III-B; CBBA): each rule on hand-made rows, then rounds of
+several members deciding on the same snapshot until steady (no task held twice)."""
+
+from __future__ import annotations
+
+import dataclasses
+import random
+
+import pytest
+
+from companion.team.allocation import AllocationPolicy, CbbaPolicy, GreedyPolicy
+from companion.team.cost import CostModel
+from companion.team.geometry import LocalFrame
+from companion.team.tasks import TaskDef, TaskLedger
+from companion.team.types import Claim, ClaimState, MemberEntry, MemberStatus, TaskBoard
+
+FRAME = LocalFrame(-35.363261, 149.165230)
+MODEL = CostModel(speed=5.0, accel=2.5, climb_speed=2.5)
+
+
+def geo(x: float, y: float, z: float = 20.0) -> tuple[float, float, float]:
+    return FRAME.to_geo(x, y, z)
+
+
+def visits(*xy: tuple[float, float]) -> tuple[TaskLedger, list[int]]:
+    led = TaskLedger()
+    return led, [led.add(TaskDef("visit", (geo(x, y),)))[0] for x, y in xy]
+
+
+def row(member: int, xy: tuple[float, float], claims: tuple[Claim, ...] = (),
+        status: MemberStatus = MemberStatus.IDLE) -> MemberEntry:
+    return MemberEntry(member=member, stamp=1.0, seq=1, position=geo(*xy), status=status, claims=claims,
+                       voc=5)
+
+
+def costfn(entry: MemberEntry):
+    return lambda t: MODEL.cost(entry.position, t)
+
+
+def decide(pol: AllocationPolicy, me: int, entries: dict[int, MemberEntry], board: TaskBoard
+           ) -> tuple[Claim, ...]:
+    return pol.decide(me, entries, board, costfn(entries[me]), entries[me].claims)
+
+
+def settle(policies: dict[int, AllocationPolicy], entries: dict[int, MemberEntry], board: TaskBoard,
+           rounds: int = 30) -> dict[int, MemberEntry]:
+    """Synchronous rounds (all decide on one snapshot, then all publish) until nothing changes."""
+    for _ in range(rounds):
+        new = {m: dataclasses.replace(e, claims=decide(policies[m], m, entries, board))
+               for m, e in entries.items()}
+        if new == entries:
+            return entries
+        entries = new
+    raise AssertionError("no steady state")
+
+
+def held(entries: dict[int, MemberEntry]) -> dict[int, list[int]]:
+    out: dict[int, list[int]] = {}
+    for m, e in entries.items():
+        for c in e.claims:
+            out.setdefault(c.task, []).append(m)
+    return out
+
+
+def test_greedy_takes_the_lowest_cost_task() -> None:
+    led, (_a, b, _c) = visits((100, 0), (40, 0), (-300, 0))
+    entries = {1: row(1, (0, 0))}
+    (claim,) = decide(GreedyPolicy(), 1, entries, led.board())
+    assert claim.task == b and claim.cost == pytest.approx(MODEL.leg_time(40.0))
+
+
+def test_greedy_conflict_higher_cost_yields_and_takes_its_next_best() -> None:
+    led, (a, b) = visits((100, 0), (0, 300))
+    board = led.board()
+    v = board.get(a).version
+    p1, p2 = GreedyPolicy(), GreedyPolicy()
+    # both claimed a (neither had heard the other): 2 is nearer
+    e = {1: row(1, (0, 0), (Claim(a, v, MODEL.leg_time(100)),)),
+         2: row(2, (60, 0), (Claim(a, v, MODEL.leg_time(40)),))}
+    assert decide(p2, 2, e, board)[0].task == a and p2.conflicts == 0
+    (c1,) = decide(p1, 1, e, board)
+    assert c1.task == b and p1.conflicts == 1
+
+
+def test_greedy_conflict_tie_is_broken_by_the_lower_id() -> None:
+    led, (a, _b) = visits((100, 0), (0, 300))
+    board = led.board()
+    v = board.get(a).version
+    e = {3: row(3, (0, 0), (Claim(a, v, 10.0),)), 5: row(5, (200, 0), (Claim(a, v, 10.0),))}
+    assert decide(GreedyPolicy(), 3, e, board)[0].task == a
+    assert decide(GreedyPolicy(), 5, e, board)[0].task != a
+
+
+def test_greedy_cancel_makes_the_holder_claim_another_then_loiter() -> None:
+    led, (a, b) = visits((50, 0), (0, 400))
+    pol = GreedyPolicy()
+    e = {1: row(1, (0, 0))}
+    (c,) = decide(pol, 1, e, led.board())
+    assert c.task == a
+    led.cancel(a)
+    e = {1: row(1, (0, 0), (dataclasses.replace(c, state=ClaimState.ACTIVE),))}
+    (c2,) = decide(pol, 1, e, led.board())
+    assert c2.task == b
+    led.cancel(b)
+    assert decide(pol, 1, {1: row(1, (0, 0), (c2,))}, led.board()) == ()  # nothing left: loiter
+
+
+def test_greedy_nothing_left_loiters_and_claimed_tasks_are_respected() -> None:
+    led, (a,) = visits((500, 0))
+    board = led.board()
+    v = board.get(a).version
+    e = {1: row(1, (450, 0), (Claim(a, v, MODEL.leg_time(50)),)), 2: row(2, (0, 0))}
+    assert decide(GreedyPolicy(), 2, e, board) == ()
+
+
+def test_greedy_hysteresis_no_flapping_on_small_differences() -> None:
+    led, (a, b) = visits((100, 0), (0, 104))
+    board = led.board()
+    v = board.get(a).version
+    pol = GreedyPolicy(margin_rel=0.1)
+    # I hold a; b became slightly cheaper: I keep a
+    e = {1: row(1, (0, 0), (Claim(a, v, MODEL.leg_time(100)),)), 2: row(2, (0, 103))}
+    e[1] = dataclasses.replace(e[1], position=geo(0, 2))
+    assert decide(pol, 1, e, board)[0].task == a
+    # someone a little nearer does not outbid my claim; someone much nearer does
+    e2 = {1: row(1, (0, 0), (Claim(a, v, MODEL.leg_time(100)),)), 2: row(2, (5, 0))}
+    assert decide(GreedyPolicy(), 2, e2, board)[0].task == b
+    e3 = {1: row(1, (0, 0), (Claim(a, v, MODEL.leg_time(100)),)), 2: row(2, (90, 0))}
+    assert decide(GreedyPolicy(), 2, e3, board)[0].task == a
+    # an ACTIVE claim is not outbid at all
+    e4 = {1: row(1, (0, 0), (Claim(a, v, MODEL.leg_time(100), ClaimState.ACTIVE),)), 2: row(2, (99, 0))}
+    assert decide(GreedyPolicy(), 2, e4, board)[0].task == b
+
+
+def test_unavailable_members_do_not_compete() -> None:
+    led, (a,) = visits((100, 0))
+    board = led.board()
+    v = board.get(a).version
+    e = {1: row(1, (0, 0)), 2: row(2, (99, 0), (Claim(a, v, 0.5, ClaimState.ACTIVE),), MemberStatus.TAKEN)}
+    assert decide(GreedyPolicy(), 1, e, board)[0].task == a
+
+
+def random_case(seed: int, n: int, m: int) -> tuple[TaskLedger, dict[int, MemberEntry]]:
+    rng = random.Random(seed)
+    led = TaskLedger()
+    for _ in range(m):
+        led.add(TaskDef("visit", (geo(rng.uniform(-1000, 1000), rng.uniform(-1000, 1000)),)))
+    entries = {i: row(i, (rng.uniform(-1000, 1000), rng.uniform(-1000, 1000))) for i in range(1, n + 1)}
+    return led, entries
+
+
+@pytest.mark.parametrize("seed", range(10))
+def test_greedy_steady_state_holds_no_task_twice(seed: int) -> None:
+    led, entries = random_case(seed, 5, 7)
+    pols = {m: GreedyPolicy() for m in entries}
+    final = settle(pols, entries, led.board())
+    h = held(final)
+    assert all(len(ms) == 1 for ms in h.values())
+    assert all(len(e.claims) == 1 for e in final.values())  # 7 tasks, 5 vehicles: every one busy
+
+
+@pytest.mark.parametrize("seed", range(10))
+def test_cbba_steady_state_holds_no_task_twice_and_covers_all(seed: int) -> None:
+    led, entries = random_case(seed, 3, 7)
+    pols = {m: CbbaPolicy(MODEL, max_tasks=3) for m in entries}
+    final = settle(pols, entries, led.board())
+    h = held(final)
+    assert all(len(ms) == 1 for ms in h.values())
+    assert len(h) == 7  # 3 x 3 slots for 7 tasks: all taken
+
+
+def test_cbba_release_drops_the_outbid_task_and_those_added_after_it() -> None:
+    led, (a, b, c) = visits((100, 0), (200, 0), (300, 0))
+    board = led.board()
+    v = board.get(a).version
+    pol = CbbaPolicy(MODEL, max_tasks=3)
+    e = {1: row(1, (0, 0))}
+    bundle = decide(pol, 1, e, board)
+    assert [x.task for x in bundle] == [a, b, c]
+    bids = [x.cost for x in bundle]
+    assert bids == sorted(bids)  # warped: each bid at least the previous one
+    # member 2 sits on b and bids lower: I lose b and c (added after it), keep a
+    e = {1: row(1, (0, 0), bundle), 2: row(2, (200, 0), (Claim(b, v, 0.1),))}
+    mine = decide(pol, 1, e, board)
+    assert mine[0].task == a and b not in [x.task for x in mine] and pol.conflicts == 1
+    # c is free again and I may re-add it with a new bid
+    assert [x.task for x in mine] == [a, c]
+    # the path I fly goes a then c
+    assert pol.order(1, e, board, costfn(e[1]), mine) == (a, c)
+
+
+def test_cbba_consensus_two_members_split_a_line() -> None:
+    led, ids = visits((-300, 0), (-200, 0), (-100, 0), (100, 0), (200, 0), (300, 0))
+    e = {1: row(1, (-50, 0)), 2: row(2, (50, 0))}
+    final = settle({1: CbbaPolicy(MODEL, 3), 2: CbbaPolicy(MODEL, 3)}, e, led.board())
+    assert {c.task for c in final[1].claims} == set(ids[:3])
+    assert {c.task for c in final[2].claims} == set(ids[3:])
+
+
+def test_cbba_patrol_only_last_and_active_first() -> None:
+    led = TaskLedger()
+    p = led.add(TaskDef("patrol_line", (geo(50, 0), geo(50, 300))))[0]
+    a = led.add(TaskDef("visit", (geo(400, 0),)))[0]
+    q = led.add(TaskDef("patrol_line", (geo(-50, 0), geo(-50, 300))))[0]
+    board = led.board()
+    pol = CbbaPolicy(MODEL, max_tasks=3)
+    e = {1: row(1, (0, 0))}
+    bundle = decide(pol, 1, e, board)
+    tasks = [x.task for x in bundle]
+    assert a in tasks and not (p in tasks and q in tasks)  # one endless patrol at most
+    order = pol.order(1, e, board, costfn(e[1]), bundle)
+    assert order[-1] in (p, q)
+    v = board.get(a).version
+    active = (Claim(a, v, 50.0, ClaimState.ACTIVE),)
+    assert pol.order(1, e, board, costfn(e[1]), (*active, Claim(p, v, 60.0)))[0] == a

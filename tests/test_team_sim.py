@@ -1,0 +1,96 @@
+"""The team simulator (issue 11 item 7): seed 003's nine-task demonstration on simulated time with the
+real GroupState / TeamLink over a lossy MemoryBus, greedy and CBBA, 0 and 30 % loss; a conflict
+declared and resolved; a vehicle that dies has its task re-allocated; the task file and the CLI."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from companion.team.sim import TeamSim
+from companion.team.taskfile import load_task_file, task_script_from_yaml
+from companion.team.types import TaskState
+from taskflight.cli import main
+from taskflight.yamlio import ConfigError
+
+ROOT = Path(__file__).resolve().parents[1]
+DEMO = ROOT / "mission_specs" / "team_tasks.yaml"
+
+
+@pytest.mark.parametrize("policy", ["greedy", "cbba"])
+@pytest.mark.parametrize("loss", [0.0, 0.3])
+def test_demo_every_task_done_or_cancelled_conflict_free(policy: str, loss: float) -> None:
+    script = load_task_file(DEMO)
+    sim = TeamSim(script, 3, loss=loss, policy=policy, seed=4)
+    r = sim.run(900.0, stop_when_done=True)
+    states = {tid: st for tid, (_t, st, _h) in r.tasks.items()}
+    assert all(st in (TaskState.DONE, TaskState.CANCELLED) for st in states.values()), states
+    assert sum(st is TaskState.DONE for st in states.values()) >= 6  # visits, area parts
+    assert r.held_twice_at_end == 0 and r.conflict_free_at is not None
+    # each done task was done by one vehicle, and the vehicles loiter with no claims at the end
+    for claims in r.claims.values():
+        assert not [c for c in claims if c.state.name in ("CLAIMED", "ACTIVE")]
+    assert set(r.done_by.values()) <= {1, 2, 3}
+
+
+def test_a_conflict_is_declared_and_resolved() -> None:
+    script = task_script_from_yaml("""
+home: [-35.363261, 149.165230]
+tasks:
+  - {kind: visit, points: [[-35.3620, 149.1652]], altitude: 20}
+  - {kind: visit, points: [[-35.3645, 149.1652]], altitude: 20}
+""")
+    # two vehicles side by side, both nearest the first visit: both claim it before hearing the other
+    sim = TeamSim(script, 2, policy="greedy", seed=0, starts=[(0.0, 10.0, 20.0), (0.0, 6.0, 20.0)])
+    sim._next_decide = {1: 0.25, 2: 0.25}
+    sim.step()
+    assert [c.task for c in sim.vehicles[0].claims] == [c.task for c in sim.vehicles[1].claims] == [101]
+    r = sim.run(300.0, stop_when_done=True)
+    assert r.conflicts >= 1
+    assert r.done_by == {101: 1, 102: 2}  # the nearer (1) keeps it, the other takes its next best
+
+
+def test_a_dead_vehicle_has_its_task_reallocated_once_its_voc_runs_out() -> None:
+    script = task_script_from_yaml("""
+home: [-35.363261, 149.165230]
+tasks:
+  - {kind: patrol_line, points: [[-35.3620, 149.1652], [-35.3620, 149.1665]], altitude: 20}
+""")
+    sim = TeamSim(script, 2, loss=0.0, seed=1, voc_max=6, starts=[(0.0, 10.0, 20.0), (0.0, -300.0, 20.0)])
+    sim.run(20.0)
+    assert [c.task for c in sim.vehicles[0].claims] == [101] and not sim.vehicles[1].claims
+    sim.vehicles[0].alive = False  # it stops flying and broadcasting
+    t_dead = sim.now
+    while not sim.vehicles[1].claims and sim.now < t_dead + 60:
+        sim.step()
+    assert [c.task for c in sim.vehicles[1].claims] == [101]
+    assert sim.now - t_dead >= 6 * 0.5 - 0.5  # not before its voc ran out (voc_max periods)
+    sim.run(sim.now + 5.0)
+    assert sim.ledger.holder(101) == 2
+
+
+def test_task_file_errors_name_file_line_and_field(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("tasks:\n  - {kind: visit, points: [[-35.36, 149.16]]}\n"
+                   "  - kind: border_patrol\n    n: 0\n    points: [[-35.36, 149.16], [-35.37, 149.17]]\n")
+    with pytest.raises(ConfigError, match=r"bad.yaml:4: tasks\[1\].n: must be >= 1"):
+        load_task_file(bad)
+    fenced = tmp_path / "fenced.yaml"
+    fenced.write_text("fence: [[-35.37, 149.16], [-35.37, 149.17], [-35.36, 149.17], [-35.36, 149.16]]\n"
+                      "tasks:\n  - kind: visit\n    points: [[-35.30, 149.165]]\n")
+    with pytest.raises(ConfigError, match=r"fenced.yaml:4: tasks\[0\].points\[0\]: .*outside the fence"):
+        load_task_file(fenced)
+
+
+def test_cli_team_sim_prints_changes_and_a_table(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    rc = main(["team", "sim", "--vehicles", "3", "--tasks", str(DEMO), "--loss", "0.2", "--seed", "3",
+               "--duration", "900"])
+    out = capsys.readouterr().out
+    assert rc == 0
+    assert "task  101 assigned -> vehicle" in out and "task  113 cancelled" in out
+    assert "tasks held twice at the end: 0" in out
+    bad = tmp_path / "t.yaml"
+    bad.write_text("tasks:\n  - {kind: visit}\n")
+    assert main(["team", "sim", "--tasks", str(bad)]) == 2
+    assert "t.yaml:2" in capsys.readouterr().err
