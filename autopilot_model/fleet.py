@@ -192,6 +192,11 @@ class Fleet:
             clock.advance(period)
             self.rounds = warm = 1
             todo = max(todo - 1, 0) if todo > 0 else todo
+            # one wall time at simulated t = 0 for all (SYSTEM_TIME): the moment the fleet starts, not
+            # each vehicle's construction, seconds apart for 50 vehicles
+            unix0_us = int(time.time() * 1e6) - clock.now_us
+            for sitl in self.vehicles:
+                sitl.telemetry.unix0_us = unix0_us
         paced = clock.speedup > 0
         batch = self.batch
         late = self.lateness_s.append
