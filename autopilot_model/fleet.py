@@ -8,19 +8,22 @@ MAVLink exactly as a single one's) in one thread of one process: each main-loop 
 vehicle's iteration (seed 002 Sec. 4.2, Fig. 4: events, task groups, world, clock advance), then the
 fleet sleeps ONCE for all of them until the next period's deadline on its own :class:`SimClock`, with no
 spinning (``spin_s=0``): a period starts late by the OS's wake-up jitter (~0.1 ms, measured by
-``bench/bench_fleet.py``), which telemetry at <= 50 Hz does not see, and an idle vehicle costs its
-iteration's work only (~8 us of 2000). ``batch`` > 1 runs that many periods back to back before one sleep;
-``spin_s`` > 0 spins through the last ``spin_s`` of each wait (less lateness, that much more CPU).
+``bench/bench_fleet.py``), which telemetry at <= 50 Hz hardly sees, and a vehicle costs its iteration's
+work only (13-28 us of CPU per 2 ms period with a ground station streaming at 10 Hz, against ~1 ms spun).
+``batch`` > 1 runs that many periods back to back before one sleep; ``spin_s`` > 0 spins through the last
+``spin_s`` of each wait (less lateness, that much more CPU).
 
 When behind (a loaded machine), periods run back to back until the fleet has caught up; more than
 ``max_lag_s`` behind, the fleet gives up the lost time (re-anchors its pacing, counted in ``slips``)
-instead of racing through it. ``speedup=0`` is lockstep: never waits.
+instead of racing through it. ``speedup=0`` is lockstep: never waits. Two things a single vehicle's sleep
+hides are spread out: the vehicles' statistics flushes (staggered) and the collector's full passes over
+the vehicles' long-lived objects (``gc.freeze`` once they are built).
 
 Vehicle ``i`` (from 0) is instance ``base_instance + i``: system id ``first_sysid + i`` (MAV_SYSID; 1..N
-by default, whatever the instance numbers, as issue 12 item 8 asks), the endpoints of a single Sitl of that
-instance (TCP 5760+10N for MAVProxy/QGroundControl, UDP 14550+10N
-listening), its parameters and missions in ``<state-dir>/instance<N>/``, and its home ``spacing_m``
-metres east of the previous vehicle's (so vehicles do not sit on each other).
+by default, whatever the instance numbers, as issue 12 item 8 asks), the endpoints of a single Sitl of
+that instance (TCP 5760+10N for MAVProxy/QGroundControl, UDP 14550+10N listening), its parameters and
+missions in ``<state-dir>/instance<N>/``, and its home ``spacing_m`` metres east of the previous
+vehicle's (so vehicles do not sit on each other).
 
     python -m autopilot_model.fleet --vehicles 12 [--speedup 1] [--base-instance 0] [--spacing 5]
 """
@@ -68,10 +71,11 @@ def fleet_homes(n: int, home: Sequence[float] | None = None, spacing_m: float = 
     return out
 
 
-def template_urls(templates: Sequence[str], instance: int) -> list[str]:
-    """Endpoint URLs of ``instance`` from templates with ``{instance}``, ``{sysid}``, ``{tcp}``
-    (5760+10N) and ``{udp}`` (14550+10N), e.g. ``udpin:127.0.0.1:{udp}``."""
-    fields = {"instance": instance, "sysid": instance + 1, "tcp": 5760 + 10 * instance,
+def template_urls(templates: Sequence[str], instance: int, sysid: int | None = None) -> list[str]:
+    """Endpoint URLs of ``instance`` from templates with ``{instance}``, ``{sysid}`` (default instance+1),
+    ``{tcp}`` (5760+10N) and ``{udp}`` (14550+10N), e.g. ``udpin:127.0.0.1:{udp}``."""
+    fields = {"instance": instance, "sysid": instance + 1 if sysid is None else sysid,
+              "tcp": 5760 + 10 * instance,
               "udp": 14550 + 10 * instance}
     out = []
     for t in templates:
@@ -119,7 +123,7 @@ class Fleet:
                 if urls is not None:
                     mine = list(urls[i])
                 elif url_templates:
-                    mine = template_urls(url_templates, inst)
+                    mine = template_urls(url_templates, inst, first_sysid + i)
                 else:
                     mine = default_urls(inst)
                 # speedup 0: the vehicle's own loop never paces; the fleet's clock does, once for all

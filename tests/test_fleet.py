@@ -156,6 +156,7 @@ def test_homes_and_templates() -> None:
         assert math.isclose(e, 10.0 * i, abs_tol=1e-3) and abs(n) < 1e-6 and d == 0
     assert template_urls(["tcpin:0.0.0.0:{tcp}", "udpin:0.0.0.0:{udp}"], 3) == \
         ["tcpin:0.0.0.0:5790", "udpin:0.0.0.0:14580"]
+    assert template_urls(["udpout:10.0.0.{sysid}:{udp}"], 7, sysid=2) == ["udpout:10.0.0.2:14620"]
     with pytest.raises(ValueError):
         fleet_homes(2, (1.0, 2.0))
 
