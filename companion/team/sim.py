@@ -151,7 +151,7 @@ class SimVehicle:
             w.scan_left -= moved
             if w.scan_left <= 0:
                 self._mark(w.task, ClaimState.DONE)
-                self.sim.done_by.setdefault(w.task, self.member)
+                self.sim.finish(w.task, self.member)
                 self.work = None
                 return
         if np.linalg.norm(target - self.pos) > ARRIVE_M:
@@ -161,7 +161,7 @@ class SimVehicle:
             if not w.waypoints:
                 if w.loop is None:  # a visit or a TST's last point: done
                     self._mark(w.task, ClaimState.DONE)
-                    self.sim.done_by.setdefault(w.task, self.member)
+                    self.sim.finish(w.task, self.member)
                     self.work = None
                 else:
                     self._mark(w.task, ClaimState.ACTIVE)
@@ -247,6 +247,7 @@ class TeamSim:
                                                              position=(home[0], home[1], 0.0),
                                                              status=MemberStatus.STATION, name="station"))
         self.done_by: dict[int, int] = {}
+        self.done_at: dict[int, float] = {}
         self.active_by: dict[int, int] = {}
         self.vehicles: list[SimVehicle] = []
         for i in range(vehicles):
@@ -285,6 +286,12 @@ class TeamSim:
             changed = True
         if changed:
             self.station_state.set_board(self.ledger.board(self.now))
+
+    def finish(self, task: int, member: int) -> None:
+        """A vehicle reports ``task`` done (the first report counts)."""
+        if task not in self.done_by:
+            self.done_by[task] = member
+            self.done_at[task] = self.now
 
     def _change(self, tid: int, state: TaskState, holder: int | None) -> None:
         self.changes.append((self.now, tid, state.value, holder))
