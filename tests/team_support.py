@@ -64,8 +64,9 @@ def free_udp_port() -> int:
 class TeamRig:
     """See module docstring. ``speedup`` is the models' (the companions follow autopilot time)."""
 
-    def __init__(self, tmp: Path, n: int = 3, speedup: float = 3.0, loss: float = 0.0) -> None:
-        self.tmp, self.n, self.speedup, self.loss = tmp, n, speedup, loss
+    def __init__(self, tmp: Path, n: int = 3, speedup: float = 3.0, loss: float = 0.0,
+                 policy: str = "greedy") -> None:
+        self.tmp, self.n, self.speedup, self.loss, self.policy = tmp, n, speedup, loss, policy
         self.fleet, self.base = start_fleet(tmp / "fleet", n, speedup)
         self.team_url = f"udp://239.255.70.1:{free_udp_port()}"
         self.member_url = self.team_url + (f"?loss={loss}" if loss else "")
@@ -98,7 +99,7 @@ class TeamRig:
         self.companions[i] = subprocess.Popen(
             [str(exe), "companion", "--autopilot", f"udpout:127.0.0.1:{ports(self.base + i)[1]}",
              "--team", self.member_url, "--control-port", str(self.control_ports[i]),
-             "--platform", str(PLATFORM), "--flight-log", str(log)],
+             "--platform", str(PLATFORM), "--flight-log", str(log), "--team-policy", self.policy],
             stdout=out, stderr=subprocess.STDOUT, cwd=ROOT)
         out.close()
 
