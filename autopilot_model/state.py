@@ -14,16 +14,34 @@ once, until a new update is available for the state."
   numpy on write);
 * **velocity** NED, **acceleration** NED, **body rates** (p, q, r rad/s) and ``time_us`` of the update.
 
+* **the state vector** (:attr:`StateInterface.vector`): ``[p(3), v(3), q(4), w(3), a(3)]`` (NED position,
+  NED velocity, quaternion, body rates, NED acceleration; layout :data:`SV_POS` ... :data:`SV_SIZE`), a
+  read-only numpy view of an array the interface owns. It is the format the numba kernels of the 500 Hz
+  control chain read (seed 002 Fig. 2: the controllers read the state interface): the controller gets
+  this view, no copy and no conversion.
+
 Every ``set_*`` validates its input (right length, finite; a quaternion of non-zero norm, a proper rotation
 matrix) and raises :class:`ValueError` leaving the state unchanged. A write stores the value in its own
 format and invalidates the other formats of that quantity only; a read of another format converts once and
 caches the result until the next write of that quantity. ``conversions`` counts the conversions actually
 performed, per target format, so the once-per-update rule can be checked.
 
-Performance (the estimator writes at 500 Hz and every controller reads at 500 Hz inside a loop that runs many
-times faster than real time): plain attributes, tuples of floats and :mod:`math`; the geodetic conversion
+Writers. The estimator is the one writer of the 500 Hz path: it writes its checked (finite) estimate
+straight into the interface's array (:meth:`StateInterface.estimate_buffer`, from inside its own numba
+finite-check kernel, so publishing costs no extra call) and then calls :meth:`StateInterface.publish`,
+which stamps ``time_us`` and marks every other format stale. Any other writer (a test, a ground-truth
+switch) uses the validated ``set_*`` / :meth:`StateInterface.update`; the vector is then refreshed from
+the written formats on its next read, once, converting only what changed (e.g. an Euler write becomes a
+quaternion in the vector and counts one ``quat`` conversion). Copying the same representation between
+the array and a tuple (NED position, velocity, rates, acceleration, the quaternion) is not a format
+conversion and is not counted.
+
+Performance (the estimator writes at 500 Hz and the controller reads at 500 Hz inside a loop that runs
+many times faster than real time): a publish is a few attribute stores; the control chain's read is a
+flag test and the cached view; the tuple formats (navigation, flight modes, telemetry at 10-50 Hz) are
+built from the array only when somebody reads them, once per update; the geodetic conversion
 (ArduPilot's flat-earth convention, :mod:`taskflight.geo`) only runs when somebody actually reads the other
-position format.
+position format (``bench/bench_lockstep.py`` and ``bench/bench_hotpath.py`` measure it).
 """
 
 from __future__ import annotations
@@ -33,10 +51,29 @@ import math
 from collections.abc import Sequence
 from typing import Any
 
+import numpy as np
+
+from autopilot_model.state_formats import (  # the attitude conversions, re-exported
+    Mat3,
+    Quat,
+    Vec3,
+    euler_to_matrix,
+    euler_to_quat,
+    matrix_to_euler,
+    matrix_to_quat,
+    quat_to_euler,
+    quat_to_matrix,
+)
 from taskflight.geo import geodetic_to_ned, ned_to_geodetic
 from taskflight.validate import finite3 as _vec3
 
 __all__ = [
+    "SV_ACC",
+    "SV_POS",
+    "SV_QUAT",
+    "SV_RATES",
+    "SV_SIZE",
+    "SV_VEL",
     "StateInterface",
     "euler_to_matrix",
     "euler_to_quat",
@@ -48,93 +85,12 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
-Vec3 = tuple[float, float, float]
-Quat = tuple[float, float, float, float]
-Mat3 = tuple[Vec3, Vec3, Vec3]
-
 _ORTHO_TOL = 1e-3  # accepted deviation of R R^T from identity on a matrix write
 
-
-# --------------------------------------------------------------------------------------------------
-# Attitude conversions (pure math; body -> NED, ZYX Euler). Public: controllers use them too.
-# --------------------------------------------------------------------------------------------------
-def quat_to_euler(q: Quat) -> Vec3:
-    """Unit quaternion (w, x, y, z) -> Euler (roll, pitch, yaw), ZYX convention, radians."""
-    w, x, y, z = q
-    roll = math.atan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
-    sp = 2.0 * (w * y - z * x)
-    pitch = math.asin(1.0 if sp > 1.0 else (-1.0 if sp < -1.0 else sp))
-    yaw = math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
-    return (roll, pitch, yaw)
-
-
-def euler_to_quat(e: Vec3) -> Quat:
-    """Euler (roll, pitch, yaw), ZYX, radians -> unit quaternion (w, x, y, z) with w >= 0."""
-    hr, hp, hy = 0.5 * e[0], 0.5 * e[1], 0.5 * e[2]
-    cr, sr = math.cos(hr), math.sin(hr)
-    cp, sp = math.cos(hp), math.sin(hp)
-    cy, sy = math.cos(hy), math.sin(hy)
-    w = cr * cp * cy + sr * sp * sy
-    x = sr * cp * cy - cr * sp * sy
-    y = cr * sp * cy + sr * cp * sy
-    z = cr * cp * sy - sr * sp * cy
-    if w < 0.0:
-        return (-w, -x, -y, -z)
-    return (w, x, y, z)
-
-
-def quat_to_matrix(q: Quat) -> Mat3:
-    """Unit quaternion (w, x, y, z) -> rotation matrix body -> NED (rows)."""
-    w, x, y, z = q
-    xx, yy, zz = x * x, y * y, z * z
-    xy, xz, yz = x * y, x * z, y * z
-    wx, wy, wz = w * x, w * y, w * z
-    return (
-        (1.0 - 2.0 * (yy + zz), 2.0 * (xy - wz), 2.0 * (xz + wy)),
-        (2.0 * (xy + wz), 1.0 - 2.0 * (xx + zz), 2.0 * (yz - wx)),
-        (2.0 * (xz - wy), 2.0 * (yz + wx), 1.0 - 2.0 * (xx + yy)),
-    )
-
-
-def matrix_to_quat(m: Mat3) -> Quat:
-    """Rotation matrix body -> NED -> unit quaternion (w, x, y, z), w >= 0 (Shepperd's method)."""
-    (m00, m01, m02), (m10, m11, m12), (m20, m21, m22) = m
-    tr = m00 + m11 + m22
-    if tr > 0.0:
-        s = 2.0 * math.sqrt(tr + 1.0)
-        w, x, y, z = 0.25 * s, (m21 - m12) / s, (m02 - m20) / s, (m10 - m01) / s
-    elif m00 > m11 and m00 > m22:
-        s = 2.0 * math.sqrt(1.0 + m00 - m11 - m22)
-        w, x, y, z = (m21 - m12) / s, 0.25 * s, (m01 + m10) / s, (m02 + m20) / s
-    elif m11 > m22:
-        s = 2.0 * math.sqrt(1.0 + m11 - m00 - m22)
-        w, x, y, z = (m02 - m20) / s, (m01 + m10) / s, 0.25 * s, (m12 + m21) / s
-    else:
-        s = 2.0 * math.sqrt(1.0 + m22 - m00 - m11)
-        w, x, y, z = (m10 - m01) / s, (m02 + m20) / s, (m12 + m21) / s, 0.25 * s
-    n = math.sqrt(w * w + x * x + y * y + z * z)
-    if w < 0.0:
-        n = -n
-    return (w / n, x / n, y / n, z / n)
-
-
-def euler_to_matrix(e: Vec3) -> Mat3:
-    """Euler (roll, pitch, yaw), ZYX, radians -> rotation matrix body -> NED: Rz(yaw) Ry(pitch) Rx(roll)."""
-    cr, sr = math.cos(e[0]), math.sin(e[0])
-    cp, sp = math.cos(e[1]), math.sin(e[1])
-    cy, sy = math.cos(e[2]), math.sin(e[2])
-    return (
-        (cp * cy, sr * sp * cy - cr * sy, cr * sp * cy + sr * sy),
-        (cp * sy, sr * sp * sy + cr * cy, cr * sp * sy - sr * cy),
-        (-sp, sr * cp, cr * cp),
-    )
-
-
-def matrix_to_euler(m: Mat3) -> Vec3:
-    """Rotation matrix body -> NED -> Euler (roll, pitch, yaw), ZYX, radians."""
-    s = -m[2][0]
-    pitch = math.asin(1.0 if s > 1.0 else (-1.0 if s < -1.0 else s))
-    return (math.atan2(m[2][1], m[2][2]), pitch, math.atan2(m[1][0], m[0][0]))
+#: Offsets in the state vector (:attr:`StateInterface.vector`): NED position, NED velocity, quaternion
+#: (w, x, y, z), body rates, NED acceleration. The first 13 entries are the estimator's own layout.
+SV_POS, SV_VEL, SV_QUAT, SV_RATES, SV_ACC = 0, 3, 6, 10, 13
+SV_SIZE = 16
 
 
 # --------------------------------------------------------------------------------------------------
@@ -143,8 +99,10 @@ def matrix_to_euler(m: Mat3) -> Vec3:
 class StateInterface:
     """The vehicle-state blackboard of seed 002 Sec. 3.1: write in one format, read in any.
 
-    Write with the ``set_*`` methods (or :meth:`update` for several quantities at once, atomically); read
-    with the properties. Derived formats are computed lazily, once per write (see ``conversions``).
+    Write with the ``set_*`` methods (or :meth:`update` for several quantities at once, atomically), or, for
+    the estimator, into :meth:`estimate_buffer` followed by :meth:`publish`; read with the properties
+    (:attr:`vector` for the numba kernels). Derived formats are computed lazily, once per write (see
+    ``conversions``).
 
     Args:
         origin: ``(lat deg, lon deg, alt m AMSL)`` of the local NED frame.
@@ -152,6 +110,7 @@ class StateInterface:
 
     __slots__ = (
         "_acc",
+        "_buf",
         "_eul",
         "_geo_src",
         "_gs",
@@ -160,7 +119,14 @@ class StateInterface:
         "_quat",
         "_rates",
         "_rmat",
+        "_va",
         "_vel",
+        "_view",
+        "_vok",
+        "_vp",
+        "_vq",
+        "_vv",
+        "_vw",
         "conversions",
         "origin",
         "time_us",
@@ -179,16 +145,24 @@ class StateInterface:
             "geodetic": 0,
             "ground_speed": 0,
         }
+        # tuple formats: None = not current (derive it from the vector or another format on read)
         self._ned: Vec3 | None = (0.0, 0.0, 0.0)
         self._lla: Vec3 | None = None
         self._geo_src = False  # True when the position was last written as geodetic
         self._quat: Quat | None = (1.0, 0.0, 0.0, 0.0)
         self._eul: Vec3 | None = None
         self._rmat: Mat3 | None = None
-        self._vel: Vec3 = (0.0, 0.0, 0.0)
+        self._vel: Vec3 | None = (0.0, 0.0, 0.0)
         self._gs: float | None = 0.0
-        self._acc: Vec3 = (0.0, 0.0, 0.0)
-        self._rates: Vec3 = (0.0, 0.0, 0.0)
+        self._acc: Vec3 | None = (0.0, 0.0, 0.0)
+        self._rates: Vec3 | None = (0.0, 0.0, 0.0)
+        # the state vector (owned array, read-only view) and which of its sections are current
+        self._buf = np.zeros(SV_SIZE)
+        self._buf[SV_QUAT] = 1.0
+        self._view = self._buf.view()
+        self._view.flags.writeable = False
+        self._vp = self._vv = self._vq = self._vw = self._va = True
+        self._vok = True  # all five sections current
 
     # ---------------------------------------------------------------------------------- helpers
     @staticmethod
@@ -209,6 +183,7 @@ class StateInterface:
         self.origin = self._check_origin(origin)
         if self._geo_src:
             self._ned = None
+            self._vp = self._vok = False
         else:
             self._lla = None
 
@@ -217,6 +192,7 @@ class StateInterface:
         self._ned = _vec3(p, "position_ned")
         self._lla = None
         self._geo_src = False
+        self._vp = self._vok = False
 
     def set_position_geodetic(self, lla: Sequence[float]) -> None:
         """Write the position as (lat deg, lon deg, alt m AMSL)."""
@@ -226,6 +202,7 @@ class StateInterface:
         self._lla = (lat, lon, alt)
         self._ned = None
         self._geo_src = True
+        self._vp = self._vok = False
 
     def set_quat(self, q: Sequence[float]) -> None:
         """Write the attitude as a quaternion (w, x, y, z), body to NED; normalised on write."""
@@ -249,12 +226,14 @@ class StateInterface:
         self._quat = (w, x, y, z)
         self._eul = None
         self._rmat = None
+        self._vq = self._vok = False
 
     def set_euler(self, e: Sequence[float]) -> None:
         """Write the attitude as Euler angles (roll, pitch, yaw), ZYX, radians."""
         self._eul = _vec3(e, "euler")
         self._quat = None
         self._rmat = None
+        self._vq = self._vok = False
 
     def set_rot_matrix(self, m: Any) -> None:
         """Write the attitude as a 3x3 rotation matrix body -> NED (rows; tuples, lists or numpy)."""
@@ -281,25 +260,56 @@ class StateInterface:
         self._rmat = mat
         self._quat = None
         self._eul = None
+        self._vq = self._vok = False
 
     def set_velocity_ned(self, v: Sequence[float]) -> None:
         """Write the NED velocity (m/s)."""
         self._vel = _vec3(v, "velocity_ned")
         self._gs = None
+        self._vv = self._vok = False
 
     def set_acceleration_ned(self, a: Sequence[float]) -> None:
         """Write the NED acceleration (m/s^2)."""
         self._acc = _vec3(a, "acceleration_ned")
+        self._va = self._vok = False
+
+    def set_body_rates(self, w: Sequence[float]) -> None:
+        """Write the body angular rates (p, q, r) in rad/s."""
+        self._rates = _vec3(w, "body_rates")
+        self._vw = self._vok = False
+
+    def estimate_buffer(self) -> np.ndarray:
+        """The writable state vector (layout :data:`SV_POS` ... :data:`SV_SIZE`), for the one trusted
+        writer of the 500 Hz path, the estimator (seed 002 Sec. 3.1: INS -> state interface).
+
+        The writer fills it with a finite estimate and a unit quaternion (the estimator checks its own
+        output and never writes a diverged state), then calls :meth:`publish`. Nothing is validated
+        here: every other writer uses the ``set_*`` methods.
+        """
+        return self._buf
+
+    def publish(self, time_us: int) -> None:
+        """The estimator's single publication per main-loop iteration, after it wrote
+        :meth:`estimate_buffer`: the vector is the state, every other format is stale (rebuilt from the
+        vector when read, once), ``time_us`` is stamped."""
+        self._ned = None
+        self._lla = None
+        self._geo_src = False
+        self._vel = None
+        self._gs = None
+        self._quat = None
+        self._eul = None
+        self._rmat = None
+        self._rates = None
+        self._acc = None
+        self._vp = self._vv = self._vq = self._vw = self._va = self._vok = True
+        self.time_us = time_us
 
     def publish_estimate(self, time_us: int, p: Vec3, v: Vec3, q: Quat, w: Vec3, a: Vec3) -> None:
-        """The estimator's single write per main-loop iteration (seed 002 Sec. 3.1: INS -> state).
-
-        NED position, NED velocity, unit quaternion, body rates and NED acceleration as float tuples.
-        This is the trusted fast path of the one writer of the estimate: the estimator guarantees the
-        values are finite and the quaternion normalised (it checks its own output and never publishes a
-        diverged state), so no per-field validation runs here; derived formats are invalidated exactly as
-        by the ``set_*`` methods.
-        """
+        """A trusted write of a whole estimate as float tuples (NED position, NED velocity, unit quaternion,
+        body rates, NED acceleration), without per-field validation: for writers that hold tuples (the
+        estimator itself writes :meth:`estimate_buffer` instead). The vector is refreshed on its next
+        read."""
         self._ned = p
         self._lla = None
         self._geo_src = False
@@ -310,11 +320,8 @@ class StateInterface:
         self._rmat = None
         self._rates = w
         self._acc = a
+        self._vp = self._vv = self._vq = self._vw = self._va = self._vok = False
         self.time_us = time_us
-
-    def set_body_rates(self, w: Sequence[float]) -> None:
-        """Write the body angular rates (p, q, r) in rad/s."""
-        self._rates = _vec3(w, "body_rates")
 
     def update(
         self,
@@ -362,35 +369,74 @@ class StateInterface:
         # commit
         if position_ned is not None or position_geodetic is not None:
             self._ned, self._lla, self._geo_src = staged._ned, staged._lla, staged._geo_src
+            self._vp = self._vok = False
         if quat is not None or euler is not None or rot_matrix is not None:
             self._quat, self._eul, self._rmat = staged._quat, staged._eul, staged._rmat
+            self._vq = self._vok = False
         if velocity_ned is not None:
             self._vel = staged._vel
             self._gs = None
+            self._vv = self._vok = False
         if acceleration_ned is not None:
             self._acc = staged._acc
+            self._va = self._vok = False
         if body_rates is not None:
             self._rates = staged._rates
+            self._vw = self._vok = False
         self.time_us = t
 
     # ------------------------------------------------------------------------------------ reads
+    @property
+    def vector(self) -> np.ndarray:
+        """The state vector ``[p(3), v(3), q(4), w(3), a(3)]`` (:data:`SV_POS` ... :data:`SV_SIZE`): a
+        read-only view of the interface's own array, what the control chain's kernels read. After a
+        ``set_*`` write the changed sections are rebuilt once, on this read."""
+        if not self._vok:
+            self._refresh_vector()
+        return self._view
+
+    def _refresh_vector(self) -> None:
+        b = self._buf
+        if not self._vp:
+            b[SV_POS:SV_POS + 3] = self.position_ned
+            self._vp = True
+        if not self._vv:
+            b[SV_VEL:SV_VEL + 3] = self.velocity_ned
+            self._vv = True
+        if not self._vq:
+            b[SV_QUAT:SV_QUAT + 4] = self.quat
+            self._vq = True
+        if not self._vw:
+            b[SV_RATES:SV_RATES + 3] = self.body_rates
+            self._vw = True
+        if not self._va:
+            b[SV_ACC:SV_ACC + 3] = self.acceleration_ned
+            self._va = True
+        self._vok = True
+
+    def _from_vector(self, start: int, n: int) -> tuple[float, ...]:
+        return tuple(self._buf[start:start + n].tolist())
+
     @property
     def position_ned(self) -> Vec3:
         """Local NED position (m) relative to ``origin``."""
         p = self._ned
         if p is None:
-            lat, lon, alt = self._lla  # type: ignore[misc]
-            n, e, d = geodetic_to_ned(self.origin, lat, lon, alt)
-            p = self._ned = (float(n), float(e), float(d))
-            self.conversions["ned"] += 1
-        return p
+            if self._vp:
+                p = self._ned = self._from_vector(SV_POS, 3)  # type: ignore[assignment]
+            else:
+                lat, lon, alt = self._lla  # type: ignore[misc]
+                n, e, d = geodetic_to_ned(self.origin, lat, lon, alt)
+                p = self._ned = (float(n), float(e), float(d))
+                self.conversions["ned"] += 1
+        return p  # type: ignore[return-value]
 
     @property
     def position_geodetic(self) -> Vec3:
         """Geodetic position (lat deg, lon deg, alt m AMSL)."""
         g = self._lla
         if g is None:
-            n, e, d = self._ned  # type: ignore[misc]
+            n, e, d = self.position_ned
             lat, lon, alt = ned_to_geodetic(self.origin, n, e, d)
             g = self._lla = (float(lat), float(lon), float(alt))
             self.conversions["geodetic"] += 1
@@ -404,10 +450,17 @@ class StateInterface:
             p = self.position_ned
         return -p[2]
 
+    def _quat_or_none(self) -> Quat | None:
+        """The quaternion if it is current as a tuple or in the vector (no conversion), else None."""
+        q = self._quat
+        if q is None and self._vq:
+            q = self._quat = self._from_vector(SV_QUAT, 4)  # type: ignore[assignment]
+        return q
+
     @property
     def quat(self) -> Quat:
         """Attitude quaternion (w, x, y, z), body to NED."""
-        q = self._quat
+        q = self._quat_or_none()
         if q is None:
             q = euler_to_quat(self._eul) if self._eul is not None else matrix_to_quat(self._rmat)  # type: ignore[arg-type]
             self._quat = q
@@ -419,7 +472,8 @@ class StateInterface:
         """Euler angles (roll, pitch, yaw), ZYX, radians; yaw in [-pi, pi]."""
         e = self._eul
         if e is None:
-            e = quat_to_euler(self._quat) if self._quat is not None else matrix_to_euler(self._rmat)  # type: ignore[arg-type]
+            q = self._quat_or_none()
+            e = quat_to_euler(q) if q is not None else matrix_to_euler(self._rmat)  # type: ignore[arg-type]
             self._eul = e
             self.conversions["euler"] += 1
         return e
@@ -429,7 +483,8 @@ class StateInterface:
         """Rotation matrix body -> NED as a tuple of three row tuples."""
         m = self._rmat
         if m is None:
-            m = quat_to_matrix(self._quat) if self._quat is not None else euler_to_matrix(self._eul)  # type: ignore[arg-type]
+            q = self._quat_or_none()
+            m = quat_to_matrix(q) if q is not None else euler_to_matrix(self._eul)  # type: ignore[arg-type]
             self._rmat = m
             self.conversions["matrix"] += 1
         return m
@@ -445,14 +500,17 @@ class StateInterface:
     @property
     def velocity_ned(self) -> Vec3:
         """NED velocity (m/s)."""
-        return self._vel
+        v = self._vel
+        if v is None:
+            v = self._vel = self._from_vector(SV_VEL, 3)  # type: ignore[assignment]
+        return v  # type: ignore[return-value]
 
     @property
     def ground_speed(self) -> float:
         """Horizontal speed (m/s)."""
         g = self._gs
         if g is None:
-            v = self._vel
+            v = self.velocity_ned
             g = self._gs = math.hypot(v[0], v[1])
             self.conversions["ground_speed"] += 1
         return g
@@ -460,15 +518,21 @@ class StateInterface:
     @property
     def acceleration_ned(self) -> Vec3:
         """NED acceleration (m/s^2)."""
-        return self._acc
+        a = self._acc
+        if a is None:
+            a = self._acc = self._from_vector(SV_ACC, 3)  # type: ignore[assignment]
+        return a  # type: ignore[return-value]
 
     @property
     def body_rates(self) -> Vec3:
         """Body angular rates (p, q, r), rad/s."""
-        return self._rates
+        w = self._rates
+        if w is None:
+            w = self._rates = self._from_vector(SV_RATES, 3)  # type: ignore[assignment]
+        return w  # type: ignore[return-value]
 
     def __repr__(self) -> str:
         return (
             f"StateInterface(t={self.time_us}us, ned={self.position_ned}, euler={self.euler}, "
-            f"v={self._vel})"
+            f"v={self.velocity_ned})"
         )

@@ -8,8 +8,21 @@ steps once per iteration after the autopilot's functions, so the autopilot sees 
 as a real one does.
 
 Every step comes from the schedule (issue 8, defect 3): the world and the clock advance by the main loop
-period; each periodic function (estimator, setpoint generator, controller, navigator, the barometer and
-compass corrections) steps by the period times its prescaler. Nothing assumes 500 Hz.
+period; each periodic function (estimator, setpoint generator, controller, navigator, the position,
+barometer and compass corrections) steps by the period times its prescaler. Nothing assumes 500 Hz.
+
+The module resolver, not this code, chooses the position source (issue 8 item 5): the sensor profile
+(``sensors=`` or the airframe's ``sensors``) is a module of the library that depends on ``gps`` or
+``mocap`` (both provide ``@position_source`` and conflict, seed 002 Sec. 3.2 and Fig. 3); the vehicle adds
+it to the selection and reads back which source the resolution loaded and the period of its function
+(its prescaler: 10 Hz GPS, 100 Hz motion capture in the bundled library). A selection with both is
+refused by the resolver's conflict check.
+
+The control chain reads the state interface (seed 002 Sec. 3.1, Fig. 2): the estimator writes its
+checked estimate into the interface's array (:meth:`~autopilot_model.state.StateInterface.
+estimate_buffer`) and publishes it; the controller's kernel reads the read-only view
+:attr:`~autopilot_model.state.StateInterface.vector`, the pilot modes and the navigator read the same
+blackboard. Nothing on the control path reads the estimator's working array.
 
 This class is also the small Python API that tests use to command the model (issue 2); the MAVLink
 endpoint (issue 3) registers its own module functions with :meth:`Vehicle.register`.
@@ -34,6 +47,7 @@ from autopilot_model.physics.battery import Battery
 from autopilot_model.physics.quadrotor import Quadrotor
 from autopilot_model.physics.wind import Wind
 from autopilot_model.quatmath import quat_yaw
+from autopilot_model.scheduler.errors import SchedulerError
 from autopilot_model.scheduler.mainloop import MainLoop
 from autopilot_model.scheduler.schedule import Schedule, build_schedule
 from autopilot_model.scheduler.spec import load_modules
@@ -45,6 +59,8 @@ log = logging.getLogger(__name__)
 DEFAULT_MODULES = CONFIG_DIR / "modules.yaml"
 # ArduPilot SITL's default home (CMAC, Canberra): lat, lon, alt AMSL, heading
 DEFAULT_HOME = (-35.363261, 149.165230, 584.0, 353.0)
+BATTERY_FILTER_TAU_S = 0.4
+"""Time constant (s) of the battery monitor's voltage filter."""
 
 
 class Vehicle:
@@ -99,12 +115,13 @@ class Vehicle:
         noise = PROFILES[profile]
         s = None if seed is None else seed * 7919 + 11
         self.imu = Imu(self.world, noise, s)
-        self.gps = PositionSensor(self.world, noise, self.main_hz, None if s is None else s + 1)
+        self.gps = PositionSensor(self.world, noise, None if s is None else s + 1)
+        """The position source (GPS or motion capture, as the resolver chose: ``gps.module``)."""
         self.baro = Barometer(self.world, noise, None if s is None else s + 2)
         self.compass = Compass(self.world, noise, None if s is None else s + 3)
-        self.estimator = Estimator(self.imu, self.gps, self.baro, self.compass, self.dt, self.world,
-                                   use_truth)
         self.state = StateInterface(origin=self.home)
+        self.estimator = Estimator(self.imu, self.gps, self.baro, self.compass, self.dt, self.world,
+                                   use_truth, out=self.state.estimate_buffer())
 
         # --- guidance, control, actuators
         env = af.envelope
@@ -130,7 +147,8 @@ class Vehicle:
 
         # --- module functions (the registry the schedule binds to)
         self.register("imu.periodic", self.imu.periodic)
-        self.register("gps.periodic", self._gps_periodic)
+        self.register("gps.periodic", self._position_periodic)
+        self.register("mocap.periodic", self._position_periodic)
         self.register("baro.periodic", self.baro.periodic)
         self.register("compass.periodic", self.compass.periodic)
         self.register("ins.periodic", self._ins_periodic)
@@ -139,7 +157,6 @@ class Vehicle:
         self.register("control.periodic", self._control_periodic)
         self.register("mixer.periodic", self._mixer_periodic)
         self.register("battery.periodic", self._battery_periodic)
-        self._gps_next = 0.0
 
     # --- construction helpers ----------------------------------------------------------------------
     @classmethod
@@ -162,10 +179,10 @@ class Vehicle:
         self._extra_select.extend(modules)
 
     def selection(self, config_select: Sequence[str]) -> list[str]:
+        """The modules handed to the resolver: the library's selection, the sensor profile's module (which
+        brings its position source) and the modules added with :meth:`select`."""
         sel = list(config_select)
-        if self.gps.noise.pos_source == "mocap":
-            sel = ["mocap" if m == "gps" else m for m in sel]
-        for m in self._extra_select:
+        for m in (self.sensor_profile, *self._extra_select):
             if m not in sel:
                 sel.append(m)
         return sel
@@ -176,7 +193,9 @@ class Vehicle:
             config = self._config
             schedule = build_schedule(config, self._functions, select=self.selection(config.select),
                                       heuristic=self._heuristic)
+            source = self._position_source_of(schedule)  # checked before anything is changed
             self._set_steps(schedule)
+            self._set_position_source(*source)
             self.loop = MainLoop(schedule, self.clock, self._world_step)
             self.loop.run_init()
         return self.loop
@@ -190,11 +209,41 @@ class Vehicle:
         steps = self.steps = {p.name: p.prescaler * period for p in schedule.periodic}
         est = self.estimator
         est.dt = steps.get("ins.periodic", est.dt)
-        est.baro_dt = steps.get("baro.periodic", est.baro_dt)
-        est.heading_dt = steps.get("compass.periodic", est.heading_dt)
         self.guidance.set_dt(steps.get("guidance.periodic", self.guidance.dt))
         self.control.dt = steps.get("control.periodic", self.control.dt)
         self.nav_dt = steps.get("nav.periodic", self.nav_dt)
+
+    @staticmethod
+    def _position_source_of(schedule: Schedule) -> tuple[str, str]:
+        """The module the resolver loaded for ``@position_source`` and its periodic function's name."""
+        providers = schedule.resolution.provided.get("@position_source", ())
+        if len(providers) != 1:
+            raise SchedulerError(f"exactly one module must provide '@position_source', the resolution "
+                                 f"loaded {len(providers)}: {', '.join(providers) or 'none'}")
+        module = providers[0]
+        fns = [p.name for p in schedule.periodic if p.module == module]
+        if len(fns) != 1:
+            raise SchedulerError(f"position source module '{module}' must have exactly one periodic "
+                                 f"function (its sample rate), it has {len(fns)}")
+        return module, fns[0]
+
+    def _set_position_source(self, module: str, function: str) -> None:
+        """Hand the position source the resolver loaded and the step of its function to the sensor and
+        the estimator (with the barometer's and compass's steps; NaN for one not scheduled: its
+        correction never runs)."""
+        dt = self.steps[function]
+        self.gps.configure(module, dt)
+        est = self.estimator
+        est.set_position_source(module)
+        est.set_periods(dt, self.steps.get("baro.periodic", math.nan),
+                        self.steps.get("compass.periodic", math.nan))
+        log.debug("position source: %s every %.3f s", module, dt)
+
+    @property
+    def position_source(self) -> str:
+        """The module providing ``@position_source`` in the resolved schedule (``gps`` or ``mocap``)."""
+        self.start()
+        return self.gps.module
 
     def step_of(self, name: str) -> float:
         """The step (s) of the periodic function ``name`` in the schedule: period times prescaler."""
@@ -205,21 +254,18 @@ class Vehicle:
             raise KeyError(f"'{name}' is not a periodic function of the schedule") from None
 
     # --- module functions ---------------------------------------------------------------------------
-    def _gps_periodic(self) -> None:
-        now = self.clock.now()
-        if now + 1e-9 >= self._gps_next:
-            self._gps_next = now + self.gps.dt
-            self.gps.periodic(now)
+    def _position_periodic(self) -> None:
+        """``gps.periodic`` or ``mocap.periodic``: called by the schedule at the source's rate."""
+        self.gps.periodic(self.clock.now())
 
     def _ins_periodic(self) -> None:
+        """The estimator's update; it wrote the checked estimate into the state interface's array,
+        published here (seed 002 Sec. 3.1: INS -> state interface)."""
         est = self.estimator
         est.on_ground = self.nav.landed_state == 1 and not self.nav.spooled
         est.periodic(self.clock.now())
         if est.initialised:
-            e = est.est.tolist()
-            a = est.acc.tolist()
-            self.state.publish_estimate(self.clock.now_us, (e[0], e[1], e[2]), (e[3], e[4], e[5]),
-                                        (e[6], e[7], e[8], e[9]), (e[10], e[11], e[12]), (a[0], a[1], a[2]))
+            self.state.publish(self.clock.now_us)
 
     def _nav_periodic(self) -> None:
         self.nav.periodic(self.nav_dt)
@@ -229,13 +275,13 @@ class Vehicle:
             self.control.reset()
             return
         g = self.guidance
+        e = self.state.vector  # the blackboard's read-only view (seed 002 Sec. 3.1), not the estimator's
         lean = self.lean
         if lean is None:
-            self.control.step(self.estimator.est, g.p, g.v, g.a, g.yaw, g.yaw_rate)
+            self.control.step(e, g.p, g.v, g.a, g.yaw, g.yaw_rate)
             return
         # the pilot's lean angles (pilot_modes): a horizontal acceleration with no horizontal feedback,
         # and in STABILIZE the collective as a vertical acceleration with no vertical feedback either
-        e = self.estimator.est
         an, ae, ad = lean
         if ad is None:
             self.control.step(e, (e[0], e[1], g.p[2]), (e[3], e[4], g.v[2]), (an, ae, g.a[2]), g.yaw,
@@ -247,10 +293,15 @@ class Vehicle:
         self.mixer.step(self.control.out, self.nav.armed, self.nav.spooled, self.world.cmd)
 
     def _battery_periodic(self) -> None:
-        """Battery monitor (core group, 10 Hz): filtered voltage as a flight controller measures it."""
+        """Battery monitor (core group, 10 Hz in the bundled library): the voltage low-pass filtered with
+        a 0.4 s time constant, its weight from the function's step in the schedule (0.2 at 10 Hz)."""
         b = self.battery
-        self.battery_voltage = b.voltage if self.battery_voltage <= 0 else (
-            0.8 * self.battery_voltage + 0.2 * b.voltage)
+        if self.battery_voltage <= 0:
+            self.battery_voltage = b.voltage
+            return
+        dt = self.steps.get("battery.periodic", self.dt)
+        alpha = dt / (dt + BATTERY_FILTER_TAU_S)
+        self.battery_voltage += (b.voltage - self.battery_voltage) * alpha
 
     def _world_step(self) -> None:
         self.wind.step(self.dt, self.world.wind)
@@ -263,7 +314,7 @@ class Vehicle:
     # --- helpers used by the navigator -------------------------------------------------------------
     def guidance_reset_here(self) -> None:
         """Re-initialise P_d at the estimated state (on arming, take-off and after landing)."""
-        e = self.estimator.est
+        e = self.state.vector
         yaw = float(quat_yaw(e[6], e[7], e[8], e[9]))
         on_ground = self.nav.landed_state == 1 if hasattr(self, "nav") else True
         vel = (0.0, 0.0, 0.0) if on_ground else (float(e[3]), float(e[4]), float(e[5]))
@@ -271,11 +322,12 @@ class Vehicle:
                             vel, yaw)
 
     def world_on_ground_estimate(self) -> bool:
-        return self.estimator.est[2] > -0.3 and abs(self.estimator.est[5]) < 0.3
+        e = self.state.vector
+        return bool(e[2] > -0.3 and abs(e[5]) < 0.3)
 
     def state_alt_estimate(self) -> float:
-        """Estimated down position (m, NED)."""
-        return float(self.estimator.est[2])
+        """Estimated down position (m, NED), from the state interface."""
+        return float(self.state.vector[2])
 
     # --- running ---------------------------------------------------------------------------------------
     def step(self, n: int = 1) -> None:

@@ -34,6 +34,15 @@ def main() -> None:
     rows.append(("state: set_quat", per_call_us(lambda: s.set_quat(q))))
     rows.append(("state: publish_estimate (5 quantities)",
                  per_call_us(lambda: s.publish_estimate(0, p, p, q, p, p))))
+    rows.append(("state: publish (the estimator's buffer written)", per_call_us(lambda: s.publish(0))))
+    rows.append(("state: read vector (the control chain's read)", per_call_us(lambda: s.vector)))
+
+    def publish_then_tuple() -> object:
+        s.publish(0)
+        return s.position_ned
+
+    rows.append(("state: publish + first position_ned read (tuple from the vector)",
+                 per_call_us(publish_then_tuple)))
     rows.append(("state: read position_ned", per_call_us(lambda: s.position_ned)))
 
     def write_then_euler() -> object:

@@ -16,7 +16,7 @@ companion follows; positions local NED metres, angles radians)::
      "h": "POS", "v": "WITH_HOR", "hd": "FLIGHT_DIR", "end": ["e_h"], "e_wait": null,
      "take_off": false, "allow_landing": false, "spec": {...}}          # once per command key
     {"type": "setpoint", "t": 14.10, "key": "c17", "command_id": 17, "behaviour_id": null,
-     "node": "n3", "kind": "POSITION", "p": [n, e, d], "v": [vn, ve, vd], "yaw": 0.0,
+     "node": "n3", "kind": "POSITION", "qt": 14.1, "p": [n, e, d], "v": [vn, ve, vd], "yaw": 0.0,
      "m": [n, e, d], "mv": [vn, ve, vd], "m_age": 0.03, "mode": "GUIDED", "armed": true,
      "landed": false, "extra": {...}}                                   # one per streamed setpoint
     {"type": "position", "t": 14.12, "p": [n, e, d], "v": [vn, ve, vd]}  # each LOCAL_POSITION_NED
@@ -28,7 +28,9 @@ companion follows; positions local NED metres, angles radians)::
   many it has). ``end`` lists the raised flags of the end condition (Fig. 8: e_h, e_v, e_hd, e_any,
   e_user), ``e_wait`` its timeout; ``spec`` is the full command
   (:func:`companion.flight.codec.command_to_dict`).
-* ``setpoint``: ``key`` is null while the queue holds without a command; ``m`` / ``mv`` the mirrored
+* ``setpoint``: ``qt`` is the queue's own time of the setpoint (the generator's clock;
+  :func:`streamed_setpoints` rebuilds the stream with it for the continuity check); ``key`` is null while the
+  queue holds without a command; ``m`` / ``mv`` the mirrored
   LOCAL_POSITION_NED at the tick and ``m_age`` how much older than ``t`` it is (null before the
   first; slightly negative when a sample newer than the tick's scheduled time has already arrived);
   ``node`` the active TST node (the execution system's callable); ``extra`` whatever the ``extra``
@@ -203,7 +205,8 @@ class FlightRecorder:
         s = self.node.link.mirror.snapshot()
         key = self._command_key(sp)
         record: dict[str, Any] = {
-            "type": "setpoint", "t": _r(t_ap), "key": key, "command_id": sp.command_id,
+            "type": "setpoint", "t": _r(t_ap), "qt": round(sp.t_s, 6), "key": key,
+            "command_id": sp.command_id,
             "behaviour_id": sp.behaviour_id, "node": self._call(self.active_node), "kind": sp.kind.name,
             "p": _vec(sp.p), "v": _vec(sp.v), "yaw": _r(sp.yaw), "m": None, "mv": None, "m_age": None,
             "mode": s.mode_name, "armed": s.armed, "landed": s.landed}
@@ -250,3 +253,18 @@ def read_flight_log(path: str | Path) -> list[dict[str, Any]]:
 def _is_vec(v: Any) -> bool:
     return (isinstance(v, list) and len(v) == 3
             and all(isinstance(x, int | float) and not isinstance(x, bool) for x in v))
+
+
+def streamed_setpoints(records: list[dict[str, Any]]) -> list[Setpoint]:
+    """The streamed setpoints of a flight log (queue time, position, velocity, yaw, kind) as
+    :class:`~companion.flight.setpoint.Setpoint` s, for :func:`companion.flight.simulate.step_violations`
+    (values are rounded to 0.1 mm in the log: compare with a small relative tolerance)."""
+    from companion.flight.setpoint import Setpoint, SetpointKind
+
+    out = []
+    for r in records:
+        if r["type"] != "setpoint" or "qt" not in r:
+            continue
+        out.append(Setpoint(t_s=float(r["qt"]), p=tuple(r["p"]), v=tuple(r["v"]), a=(0.0, 0.0, 0.0),
+                            yaw=float(r.get("yaw") or 0.0), yaw_rate=0.0, kind=SetpointKind[r["kind"]]))
+    return out

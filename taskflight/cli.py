@@ -96,6 +96,12 @@ def _cmd_team_sim(args: argparse.Namespace) -> int:
     return run_sim(args)
 
 
+def _cmd_team_control(args: argparse.Namespace) -> int:
+    from companion.team.control_cli import run_control
+
+    return run_control(args)
+
+
 def add_team_arguments(parser: argparse.ArgumentParser) -> None:
     """``taskflight team SUBCOMMAND`` (seed 003): each sub-command sets ``team_handler``."""
     tsub = parser.add_subparsers(dest="team_command", required=True, metavar="SUBCOMMAND")
@@ -105,6 +111,12 @@ def add_team_arguments(parser: argparse.ArgumentParser) -> None:
 
     add_sim_arguments(sp)
     sp.set_defaults(team_handler=_cmd_team_sim)
+    cp = tsub.add_parser("control", help="a team-control station: give the team the tasks of a file and "
+                                         "print the assignment as it changes")
+    from companion.team.control_cli import add_control_arguments
+
+    add_control_arguments(cp)
+    cp.set_defaults(team_handler=_cmd_team_control)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -8,13 +8,11 @@ own system id, each flown independently, every port released when the fleet stop
 from __future__ import annotations
 
 import math
-import os
-import random
-import socket
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+from fleet_support import base_free, ports, start_fleet
 from mavlink_support import GUIDED, Gcs, M, wait_for
 from pymavlink import mavutil
 
@@ -24,48 +22,6 @@ from taskflight.sitlproc import ModelProcess
 
 SPEEDUP = 5.0
 N = 3
-_rng = random.Random(os.getpid())
-
-
-def _ports(instance: int) -> tuple[int, int]:
-    """(TCP, UDP) ports of an instance, as ArduPilot SITL numbers them."""
-    return 5760 + 10 * instance, 14550 + 10 * instance
-
-
-def _free(kind: int, port: int) -> bool:
-    with socket.socket(socket.AF_INET, kind) as sock:
-        try:
-            sock.bind(("127.0.0.1", port))
-        except OSError:
-            return False
-    return True
-
-
-def _base_free(base: int, n: int) -> bool:
-    """Every port of instances base..base+n-1 is free (cf. ``_instance_free`` in autopilot_support)."""
-    return all(_free(socket.SOCK_STREAM, _ports(i)[0]) and _free(socket.SOCK_DGRAM, _ports(i)[1])
-               for i in range(base, base + n))
-
-
-def start_fleet(tmp: Path, n: int = N, speedup: float = SPEEDUP) -> tuple[ModelProcess, int]:
-    """A fleet of ``n`` on loopback at instances base..base+n-1 (base picked at random in 60..253 where
-    every port is free, so parallel runs and ArduCopter's instances 10..59 do not collide); retried on
-    another base if a port is taken meanwhile."""
-    for _ in range(6):
-        base = _rng.randrange(60, 254 - n)
-        if not _base_free(base, n):
-            continue
-        proc = ModelProcess(["--vehicles", str(n), "--base-instance", str(base), "--speedup", str(speedup),
-                             "--state-dir", str(tmp), "--no-persist",
-                             "--mavlink-template", "tcpin:127.0.0.1:{tcp}",
-                             "--mavlink-template", "udpin:127.0.0.1:{udp}"],
-                            name="fleet", module="autopilot_model.fleet")
-        try:
-            return proc.start(90.0), base
-        except RuntimeError:
-            if _base_free(base, n):
-                raise  # not a port taken meanwhile
-    raise RuntimeError("no free block of instance numbers for the fleet")
 
 
 @pytest.fixture(scope="module")
@@ -74,7 +30,7 @@ def fleet(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[ModelProce
     stations: list[Gcs] = []
     try:
         for i in range(N):
-            g = Gcs(_ports(base + i)[1], SPEEDUP, background=True, target=i + 1)
+            g = Gcs(ports(base + i)[1], SPEEDUP, background=True, target=i + 1)
             stations.append(g)
         for i, g in enumerate(stations):
             wait_for(lambda g=g: g.last.get("HEARTBEAT") is not None, 30, f"vehicle {i}'s first heartbeat")
@@ -90,7 +46,7 @@ def test_ready_line_names_every_vehicle(fleet: tuple[ModelProcess, int, list[Gcs
     proc, base, _ = fleet
     assert proc.ready_line.startswith(f"READY vehicles={N} ")
     for i in range(N):
-        tcp, udp = _ports(base + i)
+        tcp, udp = ports(base + i)
         assert f"sysid={i + 1} tcpin:127.0.0.1:{tcp},udpin:127.0.0.1:{udp}" in proc.ready_line
 
 
@@ -138,7 +94,7 @@ def test_each_vehicle_flies_independently(fleet: tuple[ModelProcess, int, list[G
 def test_mavproxy_tcp_port_answers_for_each_vehicle(fleet: tuple[ModelProcess, int, list[Gcs]]) -> None:
     _, base, _ = fleet
     for i in range(N):
-        conn = mavutil.mavlink_connection(f"tcp:127.0.0.1:{_ports(base + i)[0]}", source_system=254)
+        conn = mavutil.mavlink_connection(f"tcp:127.0.0.1:{ports(base + i)[0]}", source_system=254)
         try:
             hb = conn.recv_match(type="HEARTBEAT", blocking=True, timeout=15)
             assert hb is not None, f"no HEARTBEAT on vehicle {i}'s TCP port"
@@ -150,15 +106,15 @@ def test_mavproxy_tcp_port_answers_for_each_vehicle(fleet: tuple[ModelProcess, i
 def test_stopping_the_fleet_releases_every_port(tmp_path: Path) -> None:
     proc, base = start_fleet(tmp_path, n=2, speedup=2.0)
     try:
-        assert not _base_free(base, 2)
-        g = Gcs(_ports(base + 1)[1], 2.0, background=True, target=2)
+        assert not base_free(base, 2)
+        g = Gcs(ports(base + 1)[1], 2.0, background=True, target=2)
         try:
             wait_for(lambda: g.last.get("HEARTBEAT") is not None, 30, "vehicle 1's heartbeat")
         finally:
             g.close()
     finally:
         assert proc.stop() == 0
-    wait_for(lambda: _base_free(base, 2), 10, "every port of the stopped fleet free again")
+    wait_for(lambda: base_free(base, 2), 10, "every port of the stopped fleet free again")
 
 
 # --- in process: construction and lockstep ----------------------------------------------------------------

@@ -227,3 +227,11 @@ def test_fuzz_random_bytes_and_mutations_never_raise_anything_else() -> None:
                 with contextlib.suppress(WireError):
                     BoardAssembler().add(pkt.board_part)
     assert decoded < 4000  # most mutations are caught (the CRC), none escaped as another exception
+
+
+def test_wrong_types_are_wire_errors_too() -> None:
+    bad_kind = TeamTask(id=1, version=1, kind="teleport", points=())  # type: ignore[arg-type]
+    with pytest.raises(WireError, match="not encodable"):
+        encode_packet(1, [row(1)], TaskBoard(stamp=1.0, seq=1, tasks=(bad_kind,)))
+    with pytest.raises(WireError):
+        encode_packet(1, [MemberEntry(member=1, stamp=0.0, seq=0, position=("a", 0.0, 0.0))])  # type: ignore[arg-type]

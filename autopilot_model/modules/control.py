@@ -20,8 +20,10 @@ position -> velocity -> acceleration -> attitude -> body rate -> commands [thrus
 * Attitude loop: quaternion error -> body-rate command (P), plus the yaw-rate feed-forward.
 * Rate loop (PID): angular acceleration -> torque through the inertia (plus the gyroscopic term).
 
-The kernel is numba-compiled; :class:`CascadedController` reads the state interface and the setpoint
-generator's P_d, and writes the normalized commands that the mixer (:mod:`.actuators`) turns into motor
+The kernel is numba-compiled; :class:`CascadedController` reads the state interface (seed 002 Sec. 3.1,
+Fig. 2: the vehicle's control function passes :attr:`autopilot_model.state.StateInterface.vector`, the
+read-only view of the blackboard the estimator publishes into, never the estimator's own array) and the
+setpoint generator's P_d, and writes the commands that the mixer (:mod:`.actuators`) turns into motor
 outputs. Gains are parameters (ArduCopter names, SI units: see :data:`GAIN_PARAMS`).
 """
 
@@ -274,7 +276,7 @@ def cascade_step(est, ref, g, integ, prev, filt, dt, out):  # pragma: no cover -
 
 
 class CascadedController:
-    """The control task group's module: reads the estimated state and P_d, writes ``commands``.
+    """The control task group's module: reads the state interface's vector and P_d, writes ``commands``.
 
     ``commands`` = [thrust N, torque x, y, z N m] is the seed-002 'commands array'; the actuators
     module mixes it. ``reset()`` clears integrators (on arming and while disarmed).
@@ -298,7 +300,6 @@ class CascadedController:
         params.subscribe("ATC_", self._on_param)
         params.subscribe("ANGLE_MAX", self._on_param)
         self._index = {name: (idx, scale) for name, idx, _d, _l, _h, scale, _doc in GAIN_PARAMS}
-        self.est = np.zeros(13)
         self.ref = np.zeros(11)
         self.integ = np.zeros(6)
         self.prev = np.zeros(6)
@@ -327,6 +328,9 @@ class CascadedController:
         self._clear = True
 
     def step(self, est: np.ndarray, p: tuple, v: tuple, a: tuple, yaw: float, yaw_rate: float) -> None:
+        """One control step of ``dt`` (the schedule's step): ``est`` is the state vector
+        ``[p(3), v(3), q(4), w(3), ...]`` (:attr:`autopilot_model.state.StateInterface.vector`), ``p``,
+        ``v``, ``a``, ``yaw``, ``yaw_rate`` the setpoints P_d."""
         ref = self.ref
         ref[0], ref[1], ref[2] = p
         ref[3], ref[4], ref[5] = v

@@ -6,7 +6,8 @@ through for debugging). Structure, as in small autopilots' INS/AHRS pair (seed 0
 * Prediction at the main-loop rate: the attitude integrates the gyro minus its estimated bias; the
   position and velocity integrate the accelerometer rotated to NED plus gravity, minus an estimated
   world-frame acceleration bias.
-* Position correction (GPS or motion capture, at their rate, delayed by their latency): the innovation
+* Position correction (GPS or motion capture, whichever module the resolver loaded, at the rate of its
+  function in the schedule, delayed by its latency): the innovation
   against the *delayed* estimate drives a third-order observer (position, velocity, acceleration bias;
   triple pole at ``pos_bw`` rad/s). GPS velocity, when given, corrects the velocity.
 * Tilt correction from the same innovation (velocity-aided AHRS): a tilt error delta makes the predicted
@@ -16,7 +17,12 @@ through for debugging). Structure, as in small autopilots' INS/AHRS pair (seed 0
   accelerometer only while resting on the ground (where it is exact).
 * Altitude from the barometer is blended when the position source is GPS.
 
-The 500 Hz prediction is a numba kernel; the corrections run at the sensors' (lower) rates.
+The 500 Hz prediction is a numba kernel; the corrections run at the sensors' (lower) rates, their periods
+the steps of the sensors' functions in the schedule (:meth:`Estimator.set_periods`).
+
+Output (seed 002 Sec. 3.1): ``est`` is the filter's working state. What the rest of the autopilot reads
+is the state interface, whose vector the finite-check kernel writes (``out``) after every update that
+passed the check; the vehicle then publishes it (``StateInterface.publish``).
 
 Health, as ArduPilot's EKF reports it to ``Copter::ekf_check``:
 
@@ -53,8 +59,10 @@ RECONVERGE_S = 3.0
 
 
 @njit(cache=True)  # NOT fastmath: under fastmath the compiler may assume finite values and drop the test
-def ins_state_finite(est, acc, gbias, abias, good):  # pragma: no cover - numba
-    """True if the estimate, its acceleration and biases are all finite; then ``good`` <- ``est``."""
+def ins_state_finite(est, acc, gbias, abias, good, out=None):  # pragma: no cover - numba
+    """True if the estimate, its acceleration and biases are all finite; then ``good`` <- ``est`` and,
+    if given, ``out`` <- ``[est(13), acc(3)]`` (the state interface's vector: the publication rides on
+    the check, so only a checked estimate is ever published and publishing costs no extra call)."""
     for k in range(est.shape[0]):
         if not math.isfinite(est[k]):
             return False
@@ -63,6 +71,11 @@ def ins_state_finite(est, acc, gbias, abias, good):  # pragma: no cover - numba
             return False
     for k in range(est.shape[0]):
         good[k] = est[k]
+    if out is not None:
+        for k in range(13):
+            out[k] = est[k]
+        for k in range(3):
+            out[13 + k] = acc[k]
     return True
 
 
@@ -203,7 +216,8 @@ class Estimator:
     """INS/AHRS producing ``est`` = [p(3), v(3), q(4), body rates(3)] and ``acc`` (NED acceleration)."""
 
     def __init__(self, imu: Imu, pos: PositionSensor, baro: Barometer, compass: Compass, dt: float,
-                 world: Quadrotor | None = None, use_truth: bool = False) -> None:
+                 world: Quadrotor | None = None, use_truth: bool = False,
+                 out: np.ndarray | None = None) -> None:
         self.imu = imu
         self.pos = pos
         self.baro = baro
@@ -214,30 +228,24 @@ class Estimator:
         self.est = np.zeros(13)
         self.est[6] = 1.0
         self.acc = np.zeros(3)
+        self.out = np.zeros(16) if out is None else out
+        """The published estimate ``[est(13), acc(3)]``: written after every update that passed the
+        finite check (the vehicle passes the state interface's :meth:`~autopilot_model.state.
+        StateInterface.estimate_buffer`, so the estimate lands in the blackboard with no copy in
+        Python). ``est`` is the filter's working state and is never read by the control chain."""
         self.gbias = np.zeros(3)
         self.abias = np.zeros(3)
         self.on_ground = True
-        mocap = pos.noise.pos_source == "mocap"
-        # rad/s, position observer poles: GPS position has a metre-level correlated error, so velocity
-        # comes mostly from GPS velocity (vel_bw) and the position corrects slowly, like an EKF's weights
-        self.pos_bw = 6.0 if mocap else 0.6
         self.vel_bw = 2.0
-        self.k_tilt = 0.25 if mocap else 0.08   # rad per (m/s) of velocity correction
         self.k_gbias = 0.05
         self.k_yaw = 1.5                        # 1/s
         self.k_grav = 2.0                       # 1/s, only on the ground
-        # height: the barometer is the primary source outdoors (ArduPilot's EK3_ALT_SOURCE default);
-        # GPS height is weighted (1 - baro_weight) in the position correction
-        self.baro_weight = 0.0 if mocap else 0.9
         self.baro_bw = 1.0  # rad/s, height observer poles on the barometer
         self.hist = np.zeros((HIST, 7))
         self.hidx = np.zeros(1, dtype=np.int64)
         self._sample = np.zeros(6)
         self._dv = np.zeros(3)
         self._gains = np.zeros(9)
-        # innovation gate (m): about five standard deviations of the innovation, as EK3_POS_I_GATE (500
-        # = 5 sigma); GPS innovations carry its metre-level correlated error, motion capture's are mm
-        self.pos_gate_m = 0.5 if mocap else 5.0
         self.pos_test_ratio = 0.0
         """Innovation test ratio of the last position sample (> 1: rejected; inf: not finite)."""
         self.rejected = 0
@@ -249,10 +257,40 @@ class Estimator:
         self._fault_s = -math.inf
         self.initialised = False
         self.time_s = 0.0
-        # periods (s) of the barometer and compass samples the corrections consume: the sensors' rates
-        # until the vehicle sets them from its schedule
-        self.baro_dt = 1.0 / baro.noise.baro_rate_hz
-        self.heading_dt = 1.0 / compass.noise.heading_rate_hz
+        # periods (s) of the position, barometer and compass samples the corrections consume: the
+        # periods of their functions in the schedule, set by the vehicle (Vehicle.start)
+        self.pos_dt = math.nan
+        self.baro_dt = math.nan
+        self.heading_dt = math.nan
+        self.set_position_source("gps")
+
+    def set_position_source(self, module: str) -> None:
+        """Tune the position observer for the position source the module resolver loaded (the module
+        providing ``@position_source``: ``gps`` or ``mocap``, seed 002 Sec. 3.2)."""
+        mocap = module == "mocap"
+        self.position_source = module
+        # rad/s, position observer poles: GPS position has a metre-level correlated error, so velocity
+        # comes mostly from GPS velocity (vel_bw) and the position corrects slowly, like an EKF's weights
+        self.pos_bw = 6.0 if mocap else 0.6
+        self.k_tilt = 0.25 if mocap else 0.08   # rad per (m/s) of velocity correction
+        # height: the barometer is the primary source outdoors (ArduPilot's EK3_ALT_SOURCE default);
+        # GPS height is weighted (1 - baro_weight) in the position correction
+        self.baro_weight = 0.0 if mocap else 0.9
+        # innovation gate (m): about five standard deviations of the innovation, as EK3_POS_I_GATE (500
+        # = 5 sigma); GPS innovations carry its metre-level correlated error, motion capture's are mm
+        self.pos_gate_m = 0.5 if mocap else 5.0
+
+    def set_periods(self, pos_dt: float, baro_dt: float, heading_dt: float) -> None:
+        """The periods (s) of the position, barometer and compass samples: their functions' steps in the
+        schedule (main loop period times prescaler). ``baro_dt`` / ``heading_dt`` may be NaN when that
+        sensor is not scheduled (its samples never arrive, its correction never runs)."""
+        for name, value, optional in (("pos_dt", pos_dt, False), ("baro_dt", baro_dt, True),
+                                      ("heading_dt", heading_dt, True)):
+            if optional and math.isnan(value):
+                continue
+            if not (value > 0.0 and math.isfinite(value)):
+                raise ValueError(f"estimator {name} must be a positive period in seconds, got {value!r}")
+        self.pos_dt, self.baro_dt, self.heading_dt = float(pos_dt), float(baro_dt), float(heading_dt)
 
     # -- health (what ArduPilot's EKF reports to Copter::ekf_check and the AHRS health bit)
     @property
@@ -281,6 +319,7 @@ class Estimator:
             self.est[:] = x
             self.acc[:] = self.world.out[4:7]
             self.initialised = True
+            self._output()
             return
         if not self.initialised:
             self._initialise()
@@ -299,13 +338,16 @@ class Estimator:
             self._correct_baro()
         if self.on_ground:
             self._align_gravity()
-        if not ins_state_finite(self.est, self.acc, self.gbias, self.abias, self._good):
+        if not ins_state_finite(self.est, self.acc, self.gbias, self.abias, self._good, self.out):
             self._diverged()
 
     def _initialise(self) -> None:
         """Start from the first position fix, level, on the compass heading."""
         if self.pos.sample is None or not self.compass.fresh:
             return
+        if math.isnan(self.pos_dt):
+            raise RuntimeError("the estimator's sensor periods are not set: Vehicle.start() sets them from "
+                               "the schedule (Estimator.set_periods)")
         s = self.pos.sample
         self.est[:] = 0.0
         self.est[0], self.est[1], self.est[2] = s[0], s[1], s[2]
@@ -322,7 +364,8 @@ class Estimator:
         """A filter fault (non-finite state): restore the last finite state, reset the biases and the
         latency history, and distrust the position for ``RECONVERGE_S`` (ArduPilot's EKF resets itself on
         a fault and reports itself unhealthy while its variances are large). Nothing non-finite is ever
-        published: this runs before the state interface reads the estimate."""
+        published: the check kernel writes ``out`` (the state interface's vector) only for a finite state,
+        and the restored state is written to it here."""
         self.diverged += 1
         log.error("estimator diverged (%d): last finite state restored", self.diverged)
         self.est[:] = self._good
@@ -332,6 +375,12 @@ class Estimator:
         self.hist[:, 0] = self.time_s
         self.hist[:, 1:7] = self.est[0:6]
         self._fault_s = self.time_s
+        self._output()
+
+    def _output(self) -> None:
+        """Write the estimate to ``out`` outside the check kernel (the truth switch, a restored state)."""
+        self.out[0:13] = self.est
+        self.out[13:16] = self.acc
 
     def _correct_position(self) -> None:
         s = self.pos.sample
@@ -341,7 +390,7 @@ class Estimator:
             self.pos_test_ratio = math.inf
             self.rejected += 1
             return
-        T = 1.0 / self.pos.noise.pos_rate_hz
+        T = self.pos_dt
         w = self.pos_bw
         g = self._gains
         g[0] = min(3.0 * w * T, 0.9)

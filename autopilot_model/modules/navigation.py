@@ -215,7 +215,7 @@ class Navigator:
             # land detector (ArduCopter's): descent is commanded, yet the thrust has fallen far below
             # hover and the estimated descent rate is under 1 m/s, for 1 s. The altitude estimate is
             # not used: outdoors it can be off by a metre or more.
-            vz = v.estimator.est[5]
+            vz = v.state.vector[5]
             thrust_frac = v.control.out[0] / (v.airframe.mass * 9.80665)
             if abs(vz) < 1.0 and thrust_frac < 0.6:
                 self._land_timer += dt

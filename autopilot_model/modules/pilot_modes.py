@@ -88,7 +88,7 @@ class PilotModes:
         self.v = modes.v
         self.rc = rc
         define_pilot_params(self.v.params)
-        self._dt = 0.02
+        self._dt = 0.0  # the step of flight_modes.update in the schedule, given by update()
         self._land_timer = 0.0
         self._loiter_vel = (0.0, 0.0)
         self._brake_timer = 0.0
@@ -213,7 +213,7 @@ class PilotModes:
         """While the sticks fly the vehicle, P_d follows the estimate horizontally (and vertically in
         STABILIZE), so that the next mode starts from where the vehicle is."""
         g = self.v.guidance
-        e = self.v.estimator.est
+        e = self.v.state.vector
         if vertical:
             g.p = (float(e[0]), float(e[1]), float(e[2]))
             g.v = (float(e[3]), float(e[4]), float(e[5]))
@@ -350,7 +350,7 @@ class PilotModes:
         else:
             descending = self.climb_rate() < 0
         thrust_frac = v.control.out[0] / (v.airframe.mass * GRAVITY)
-        if descending and thrust_frac < 0.5 and abs(v.estimator.est[5]) < 1.0:
+        if descending and thrust_frac < 0.5 and abs(v.state.vector[5]) < 1.0:
             self._land_timer += self._dt
         else:
             self._land_timer = 0.0

@@ -4,6 +4,13 @@ motion-capture position source.
 Each sensor samples the true state of the world (:class:`~autopilot_model.physics.quadrotor.Quadrotor`)
 and adds configurable noise, bias and latency; the estimator only ever sees these samples. Gaussian
 noise is drawn in blocks with numpy so each sample costs an index, not a random-number call.
+
+A sensor profile (:data:`PROFILES`) holds noise figures only. Which position source flies (GPS or motion
+capture) and every sensor's rate come from the module library (``config/modules.yaml``, seed 002 Sec. 3.2):
+the profile of the same name is a module there that depends on its position source, the resolver loads
+``gps`` or ``mocap`` (they provide ``@position_source`` and conflict), and each sensor function runs at
+the frequency of its module, its prescaler in the static schedule. The vehicle hands the resolved
+source and the periods to the sensors and the estimator (``Vehicle.start``).
 """
 
 from __future__ import annotations
@@ -47,16 +54,12 @@ class SensorNoise:
     gyro_bias: float = 0.002     # rad/s, constant per run
     accel: float = 0.05          # m/s^2
     accel_bias: float = 0.02     # m/s^2
-    pos_source: str = "gps"      # "gps" or "mocap"
-    pos_rate_hz: float = 10.0
     pos_latency_s: float = 0.1
     pos_h: float = 0.3           # m, white
     pos_v: float = 0.5           # m
     pos_walk: float = 0.0        # m, correlated (Gauss-Markov, 30 s) part of the position error
     vel: float = 0.1             # m/s (GPS velocity; mocap gives none)
-    baro_rate_hz: float = 50.0
     baro: float = 0.1            # m
-    heading_rate_hz: float = 50.0
     heading: float = 0.01        # rad
 
 
@@ -95,9 +98,12 @@ class PositionSensor:
     ``sample`` is the newest measurement delivered to the estimator (valid ``latency`` after it was
     taken); ``fresh`` is set when a new one arrives and cleared by the consumer. GPS health
     (fix type, satellites, eph/epv) is reported for telemetry and pre-arm checks.
+
+    :meth:`configure` gives it the module the resolver loaded (``gps`` or ``mocap``) and its period in
+    the schedule; :meth:`periodic` is called at that rate by the main loop (no rate gate here).
     """
 
-    def __init__(self, world: Quadrotor, noise: SensorNoise, main_hz: float, seed: int | None) -> None:
+    def __init__(self, world: Quadrotor, noise: SensorNoise, seed: int | None) -> None:
         self.world = world
         self.noise = noise
         self.src = NoiseSource(seed, 8)
@@ -109,14 +115,26 @@ class PositionSensor:
         self.fix_type = 0
         self.satellites = 0
         self.enabled = True
-        self.is_gps = noise.pos_source == "gps"
+        self.module = ""
+        """The module providing ``@position_source`` (``gps`` or ``mocap``), set by :meth:`configure`."""
+        self.is_gps = False
         self.eph_m = noise.pos_h * 2.0
         self.epv_m = noise.pos_v * 2.0
         self.time_s = 0.0
-        self.dt = 1.0 / noise.pos_rate_hz
+        self.dt = math.nan
+        """Sample period (s): the step of the source's function in the schedule (:meth:`configure`)."""
+
+    def configure(self, module: str, dt: float) -> None:
+        """The position source module the resolver loaded and the period of its function (s)."""
+        if not (dt > 0.0 and math.isfinite(dt)):
+            raise ValueError(f"position source period must be positive, got {dt!r}")
+        self.module = module
+        self.is_gps = module == "gps"
+        self.dt = float(dt)
 
     def periodic(self, now_s: float) -> None:
-        """Take a sample (called at the sensor's own rate) and deliver those whose latency elapsed."""
+        """Take a sample (called by the schedule at the source's rate) and deliver those whose latency
+        elapsed."""
         self.time_s = now_s
         if not self.enabled:
             self.fix_type = 0
@@ -181,14 +199,13 @@ class Compass:
 
 
 PROFILES: dict[str, SensorNoise] = {
-    # seed 000's indoor flight: position from motion capture (about 1 cm), no GPS velocity
-    "indoor": SensorNoise(pos_source="mocap", pos_rate_hz=100.0, pos_latency_s=0.01, pos_h=0.01, pos_v=0.01,
-                          pos_walk=0.0, vel=0.0, baro=0.05, heading=0.005),
-    # outdoor GPS-grade: 10 Hz, 0.1 s latency, metre-level correlated error
-    "outdoor": SensorNoise(pos_source="gps", pos_rate_hz=10.0, pos_latency_s=0.1, pos_h=0.15, pos_v=0.25,
-                           pos_walk=0.5, vel=0.08, baro=0.1, heading=0.01),
-    # no noise at all (for debugging and exact tests)
-    "perfect": SensorNoise(gyro=0.0, gyro_bias=0.0, accel=0.0, accel_bias=0.0, pos_source="gps",
-                           pos_rate_hz=50.0, pos_latency_s=0.0, pos_h=0.0, pos_v=0.0, vel=0.0, baro=0.0,
-                           heading=0.0),
+    # seed 000's indoor flight: motion capture (about 1 cm), no velocity (modules.yaml: indoor -> mocap)
+    "indoor": SensorNoise(pos_latency_s=0.01, pos_h=0.01, pos_v=0.01, pos_walk=0.0, vel=0.0, baro=0.05,
+                          heading=0.005),
+    # outdoor GPS-grade: 0.1 s latency, metre-level correlated error (modules.yaml: outdoor -> gps)
+    "outdoor": SensorNoise(pos_latency_s=0.1, pos_h=0.15, pos_v=0.25, pos_walk=0.5, vel=0.08, baro=0.1,
+                           heading=0.01),
+    # no noise at all, for debugging and exact tests (modules.yaml: perfect -> gps)
+    "perfect": SensorNoise(gyro=0.0, gyro_bias=0.0, accel=0.0, accel_bias=0.0, pos_latency_s=0.0, pos_h=0.0,
+                           pos_v=0.0, vel=0.0, baro=0.0, heading=0.0),
 }

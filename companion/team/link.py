@@ -16,10 +16,12 @@ along with its knowledge of its own state" (controlled flooding). :class:`TeamLi
 * :meth:`TeamLink.start` runs the steps in a daemon thread; ``listeners`` are told when a member is
   gone, joins (new, or back from gone), or the board changes.
 
-The default period, 0.5 s, is the one that meets both targets of the bench (bench/bench_teamlink.py,
-20 members, 20 % loss): the p95 age of each member's view of every other stays well under 2 s while
-a vehicle sends about 2.5 kB/s (a 20-row packet of ~1.2 kB twice a second, under the 5 kB/s bound);
-1 s would be cheaper but its p95 age approaches the 2 s bound.
+The default period, 0.5 s, meets both targets of the bench (bench/bench_teamlink.py, 20 vehicles and a
+station, 20 % loss) with margin: p95 age of each member's view of every other 0.5 s on a full mesh and
+1.5 s when a 700 m radio range makes rows travel over relays (each hop adds up to a period), at
+2.7 kB/s per vehicle (a 21-row packet of ~1.3 kB twice a second, the board every 4th). A 1 s period
+halves the bandwidth but its multi-hop p95 age is 3 s, and it doubles the time to declare a dead
+vehicle gone (``voc_max`` periods: 5 s at 0.5 s); 0.25 s would cost 5.4 kB/s, over the bound.
 """
 
 from __future__ import annotations
@@ -64,6 +66,7 @@ class LinkStats:
     boards_taken: int = 0
     send_errors: int = 0
     broadcasts: int = 0
+    announcements: int = 0        #: broadcasts between periods (a member announcing new claims)
     first_send: float | None = None
     last_send: float | None = None
     max_packet: int = 0
@@ -184,6 +187,15 @@ class TeamLink:
             self._broadcast(now)
         self._notify([LinkEvent("gone", member=m) for m in gone])
         return True
+
+    def announce(self, now: float | None = None) -> None:
+        """Broadcast the own row now, between periods (seed 003 Sec. III-B: a vehicle "selects the task ...
+        and then broadcasts its selection"); the vocs are not aged (that is the periodic step's job)."""
+        now = self.clock() if now is None else now
+        with self._step_lock:
+            self._refresh_own(now)
+            self._broadcast(now)
+        self.stats.announcements += 1
 
     def _refresh_own(self, now: float) -> None:
         cur = self.state.own()

@@ -86,7 +86,9 @@ class TeamMember:
         self._verdicts: dict[tuple[int, int], str] = {}  # (task, version) -> "" (can) or why not
         self._lock = threading.RLock()
         self._stop = threading.Event()
+        self._wake = threading.Event()
         self._thread: threading.Thread | None = None
+        self.link.listeners.append(self._on_link)
 
     # --- lifecycle ------------------------------------------------------------------------------------
     def start(self) -> TeamMember:
@@ -97,16 +99,29 @@ class TeamMember:
 
     def close(self) -> None:
         self._stop.set()
+        self._wake.set()
         if self._thread is not None:
             self._thread.join(timeout=5.0)
         self.link.close()
 
     def _loop(self) -> None:
-        while not self._stop.wait(self.decide_period_s):
+        while not self._stop.is_set():
+            self._wake.wait(self.decide_period_s)
+            self._wake.clear()
+            if self._stop.is_set():
+                return
             try:
+                before = self.claims
                 self.step(self.clock())
+                if [(c.task, c.state) for c in self.claims] != [(c.task, c.state) for c in before]:
+                    self.link.announce()  # seed 003: "selects the task ... and then broadcasts its selection"
             except Exception:
                 log.exception("team member %d: decision step failed", self.id)
+
+    def _on_link(self, event: Any) -> None:
+        """A new board or a member gone: decide now, not at the next decision period."""
+        if event.kind in ("board", "gone"):
+            self._wake.set()
 
     # --- the interface hierarchy (process monitor tier) ----------------------------------------------------
     def take(self, reason: str = "process monitor") -> None:
@@ -166,9 +181,16 @@ class TeamMember:
             candidates = self._candidates(board, rows)
             current = tuple(c for c in self.claims if c.state in (ClaimState.CLAIMED, ClaimState.ACTIVE))
             position = self.position
-            decided = self.policy.decide(self.id, rows, candidates, lambda t: self.cost(position, t), current)
+
+            def cost(t: TeamTask) -> float:
+                return self.cost(position, t)
+
+            own = self.own_row()
+            entries = {**rows, self.id: own} if own is not None else rows
+            decided = self.policy.decide(self.id, entries, candidates, cost, current)
             self._publish(decided, board, now)
-            self._switch(board, now, _on_ground(s))
+            order = self.policy.order(self.id, entries, candidates, cost, self.claims)
+            self._switch(board, now, _on_ground(s), order)
 
     def _observe(self, s: Any) -> None:
         if s.global_position is not None:
@@ -260,9 +282,11 @@ class TeamMember:
             self._event("claims", claims=[(c.task, c.state.name) for c in claims])
         self.claims = tuple(claims)
 
-    def _switch(self, board: TaskBoard, now: float, on_ground: bool) -> None:
-        """Fly the first live claim once it has settled; loiter with none."""
-        first = next((c for c in self.claims if c.state in (ClaimState.CLAIMED, ClaimState.ACTIVE)), None)
+    def _switch(self, board: TaskBoard, now: float, on_ground: bool, order: tuple[int, ...]) -> None:
+        """Fly the first live claim in the policy's order (CBBA: the path's order) once it has settled;
+        loiter with none."""
+        live = {c.task: c for c in self.claims if c.state in (ClaimState.CLAIMED, ClaimState.ACTIVE)}
+        first = next((live[t] for t in order if t in live), None)
         if first is None:
             if self.switchboard.controller is Controller.TEAM:
                 self.switchboard.loiter()
@@ -306,11 +330,18 @@ class TeamMember:
                     "claims": [{"task": c.task, "version": c.version, "cost": round(c.cost, 2),
                                 "state": c.state.name.lower()} for c in self.claims],
                     "done": sorted(self.done), "failed": dict(self.failed),
+                    "cannot": {t: why for (t, _v), why in self._verdicts.items() if why},
                     "members": sorted(rows), "alive": sorted(self.state.alive()),
                     "board": {"seq": self.state.board.seq,
                               "tasks": [{"id": t.id, "version": t.version, "kind": t.kind.value,
                                          "state": t.state.value} for t in self.state.board.tasks]},
-                    "handovers": self.switchboard.handovers, "errors": list(self.switchboard.errors)}
+                    "handovers": self.switchboard.handovers, "errors": list(self.switchboard.errors),
+                    "conflicts": self.policy.conflicts,
+                    "link": {"packets_sent": self.link.stats.packets_sent,
+                             "packets_received": self.link.stats.packets_received,
+                             "garbage": self.link.stats.garbage,
+                             "foreign_version": self.link.stats.foreign_version,
+                             "dropped_by_test_loss": getattr(self.link.transport, "dropped_loss", 0)}}
 
 
 def _on_ground(s: Any) -> bool:

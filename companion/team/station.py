@@ -27,7 +27,7 @@ from typing import Any
 
 from .groupstate import GroupState
 from .link import DEFAULT_PERIOD_S, LinkEvent, TeamLink
-from .tasks import Fence, TaskDef, TaskLedger, derive_states, offer_smaller_n
+from .tasks import Fence, TaskDef, TaskLedger, derive_states, offer_smaller_n, validate
 from .transport import Transport
 from .types import STATION_ID, ClaimState, MemberEntry, MemberStatus, TaskState
 
@@ -90,10 +90,11 @@ class TeamControlStation:
         self.log = StationLog()
         self.listeners: list[Callable[[dict[str, Any]], None]] = []
         self._costs: dict[int, float] = {}
+        self._conflicts: set[int] = set()
+        self.conflicts = 0
         self._lock = threading.RLock()
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
-        self._publish()
 
     # --- lifecycle --------------------------------------------------------------------------------------
     def start(self) -> TeamControlStation:
@@ -122,6 +123,7 @@ class TeamControlStation:
     def add(self, defn: TaskDef, force: bool = False) -> AddResult:
         """Add an operator task (ValueError naming the field for bad input; nothing changes then)."""
         with self._lock:
+            validate(defn, self.ledger.fence)  # bad input is refused before any offer is made
             free = self.free_vehicles()
             if defn.kind in ("border_patrol", "area_scan") and not force:
                 offer = offer_smaller_n(defn.n, free)
@@ -156,6 +158,7 @@ class TeamControlStation:
             board = self.ledger.board(self.clock())
             derived = derive_states(board, rows)
             self._costs = {tid: cost for tid, (_s, _h, cost) in derived.items()}
+            self._watch_conflicts(rows)
             changes = self.ledger.apply(derived, self.clock())
             for tid, state, holder in changes:
                 self._record("task", task=tid, state=state.value, holder=holder)
@@ -163,8 +166,30 @@ class TeamControlStation:
                 self._publish()
             return changes
 
+    def _watch_conflicts(self, rows: dict[int, MemberEntry]) -> None:
+        """Seed 003 Sec. V: "conflicts were declared when two UAVs claimed the same task. These conflicts
+        were resolved": recorded as ``conflict`` (the claimants) and ``resolved`` (the one left)."""
+        claimants: dict[int, list[int]] = {}
+        for m, e in rows.items():
+            if e.status.available:
+                for c in e.claims:
+                    if c.state in (ClaimState.CLAIMED, ClaimState.ACTIVE):
+                        claimants.setdefault(c.task, []).append(m)
+        for tid, members in claimants.items():
+            if len(members) > 1 and tid not in self._conflicts:
+                self._conflicts.add(tid)
+                self.conflicts += 1
+                self._record("conflict", task=tid, members=sorted(members))
+        for tid in list(self._conflicts):
+            if len(claimants.get(tid, [])) <= 1:
+                self._conflicts.discard(tid)
+                holder = claimants.get(tid, [None])[0]
+                self._record("resolved", task=tid, holder=holder)
+
     def _publish(self) -> None:
-        self.state.set_board(self.ledger.board(self.clock()))
+        board = self.ledger.board(self.clock())
+        if board.newer_than(self.state.board):
+            self.state.set_board(board)
 
     def _on_link(self, ev: LinkEvent) -> None:
         if ev.kind in ("gone", "joined"):

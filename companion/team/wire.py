@@ -227,7 +227,17 @@ def encode_packets(sender: int, entries: list[MemberEntry] | tuple[MemberEntry, 
     """The packets that carry ``entries`` (and ``board``) from ``sender``, each at most ``max_size``
     bytes: STATE packets with as many rows as fit, the board inline in the last one when it fits
     whole, else BOARD packets with its parts. Raises :class:`WireError` for a value the format cannot
-    carry (a member id over 255, a NaN position, a board over 255 parts...)."""
+    carry (a member id over 255, a NaN position, a board over 255 parts, a wrong type...)."""
+    try:
+        return _encode_packets(sender, entries, board, max_size)
+    except WireError:
+        raise
+    except (ValueError, TypeError, KeyError, AttributeError, struct.error, OverflowError) as exc:
+        raise WireError(f"not encodable ({type(exc).__name__}: {exc})") from exc
+
+
+def _encode_packets(sender: int, entries: list[MemberEntry] | tuple[MemberEntry, ...],
+                    board: TaskBoard | None, max_size: int) -> list[bytes]:
     _u(sender, 8, "sender id")
     if max_size < 200:
         raise WireError(f"max_size {max_size} too small (at least 200 bytes)")

@@ -1,0 +1,212 @@
+"""A team over loopback for the integration tests (issue 11): seed 003's three aircraft, as processes.
+
+:class:`TeamRig` starts
+
+* a fleet of N bundled autopilot models in one process (:mod:`autopilot_model.fleet`, system ids 1..N,
+  homes 5 m apart), each reachable on its own UDP port;
+* N companions, each its own ``taskflight companion`` process joined to the team link (UDP multicast on
+  loopback, a port of its own; ``?loss=`` drops that fraction of team packets at every member) with the
+  outdoor platform, a flight log and an HTTP control surface;
+* the team-control station in the test process (:class:`~companion.team.station.TeamControlStation`);
+* a pymavlink ground station per vehicle on the model's own port (positions read from the autopilots over
+  MAVLink, mode changes: the lowest tier of seed 003 Fig. 1).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import random
+import socket
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+import httpx
+from fleet_support import ports, start_fleet
+from mavlink_support import Gcs, free_ports, wait_for
+
+from companion.flight.limits import Limits
+from companion.flight.simulate import step_violations
+from companion.flightlog import read_flight_log, streamed_setpoints
+from companion.team.station import TeamControlStation
+from companion.team.tasks import TaskDef
+from companion.team.transport import open_transport
+from taskflight.geo import ned_to_geodetic
+from taskflight.sitlproc import stop_child
+
+ROOT = Path(__file__).resolve().parents[1]
+PLATFORM = ROOT / "mission_specs" / "platform_outdoor.yaml"
+#: the fleet's base home (the model's default, CMAC); vehicle i stands 5 i m east of it
+HOME = (-35.363261, 149.165230, 584.0)
+_rng = random.Random(os.getpid() ^ 0x7EA)
+
+
+def geo(n: float, e: float, alt: float = 0.0) -> tuple[float, float, float]:
+    """(lat, lon, alt above home) of the point n m north and e m east of the fleet's home."""
+    lat, lon, _ = ned_to_geodetic(HOME, n, e, 0.0)
+    return (lat, lon, alt)
+
+
+def free_udp_port() -> int:
+    for _ in range(50):
+        port = _rng.randrange(20000, 60000)
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+            try:
+                s.bind(("", port))
+            except OSError:
+                continue
+        return port
+    raise RuntimeError("no free UDP port for the team link")
+
+
+class TeamRig:
+    """See module docstring. ``speedup`` is the models' (the companions follow autopilot time)."""
+
+    def __init__(self, tmp: Path, n: int = 3, speedup: float = 3.0, loss: float = 0.0,
+                 policy: str = "greedy") -> None:
+        self.tmp, self.n, self.speedup, self.loss, self.policy = tmp, n, speedup, loss, policy
+        self.fleet, self.base = start_fleet(tmp / "fleet", n, speedup)
+        self.team_url = f"udp://239.255.70.1:{free_udp_port()}"
+        self.member_url = self.team_url + (f"?loss={loss}" if loss else "")
+        self.control_ports = free_ports(n, socket.SOCK_STREAM)
+        self.companions: list[subprocess.Popen[bytes] | None] = [None] * n
+        self.logs: list[list[Path]] = [[] for _ in range(n)]
+        self.station: TeamControlStation | None = None
+        self.gcs: list[Gcs] = []
+        try:
+            for i in range(n):
+                self.start_companion(i)
+            self.station = TeamControlStation(open_transport(self.member_url, member=0,
+                                                             position_of=lambda m: None)).start()
+            for i in range(n):
+                g = Gcs(ports(self.base + i)[1], speedup, background=True, target=i + 1)
+                g.request_streams(10)
+                self.gcs.append(g)
+            wait_for(lambda: len(self.station.vehicle_rows()) == n, 90, f"{n} vehicles heard by the station")
+        except BaseException:
+            self.close()
+            raise
+        self.limits = Limits()  # the companions' queue limits (no --flight-config)
+
+    # --- processes -----------------------------------------------------------------------------------
+    def start_companion(self, i: int) -> None:
+        log = self.tmp / f"flight{i}-{len(self.logs[i])}.jsonl"
+        self.logs[i].append(log)
+        exe = Path(sys.executable).with_name("taskflight")
+        out = open(self.tmp / f"companion{i}.out", "ab")  # noqa: SIM115 - the child owns it
+        self.companions[i] = subprocess.Popen(
+            [str(exe), "companion", "--autopilot", f"udpout:127.0.0.1:{ports(self.base + i)[1]}",
+             "--team", self.member_url, "--control-port", str(self.control_ports[i]),
+             "--platform", str(PLATFORM), "--flight-log", str(log), "--team-policy", self.policy],
+            stdout=out, stderr=subprocess.STDOUT, cwd=ROOT)
+        out.close()
+
+    def kill_companion(self, i: int) -> None:
+        p = self.companions[i]
+        if p is not None:
+            p.kill()
+            p.wait(10)
+        self.companions[i] = None
+
+    def ensure_companions(self) -> None:
+        """Every companion running and heard (a test that killed one leaves it to the next)."""
+        for i, p in enumerate(self.companions):
+            if p is None or p.poll() is not None:
+                self.start_companion(i)
+        wait_for(lambda: len(self.station.vehicle_rows()) == self.n, 60, "every vehicle in the team")
+
+    def close(self) -> None:
+        for g in self.gcs:
+            g.close()
+        if self.station is not None:
+            self.station.close()
+        for p in self.companions:
+            if p is not None:
+                stop_child(p, 10.0)
+        self.fleet.stop()
+
+    # --- looking at the team -------------------------------------------------------------------------
+    def http(self, i: int) -> httpx.Client:
+        return httpx.Client(base_url=f"http://127.0.0.1:{self.control_ports[i]}", timeout=10.0)
+
+    def team(self, i: int) -> dict[str, Any]:
+        with self.http(i) as c:
+            return c.get("/team").json()
+
+    def wall(self, sim_s: float) -> float:
+        return sim_s / self.speedup
+
+    def position(self, i: int) -> tuple[float, float, float] | None:
+        """Vehicle i's (lat, lon, alt above home) from its autopilot's GLOBAL_POSITION_INT."""
+        m = self.gcs[i].last.get("GLOBAL_POSITION_INT")
+        return None if m is None else (m.lat * 1e-7, m.lon * 1e-7, m.relative_alt * 1e-3)
+
+    def holder(self, task_id: int) -> int | None:
+        return dict((v.id, v.holder) for v in self.station.tasks()).get(task_id)
+
+    def state(self, task_id: int) -> str:
+        return dict((v.id, v.state) for v in self.station.tasks())[task_id]
+
+    def add(self, defn: TaskDef) -> tuple[int, ...]:
+        """Add a task; a divided task offered a smaller N is added with the offer (seed 003 Sec. II)."""
+        result = self.station.add(defn)
+        if result.offer is not None:
+            result = self.station.add(TaskDef(**{**defn.__dict__, "n": result.offer}), force=True)
+        assert result.ids, result
+        return result.ids
+
+    def discontinuities(self) -> list[Any]:
+        """Continuity violations of every streamed setpoint of every companion run so far."""
+        out = []
+        for logs in self.logs:
+            for path in logs:
+                if path.is_file():
+                    out += step_violations(streamed_setpoints(read_flight_log(path)), self.limits,
+                                           rel_tol=1e-3)
+        return out
+
+
+def fly_nine_tasks(rig: TeamRig) -> None:
+    """Seed 003 Sec. V: "A series of nine tasks was assigned to the three UAVs, including multiple-agent
+    tasks such as cooperative border patrol. On three occasions, conflicts were declared ..."."""
+    st = rig.station
+    assert st is not None
+    visits = [rig.add(TaskDef("visit", (geo(25, -15, 8),), name="visit-1"))[0],
+              rig.add(TaskDef("visit", (geo(-20, 25, 8),), name="visit-2"))[0]]
+    area = rig.add(TaskDef("area_scan", (geo(15, 40), geo(15, 60), geo(45, 60), geo(45, 40)), n=2,
+                           name="area"))
+    wait_for(lambda: all(rig.state(t) == "done" for t in visits), rig.wall(120), "the first visits done")
+    patrol = rig.add(TaskDef("patrol_line", (geo(0, -30, 8), geo(20, -30, 8)), name="patrol"))[0]
+    border = rig.add(TaskDef("border_patrol", (geo(-30, -10, 8), geo(-30, 10, 8), geo(-30, 30, 8)), n=2,
+                             name="border"))
+    visits += [rig.add(TaskDef("visit", (geo(35, 10, 8),), name="visit-3"))[0],
+               rig.add(TaskDef("visit", (geo(-10, -25, 8),), name="visit-4"))[0]]
+    ids = [*visits, *area, patrol, *border]
+    assert len(ids) >= 8  # nine when the border kept N = 2 (a smaller N was offered otherwise)
+    wait_for(lambda: rig.state(patrol) == "active", rig.wall(120), "the patrol flown")
+    wait_for(lambda: all(rig.state(t) in ("done", "active") for t in [*visits, *area]), rig.wall(240),
+             "visits and area parts flown")
+    st.cancel(patrol)
+    st.cancel(st.tasks()[[v.id for v in st.tasks()].index(border[0])].group or border[0])
+    wait_for(lambda: all(rig.state(t) in ("done", "cancelled") for t in ids), rig.wall(240),
+             "every task done or cancelled")
+    assert {rig.state(t) for t in visits + list(area)} == {"done"}
+    assert rig.state(patrol) == "cancelled" and {rig.state(t) for t in border} == {"cancelled"}
+    # every visit was flown to: some vehicle's track came within 2 m of it (GLOBAL_POSITION_INT)
+    # idle vehicles loiter: each in the team, holding no task, hovering where it is
+    def loitering() -> bool:
+        teams = [rig.team(i) for i in range(rig.n)]
+        return all(t["status"] in ("idle", "landed") and not t["claims"] and t["controller"] == "loiter"
+                   for t in teams)
+    wait_for(loitering, rig.wall(60), "every vehicle idle")
+    held = [c["task"] for i in range(rig.n) for c in rig.team(i)["claims"] if c["state"] != "done"]
+    assert len(held) == len(set(held))  # no task held twice
+
+
+def distance_m(a: tuple[float, float, float], b: tuple[float, float, float]) -> float:
+    """Horizontal metres between two (lat, lon, alt) points (flat earth: tests span < 1 km)."""
+    dn = (a[0] - b[0]) * 111_320.0
+    de = (a[1] - b[1]) * 111_320.0 * math.cos(math.radians(a[0]))
+    return math.hypot(dn, de)
