@@ -21,7 +21,7 @@ from pathlib import Path
 
 import pytest
 from companion_support import WireTap
-from mavlink_support import ROOT, Gcs, SitlProcess, free_port, free_ports, wait_for
+from mavlink_support import ROOT, Gcs, SitlProcess, free_port, free_ports, port_free, wait_for
 
 from taskflight.sitlproc import stop_child
 
@@ -57,13 +57,8 @@ _instances = iter(range(10, 60))
 def _instance_free(i: int) -> bool:
     """Instance ``i``'s own ports (RC input UDP 5501+10i, SERIAL0 TCP 5760+10i) are free here: another
     test process (or agent) running SITL at the same time picks another one."""
-    for kind, port in ((socket.SOCK_DGRAM, 5501 + 10 * i), (socket.SOCK_STREAM, 5760 + 10 * i)):
-        with socket.socket(socket.AF_INET, kind) as sock:
-            try:
-                sock.bind(("127.0.0.1", port))
-            except OSError:
-                return False
-    return True
+    return all(port_free(kind, port) for kind, port in ((socket.SOCK_DGRAM, 5501 + 10 * i),
+                                                          (socket.SOCK_STREAM, 5760 + 10 * i)))
 
 
 def _next_instance() -> int:

@@ -7,6 +7,8 @@ import random
 import socket
 from pathlib import Path
 
+from mavlink_support import port_free
+
 from taskflight.sitlproc import ModelProcess
 
 SPEEDUP = 5.0
@@ -19,18 +21,9 @@ def ports(instance: int) -> tuple[int, int]:
     return 5760 + 10 * instance, 14550 + 10 * instance
 
 
-def _free(kind: int, port: int) -> bool:
-    with socket.socket(socket.AF_INET, kind) as sock:
-        try:
-            sock.bind(("127.0.0.1", port))
-        except OSError:
-            return False
-    return True
-
-
 def base_free(base: int, n: int) -> bool:
     """Every port of instances base..base+n-1 is free (cf. ``_instance_free`` in autopilot_support)."""
-    return all(_free(socket.SOCK_STREAM, ports(i)[0]) and _free(socket.SOCK_DGRAM, ports(i)[1])
+    return all(port_free(socket.SOCK_STREAM, ports(i)[0]) and port_free(socket.SOCK_DGRAM, ports(i)[1])
                for i in range(base, base + n))
 
 

@@ -49,7 +49,7 @@ def geo(n: float, e: float, alt: float = 0.0) -> tuple[float, float, float]:
     return (lat, lon, alt)
 
 
-def _free_udp_port() -> int:
+def free_udp_port() -> int:
     for _ in range(50):
         port = _rng.randrange(20000, 60000)
         with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
@@ -64,10 +64,11 @@ def _free_udp_port() -> int:
 class TeamRig:
     """See module docstring. ``speedup`` is the models' (the companions follow autopilot time)."""
 
-    def __init__(self, tmp: Path, n: int = 3, speedup: float = 3.0, loss: float = 0.0) -> None:
-        self.tmp, self.n, self.speedup, self.loss = tmp, n, speedup, loss
+    def __init__(self, tmp: Path, n: int = 3, speedup: float = 3.0, loss: float = 0.0,
+                 policy: str = "greedy") -> None:
+        self.tmp, self.n, self.speedup, self.loss, self.policy = tmp, n, speedup, loss, policy
         self.fleet, self.base = start_fleet(tmp / "fleet", n, speedup)
-        self.team_url = f"udp://239.255.70.1:{_free_udp_port()}"
+        self.team_url = f"udp://239.255.70.1:{free_udp_port()}"
         self.member_url = self.team_url + (f"?loss={loss}" if loss else "")
         self.control_ports = free_ports(n, socket.SOCK_STREAM)
         self.companions: list[subprocess.Popen[bytes] | None] = [None] * n
@@ -98,7 +99,7 @@ class TeamRig:
         self.companions[i] = subprocess.Popen(
             [str(exe), "companion", "--autopilot", f"udpout:127.0.0.1:{ports(self.base + i)[1]}",
              "--team", self.member_url, "--control-port", str(self.control_ports[i]),
-             "--platform", str(PLATFORM), "--flight-log", str(log)],
+             "--platform", str(PLATFORM), "--flight-log", str(log), "--team-policy", self.policy],
             stdout=out, stderr=subprocess.STDOUT, cwd=ROOT)
         out.close()
 

@@ -190,7 +190,8 @@ def test_openapi_documents_request_and_response_schemas(http: httpx.Client) -> N
                 ("post", "/commands"): "AddedResponse", ("get", "/events"): "EventsResponse",
                 ("get", "/events/wait"): "EventWaitResponse", ("get", "/behaviours"): "BehavioursResponse",
                 ("post", "/external/{stream}"): "AcceptedResponse", ("post", "/run"): "VerbResponse",
-                ("post", "/commands/{command_id}/retarget"): "FlightCommandModel"}
+                ("post", "/commands/{command_id}/retarget"): "FlightCommandModel",
+                ("get", "/params/{name}"): "ParamAnswer", ("put", "/params/{name}"): "ParamAnswer"}
     operations = 0
     for path, ops in doc["paths"].items():
         for method, op in ops.items():
@@ -202,7 +203,7 @@ def test_openapi_documents_request_and_response_schemas(http: httpx.Client) -> N
             assert names and names <= set(schemas), (method, path, answers["200"])
             if (method, path) in expected:
                 assert names == {expected[method, path]}, (method, path)
-    assert operations == 14
+    assert operations == 16  # the QAPI's 14 and the autopilot parameters (get, put)
     assert set(schemas["AddedResponse"]["properties"]) == {"ids", "indices"}
     assert set(schemas["ErrorResponse"]["properties"]) == {"error"}
 

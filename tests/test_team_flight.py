@@ -19,6 +19,7 @@ from mavlink_support import GUIDED, LOITER, wait_for
 from team_support import TeamRig, distance_m, fly_nine_tasks, geo
 
 from companion.team.tasks import TaskDef
+from companion.team.transport import open_transport
 
 SPEEDUP = 3.0
 
@@ -119,3 +120,40 @@ def test_bad_team_input_changes_nothing(rig: TeamRig, tmp_path: Path) -> None:
     assert rig.state(ids[0]) == "unassigned"  # no vehicle bids for what its delegation rejects
     st.cancel(ids[0])
     assert [(v.id, v.state) for v in st.tasks() if v.id != ids[0]] == before
+
+
+def test_a_tst_with_a_c_root_is_delegated_across_the_team(rig: TeamRig) -> None:
+    """Seed 000 Sec. III across the team: the children of a C node go to different vehicles through the
+    allocation; each vehicle bids only for what its own delegation (check, constraints) accepts."""
+    rig.ensure_companions()
+    tree = {"type": "C", "id": "both", "children": [
+        {"type": "fly-to", "id": "north", "params": {"position": list(geo(20, 0, 7)), "speed": "standard"}},
+        {"type": "fly-to", "id": "south", "params": {"position": list(geo(-20, 10, 7)), "speed": "standard"}},
+        {"type": "fly-to", "id": "high", "params": {"position": list(geo(0, 0, 90)), "speed": "standard"}},
+    ]}
+    ids = rig.add(TaskDef("tst", tree=tree, name="c-node"))
+    assert len(ids) == 3  # one team task per child of the C node
+    north, south, high = ids
+    wait_for(lambda: rig.state(north) == "done" and rig.state(south) == "done", rig.wall(120),
+             "both reachable children flown")
+    # 90 m is above every vehicle's ceiling (the outdoor platform's 60 m): no vehicle bids for it
+    wait_for(lambda: all(str(high) in rig.team(i)["cannot"] for i in range(rig.n)), 10, "judged by all")
+    assert rig.state(high) == "unassigned"
+    rig.station.cancel(rig.station.tasks()[[v.id for v in rig.station.tasks()].index(north)].group)
+    assert rig.state(high) == "cancelled"
+    assert rig.discontinuities() == []
+
+
+def test_malformed_team_packets_are_counted_and_ignored(rig: TeamRig) -> None:
+    rig.ensure_companions()
+    before = [rig.team(i)["link"] for i in range(rig.n)]
+    sender = open_transport(rig.team_url)
+    try:
+        sender.send(b"\x00garbage that is no team packet")
+        sender.send(b"TF\x63" + bytes(40))  # the magic of the team link, a version from the future
+        wait_for(lambda: all(rig.team(i)["link"]["garbage"] + rig.team(i)["link"]["foreign_version"]
+                             >= before[i]["garbage"] + before[i]["foreign_version"] + 1
+                             for i in range(rig.n)), 10, "the bad packets counted by every member")
+    finally:
+        sender.close()
+    assert len(rig.station.vehicle_rows()) == rig.n  # nothing else changed: every member still in the team

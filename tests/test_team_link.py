@@ -8,11 +8,11 @@ import itertools
 import json
 import socket
 import threading
-import time
 from collections.abc import Callable
 from typing import Any
 
 import pytest
+from mavlink_support import wait_for
 
 from companion.team.groupstate import GroupState
 from companion.team.link import LinkEvent, TeamLink
@@ -40,17 +40,6 @@ VOC = 10
 
 def row(m: int, stamp: float, seq: int, voc: int = 0, **kw: Any) -> MemberEntry:
     return MemberEntry(member=m, stamp=stamp, seq=seq, voc=voc, **kw)
-
-
-def wait_for(pred: Callable[[], Any], timeout_s: float, what: str) -> Any:
-    end = time.monotonic() + timeout_s
-    while True:
-        r = pred()
-        if r:
-            return r
-        if time.monotonic() > end:
-            raise AssertionError(f"timed out after {timeout_s:.0f} s waiting for {what}")
-        time.sleep(0.01)
 
 
 # ------------------------------------------------------------------------------------ group state

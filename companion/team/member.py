@@ -181,9 +181,16 @@ class TeamMember:
             candidates = self._candidates(board, rows)
             current = tuple(c for c in self.claims if c.state in (ClaimState.CLAIMED, ClaimState.ACTIVE))
             position = self.position
-            decided = self.policy.decide(self.id, rows, candidates, lambda t: self.cost(position, t), current)
+
+            def cost(t: TeamTask) -> float:
+                return self.cost(position, t)
+
+            own = self.own_row()
+            entries = {**rows, self.id: own} if own is not None else rows
+            decided = self.policy.decide(self.id, entries, candidates, cost, current)
             self._publish(decided, board, now)
-            self._switch(board, now, _on_ground(s))
+            order = self.policy.order(self.id, entries, candidates, cost, self.claims)
+            self._switch(board, now, _on_ground(s), order)
 
     def _observe(self, s: Any) -> None:
         if s.global_position is not None:
@@ -275,9 +282,11 @@ class TeamMember:
             self._event("claims", claims=[(c.task, c.state.name) for c in claims])
         self.claims = tuple(claims)
 
-    def _switch(self, board: TaskBoard, now: float, on_ground: bool) -> None:
-        """Fly the first live claim once it has settled; loiter with none."""
-        first = next((c for c in self.claims if c.state in (ClaimState.CLAIMED, ClaimState.ACTIVE)), None)
+    def _switch(self, board: TaskBoard, now: float, on_ground: bool, order: tuple[int, ...]) -> None:
+        """Fly the first live claim in the policy's order (CBBA: the path's order) once it has settled;
+        loiter with none."""
+        live = {c.task: c for c in self.claims if c.state in (ClaimState.CLAIMED, ClaimState.ACTIVE)}
+        first = next((live[t] for t in order if t in live), None)
         if first is None:
             if self.switchboard.controller is Controller.TEAM:
                 self.switchboard.loiter()

@@ -18,6 +18,7 @@ import math
 import random
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 
@@ -26,11 +27,10 @@ from companion.team.cost import CostModel, endless, entry_point, tst_points, wor
 from companion.team.geometry import LocalFrame
 from companion.team.groupstate import GroupState
 from companion.team.link import TeamLink
+from companion.team.station import TeamControlStation
 from companion.team.taskfile import TaskScript
-from companion.team.tasks import TaskLedger, derive_states
 from companion.team.transport import LossyTransport, MemoryBus
 from companion.team.types import (
-    STATION_ID,
     Claim,
     ClaimState,
     MemberEntry,
@@ -151,7 +151,7 @@ class SimVehicle:
             w.scan_left -= moved
             if w.scan_left <= 0:
                 self._mark(w.task, ClaimState.DONE)
-                self.sim.done_by.setdefault(w.task, self.member)
+                self.sim.finish(w.task, self.member)
                 self.work = None
                 return
         if np.linalg.norm(target - self.pos) > ARRIVE_M:
@@ -161,7 +161,7 @@ class SimVehicle:
             if not w.waypoints:
                 if w.loop is None:  # a visit or a TST's last point: done
                     self._mark(w.task, ClaimState.DONE)
-                    self.sim.done_by.setdefault(w.task, self.member)
+                    self.sim.finish(w.task, self.member)
                     self.work = None
                 else:
                     self._mark(w.task, ClaimState.ACTIVE)
@@ -239,14 +239,15 @@ class TeamSim:
         home = script.home or (-35.363261, 149.165230)
         self.frame = LocalFrame(home[0], home[1])
         self.bus = MemoryBus(f"sim-{seed}-{id(self)}")
-        self.ledger = TaskLedger(script.fence)
-        self.station_state = GroupState(STATION_ID, voc_max=voc_max)
         st = LossyTransport(self.bus.attach(), loss, seed=self.rng.randrange(1 << 30))
-        self.station_link = TeamLink(self.station_state, st, period_s=period_s, clock=lambda: self.now,
-                                     own=lambda: MemberEntry(member=STATION_ID, stamp=0.0, seq=0,
-                                                             position=(home[0], home[1], 0.0),
-                                                             status=MemberStatus.STATION, name="station"))
+        self.station = TeamControlStation(st, fence=script.fence, period_s=period_s, clock=lambda: self.now,
+                                          voc_max=voc_max, position=(home[0], home[1], 0.0))
+        self.station.listeners.append(self._on_station)
+        self.ledger = self.station.ledger
+        self.station_state = self.station.state
+        self.station_link = self.station.link
         self.done_by: dict[int, int] = {}
+        self.done_at: dict[int, float] = {}
         self.active_by: dict[int, int] = {}
         self.vehicles: list[SimVehicle] = []
         for i in range(vehicles):
@@ -265,26 +266,30 @@ class TeamSim:
 
     # --- the station ------------------------------------------------------------------------------
     def _station(self) -> None:
-        changed = False
         while self._pending and self._pending[0].at <= self.now:
             item = self._pending.pop(0)
-            ids = self.ledger.add(item.defn, self.now)
-            changed = True
+            ids = self.station.add(item.defn, force=True).ids
             if item.cancel_at is not None:
                 self._cancels.append((item.cancel_at, ids))
         for entry in [c for c in self._cancels if c[0] <= self.now]:
             self._cancels.remove(entry)
-            live = [i for i in entry[1] if not self.ledger.state(i).final]
-            for i in live:
-                self.ledger.cancel(i, self.now)
+            for i in entry[1]:
+                if not self.ledger.state(i).final:
+                    self.station.cancel(i)
+        self.station.step()
+
+    def finish(self, task: int, member: int) -> None:
+        """A vehicle reports ``task`` done (the first report counts)."""
+        if task not in self.done_by:
+            self.done_by[task] = member
+            self.done_at[task] = self.now
+
+    def _on_station(self, entry: dict[str, Any]) -> None:
+        if entry["event"] == "task":
+            self._change(entry["task"], TaskState(entry["state"]), entry["holder"])
+        elif entry["event"] == "cancelled":
+            for i in entry["ids"]:
                 self._change(i, TaskState.CANCELLED, None)
-                changed = True
-        rows = {m: e for m, e in self.station_state.alive().items() if m != STATION_ID}
-        for tid, state, holder in self.ledger.apply(derive_states(self.ledger.board(), rows), self.now):
-            self._change(tid, state, holder)
-            changed = True
-        if changed:
-            self.station_state.set_board(self.ledger.board(self.now))
 
     def _change(self, tid: int, state: TaskState, holder: int | None) -> None:
         self.changes.append((self.now, tid, state.value, holder))

@@ -79,9 +79,10 @@ class TeamControlStation:
 
     def __init__(self, transport: Transport, *, fence: Fence | None = None, period_s: float | None = None,
                  clock: Callable[[], float] = time.time, voc_max: int | None = None, name: str = "station",
-                 first_id: int = 101) -> None:
+                 first_id: int = 101, position: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> None:
         self.clock = clock
         self.name = name
+        self.position = position
         self.ledger = TaskLedger(fence, first_id=first_id)
         self.state = GroupState(STATION_ID, **({} if voc_max is None else {"voc_max": voc_max}))
         self.link = TeamLink(self.state, transport, period_s=period_s or DEFAULT_PERIOD_S, clock=clock,
@@ -117,7 +118,8 @@ class TeamControlStation:
                 log.exception("team station: follow-up failed")
 
     def _own_row(self) -> MemberEntry:
-        return MemberEntry(member=STATION_ID, stamp=0.0, seq=0, status=MemberStatus.STATION, name=self.name)
+        return MemberEntry(member=STATION_ID, stamp=0.0, seq=0, position=self.position,
+                           status=MemberStatus.STATION, name=self.name)
 
     # --- the operator's verbs ---------------------------------------------------------------------------
     def add(self, defn: TaskDef, force: bool = False) -> AddResult:
