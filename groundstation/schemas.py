@@ -245,6 +245,18 @@ class AuditList(BaseModel):
     entries: list[AuditOut]
 
 
+class AssignmentOut(BaseModel):
+    id: int
+    t: float
+    task: int
+    state: str
+    holder: int | None
+
+
+class AssignmentList(BaseModel):
+    assignments: list[AssignmentOut]
+
+
 class MissionRecord(BaseModel):
     id: int
     t: float

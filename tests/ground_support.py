@@ -152,6 +152,10 @@ class GroundRig:
                 g = Gcs(ports(self.base + i)[1], speedup, background=True, target=i + 1)
                 g.request_streams(10)
                 self.gcs.append(g)
+            self.tracks: list[list[tuple[float, float, float, float]]] = [[] for _ in range(n)]
+            self._stop = threading.Event()
+            self._sampler = threading.Thread(target=self._sample, daemon=True)
+            self._sampler.start()
             wait_for(lambda: self.ready(), 120, f"{n} vehicles in the team, companions answering")
         except BaseException:
             self.close()
@@ -180,7 +184,17 @@ class GroundRig:
         return len(vs) == self.n and all(v["team_state"] == "available" and v["companion"] == "ok"
                                          for v in vs.values())
 
+    def _sample(self) -> None:
+        """Every vehicle's MAVLink position at 10 Hz: (wall time, lat, lon, alt)."""
+        while not self._stop.wait(0.1):
+            for i in range(self.n):
+                p = self.position(i)
+                if p is not None:
+                    self.tracks[i].append((time.monotonic(), *p))
+
     def close(self) -> None:
+        if hasattr(self, "_stop"):
+            self._stop.set()
         for g in self.gcs:
             g.close()
         if self.ground is not None:

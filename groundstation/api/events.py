@@ -7,7 +7,7 @@ from typing import Annotated, Any
 
 from fastapi import APIRouter, Query, Request
 
-from groundstation.schemas import AuditList, EventList, MissionList, WhoAmI
+from groundstation.schemas import AssignmentList, AuditList, EventList, MissionList, WhoAmI
 
 from . import principal_of, service_of
 
@@ -29,6 +29,12 @@ def audit_log(request: Request, since: Annotated[int, Query(ge=0, le=2**62)] = 0
               limit: Annotated[int, Query(ge=1, le=5000)] = 1000) -> Any:
     """Every operator command: who, what, when, the answer (refusals included)."""
     return {"entries": service_of(request).db.audit_log(since, limit)}
+
+
+@router.get("/assignments", response_model=AssignmentList)
+def assignments(request: Request, task: Annotated[int | None, Query(ge=1, le=10**9)] = None) -> Any:
+    """The history of each task's state and holder (oldest first)."""
+    return {"assignments": service_of(request).db.assignments(task)}
 
 
 @router.get("/missions", response_model=MissionList)
