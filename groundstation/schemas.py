@@ -170,6 +170,7 @@ class MissionRequest(_Strict):
     """A Task Specification Tree (seed 000 Sec. III), the YAML format's structure as JSON."""
 
     mission: str = Field(..., min_length=1, max_length=100)
+    description: str = Field("", max_length=1000)
     tree: dict[str, Any]
     start: bool = Field(False, description="start it at once when accepted")
     break_in: Literal["joystick", "hover"] = "joystick"

@@ -210,6 +210,8 @@ class GroundService:
 
     def give_mission(self, vid: int, req: Any) -> dict[str, Any]:
         body = {"mission": req.mission, "tree": req.tree}
+        if req.description:
+            body["description"] = req.description
         status, answer = self.call(vid, "POST", "/mission", body)
         self.db.add_mission(vid, body, status, answer)
         if status == 422:

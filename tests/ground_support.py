@@ -106,9 +106,11 @@ class GroundProcess(_Api):
         self.runs = 0
 
     def start(self) -> GroundProcess:
-        exe = Path(sys.executable).with_name("taskflight")
-        args = [str(exe), "ground", "--team", self.team_url, "--db", str(self.db), "--host", "127.0.0.1",
-                "--port", str(self.port), "--tokens", str(self.tokens), "--companion-token", COMPANION_TOKEN]
+        # python -m from the repository root: this checkout's code (the console script may be another's)
+        args = [sys.executable, "-m", "taskflight.cli", "ground", "--team", self.team_url,
+                "--db", str(self.db),
+                "--host", "127.0.0.1", "--port", str(self.port), "--tokens", str(self.tokens),
+                "--companion-token", COMPANION_TOKEN]
         for vid, url in self.companions.items():
             args += ["--companion", f"{vid}={url}"]
         out = open(self.tmp / f"ground{self.runs}.out", "ab")  # noqa: SIM115 - the child owns it

@@ -7,8 +7,9 @@ The server sends ``{"type": "hello", "role"}``, then fleet snapshots ``{"type": 
 The client authenticates with ``?token=`` or a first message ``{"type": "auth", "token": "..."}``, then
 may send ``{"type": "ping"}`` (answered ``pong``) and, as an operator, stick samples ``{"type":
 "joystick", "vehicle": 1, "values": [v_north, v_east, v_down, yaw_rate], "validity_s": 0.3}`` at 10-20 Hz
-(seed 000 Sec. VII: the operator's break-in). Each is forwarded to the vehicle's
-``/behaviors/joystick`` with a short validity (at most :data:`MAX_VALIDITY_S`), so a lost browser stops
+(seed 000 Sec. VII: the operator's break-in). Each is forwarded to the vehicle's ExtVel stream
+(``/external/ext_vel``, which the joystick break-in flies on all channels) with a short validity (at
+most :data:`MAX_VALIDITY_S`), so a lost browser stops
 the vehicle instead of running it away. A malformed message is answered ``{"type": "error", "error"}``
 and changes nothing.
 """
@@ -160,7 +161,7 @@ async def _joystick(client: Client, svc: GroundService, msg: dict[str, Any]) -> 
         client.put(_error(f"vehicle {vid} has no control URL"))
         return
     sample = {"values": values, "validity_s": validity}
-    status = await svc.client.post_async(url, "/behaviors/joystick", sample, timeout_s=validity)
+    status = await svc.client.post_async(url, "/external/ext_vel", sample, timeout_s=1.0)
     if vid not in client.joysticked:
         client.joysticked.add(vid)
         await asyncio.to_thread(svc.audit, client.who, "joystick", f"vehicle {vid}",
