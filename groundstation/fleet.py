@@ -78,6 +78,7 @@ class Fleet:
     _lock: threading.Lock = field(default_factory=threading.Lock)
     _stop: threading.Event = field(default_factory=threading.Event)
     _thread: threading.Thread | None = None
+    _cache: tuple[float, list[dict[str, Any]]] = (-1.0, [])
 
     # --- lifecycle -------------------------------------------------------------------------------------
     def start(self) -> Fleet:
@@ -163,9 +164,18 @@ class Fleet:
                       vehicle=vid, data={"mode": mode, "from": was_mode})
 
     # --- the merged view -------------------------------------------------------------------------------
-    def snapshot(self) -> list[dict[str, Any]]:
-        """One record per vehicle (the fields of :class:`~groundstation.schemas.VehicleOut`)."""
+    def snapshot(self, max_age_s: float = 0.05) -> list[dict[str, Any]]:
+        """One record per vehicle (the fields of :class:`~groundstation.schemas.VehicleOut`); a snapshot
+        at most ``max_age_s`` old is shared (the REST readers and the WebSocket broadcast)."""
         now = time.monotonic()
+        at, cached = self._cache
+        if now - at <= max_age_s:
+            return cached
+        out = self._build(now)
+        self._cache = (now, out)
+        return out
+
+    def _build(self, now: float) -> list[dict[str, Any]]:
         rows = self.station.state.entries()
         with self._lock:
             registry = dict(self.registry)
