@@ -119,6 +119,12 @@ def add_team_arguments(parser: argparse.ArgumentParser) -> None:
     cp.set_defaults(team_handler=_cmd_team_control)
 
 
+def _cmd_ground(args: argparse.Namespace) -> int:
+    from groundstation.main import run_ground
+
+    return run_ground(args)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="taskflight", description=__doc__.splitlines()[0])
     parser.add_argument("-v", "--verbose", action="count", default=0, help="more log output (-vv: debug)")
@@ -168,6 +174,13 @@ def build_parser() -> argparse.ArgumentParser:
     tp = sub.add_parser("team", help="team control: the team simulator (seed 003)")
     add_team_arguments(tp)
     handlers["team"] = _cmd_team
+
+    gp = sub.add_parser("ground", help="the ground service: team control, process monitor, live stream "
+                                       "(REST + WebSocket, SQLite)")
+    from groundstation.main import add_ground_arguments
+
+    add_ground_arguments(gp)
+    handlers["ground"] = _cmd_ground
 
     parser.set_defaults(_handlers=handlers)
     return parser

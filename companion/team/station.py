@@ -27,7 +27,7 @@ from typing import Any
 
 from .groupstate import GroupState
 from .link import DEFAULT_PERIOD_S, LinkEvent, TeamLink
-from .tasks import Fence, TaskDef, TaskLedger, derive_states, offer_smaller_n, validate
+from .tasks import Fence, LedgerSnapshot, TaskDef, TaskLedger, derive_states, offer_smaller_n, validate
 from .transport import Transport
 from .types import STATION_ID, ClaimState, MemberEntry, MemberStatus, TaskState
 
@@ -96,6 +96,7 @@ class TeamControlStation:
         self._lock = threading.RLock()
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
+        self._settle_until = 0.0
 
     # --- lifecycle --------------------------------------------------------------------------------------
     def start(self) -> TeamControlStation:
@@ -152,11 +153,28 @@ class TeamControlStation:
             self._publish()
             return ids
 
+    def restore(self, snap: LedgerSnapshot, settle_s: float = 10.0) -> None:
+        """Take the task list of a previous run (a restarted ground service): the same ids and states,
+        published at once with a newer (stamp, seq), so the vehicles keep the tasks they hold. For up
+        to ``settle_s`` the follow-up waits until every holder of a live task is heard again (a station
+        that has heard nobody yet would otherwise read every held task as unassigned)."""
+        with self._lock:
+            self.ledger.restore(snap, self.clock())
+            self._settle_until = self.clock() + settle_s
+            self._record("restored", tasks=len(snap.tasks), groups=len(snap.groups))
+            self._publish()
+
     # --- following the team ----------------------------------------------------------------------------
     def step(self) -> list[tuple[int, TaskState, int | None]]:
         """Derive each task's state from the rows; the board follows (done, holder changes)."""
         with self._lock:
             rows = self.vehicle_rows()
+            if self.clock() < self._settle_until:
+                holders = {self.ledger.holder(t) for t in self.ledger.ids()
+                           if not self.ledger.state(t).final} - {None}
+                if not holders <= set(rows):
+                    return []
+                self._settle_until = 0.0
             board = self.ledger.board(self.clock())
             derived = derive_states(board, rows)
             self._costs = {tid: cost for tid, (_s, _h, cost) in derived.items()}

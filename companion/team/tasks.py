@@ -224,6 +224,18 @@ class _Group:
     pieces: list[int] = field(default_factory=list)
 
 
+@dataclass(frozen=True)
+class LedgerSnapshot:
+    """A :class:`TaskLedger`'s content: every task with its ledger state and holder, the divided tasks'
+    definitions and pieces, the next id and the board's (stamp, seq)."""
+
+    tasks: tuple[tuple[TeamTask, TaskState, int | None], ...]
+    groups: tuple[tuple[int, TaskDef, tuple[int, ...]], ...]
+    next_id: int
+    seq: int
+    stamp: float
+
+
 class TaskLedger:
     """The team-control station's task list (the one writer of the board, seed 003 Sec. III-B)."""
 
@@ -284,6 +296,40 @@ class TaskLedger:
             self._rows[t.id] = _Row(t)
         self._changed(now)
         return tuple(t.id for t in tasks)
+
+    # --- persistence --------------------------------------------------------------------------------
+    def export(self) -> LedgerSnapshot:
+        """Everything :meth:`restore` needs to rebuild this ledger (the ground service persists it)."""
+        return LedgerSnapshot(
+            tasks=tuple((r.task, r.state, r.holder) for r in self._rows.values()),
+            groups=tuple((g, grp.defn, tuple(grp.pieces)) for g, grp in self._groups.items()),
+            next_id=self._next, seq=self._seq, stamp=self._stamp)
+
+    def restore(self, snap: LedgerSnapshot, now: float | None = None) -> None:
+        """Rebuild the ledger from ``snap`` (the same ids, states, holders, versions and groups), e.g. a
+        restarted ground service from its database. The next ids continue past every restored id, and
+        the board advances past the snapshot's (stamp, seq) (``now``: the restart's time), so members
+        holding the old board take the restored one. Raises ValueError (nothing changed) when the
+        snapshot is inconsistent: a duplicate id, a group naming an unknown piece, an illegal holder."""
+        rows: dict[int, _Row] = {}
+        for task, state, holder in snap.tasks:
+            if task.id in rows:
+                raise ValueError(f"tasks: task {task.id} twice")
+            if holder is not None and state not in (TaskState.ASSIGNED, TaskState.ACTIVE, TaskState.DONE):
+                raise ValueError(f"tasks: task {task.id} is {state.value} but has holder {holder}")
+            rows[task.id] = _Row(task, TaskState(state), holder)
+        groups: dict[int, _Group] = {}
+        for gid, defn, pieces in snap.groups:
+            missing = [i for i in pieces if i not in rows]
+            if missing:
+                raise ValueError(f"groups: group {gid} names unknown pieces {missing}")
+            groups[gid] = _Group(defn, list(pieces))
+        top = max([*rows, *groups, 0])
+        self._rows, self._groups = rows, groups
+        self._next = max(int(snap.next_id), top + 1, self._next)
+        self._seq = max(int(snap.seq), self._seq)
+        self._stamp = max(float(snap.stamp), self._stamp)
+        self._changed(now)
 
     # --- state machine ----------------------------------------------------------------------------
     def transition(self, task_id: int, to: TaskState, holder: int | None = None, now: float | None = None

@@ -1,0 +1,36 @@
+"""``/api/tasks``: team tasking (issue 12 item 3; seed 003 Sec. II, the Team Control interface)."""
+
+from __future__ import annotations
+
+from typing import Annotated, Any
+
+from fastapi import APIRouter, Path, Request
+
+from groundstation.schemas import ErrorAnswer, TaskAdded, TaskCancelled, TaskList, TaskRequest
+
+from . import audited, service_of
+
+router = APIRouter(tags=["tasks"])
+
+
+@router.post("/tasks", response_model=TaskAdded, status_code=201,
+             responses={409: {"model": ErrorAnswer, "description": "more vehicles asked for than are free: "
+                                                                   "the offer of a smaller N"}})
+def add_task(request: Request, body: TaskRequest) -> Any:
+    """A team task; the vehicles divide the tasks among themselves (seed 003 Sec. III-B)."""
+    svc = service_of(request)
+    return audited(request, "add_task", body.type, body.model_dump(exclude_none=True),
+                   lambda: svc.add_task(body))
+
+
+@router.get("/tasks", response_model=TaskList)
+def list_tasks(request: Request) -> Any:
+    """Every task with its state, assignee and cost."""
+    return {"tasks": service_of(request).tasks()}
+
+
+@router.delete("/tasks/{tid}", response_model=TaskCancelled)
+def cancel_task(request: Request, tid: Annotated[int, Path(ge=1, le=10**9)]) -> Any:
+    """Cancel a task, or every live piece of a divided task (its group id)."""
+    svc = service_of(request)
+    return audited(request, "cancel_task", f"task {tid}", None, lambda: {"cancelled": svc.cancel_task(tid)})

@@ -1,0 +1,172 @@
+"""``/api/vehicles``: the fleet's state and the Process Monitor's commands to one vehicle (issue 12 items
+2 and 4; seed 003 Sec. II "send high-level commands to individual processes ... inflight gain tuning";
+seed 000 Sec. VII: the operator's break-in, resume and "enough")."""
+
+from __future__ import annotations
+
+from typing import Annotated, Any
+
+from fastapi import APIRouter, Body, Path, Request
+from fastapi.responses import JSONResponse
+
+from groundstation.companions import ApiError
+from groundstation.schemas import (
+    CommandAnswer,
+    MissionRequest,
+    ParamAnswer,
+    ParamSet,
+    PauseRequest,
+    TakeRequest,
+    VehicleList,
+    VehicleOut,
+    VehicleRegistration,
+)
+
+from . import audited, service_of
+
+router = APIRouter(tags=["vehicles"])
+VehicleId = Annotated[int, Path(ge=1, le=255, description="the vehicle's MAVLink system id")]
+ParamName = Annotated[str, Path(pattern=r"^[A-Z][A-Z0-9_]{0,15}$", description="e.g. ATC_RAT_RLL_P")]
+
+
+def _vehicle(request: Request, vid: int) -> dict[str, Any]:
+    for v in service_of(request).fleet.snapshot():
+        if v["id"] == vid:
+            return v
+    raise ApiError(404, f"no vehicle {vid}")
+
+
+@router.get("/vehicles", response_model=VehicleList)
+def list_vehicles(request: Request) -> Any:
+    """Every vehicle registered or heard on the team link, with its health."""
+    # the records are built to the VehicleOut schema (fleet.py); answered as they are (a 100-vehicle
+    # fleet's re-validation would dominate the answer's latency)
+    return JSONResponse({"vehicles": service_of(request).fleet.snapshot()})
+
+
+@router.get("/vehicles/{vid}", response_model=VehicleOut)
+def get_vehicle(request: Request, vid: VehicleId) -> Any:
+    return _vehicle(request, vid)
+
+
+@router.put("/vehicles/{vid}", response_model=VehicleOut)
+def register_vehicle(request: Request, vid: VehicleId, body: VehicleRegistration) -> Any:
+    """Register a vehicle: its name and its companion's control URL (stored)."""
+    def run() -> Any:
+        service_of(request).register(vid, body.name, body.control_url)
+        return _vehicle(request, vid)
+    return audited(request, "register", f"vehicle {vid}", body.model_dump(), run)
+
+
+def _checked(answer: dict[str, Any]) -> dict[str, Any]:
+    if not answer["ok"]:
+        extra = {}
+        if isinstance(answer["answer"], dict) and answer["answer"].get("reasons"):
+            extra["reasons"] = answer["answer"]["reasons"]
+        status = answer["status"] if answer["status"] in (400, 404, 409, 422) else 409
+        what = f"vehicle {answer['vehicle']}: {answer['command']}"
+        raise ApiError(status, f"{what}: {answer['error']}", **extra)
+    return answer
+
+
+def _verb(request: Request, vid: int, verb: str, body: Any = None) -> Any:
+    svc = service_of(request)
+    return audited(request, verb, f"vehicle {vid}", body, lambda: _checked(svc.command(vid, verb, body)))
+
+
+@router.post("/vehicles/{vid}/mission", response_model=CommandAnswer,
+             responses={422: {"description": "rejected by delegation, with the reasons"}})
+def give_mission(request: Request, vid: VehicleId, body: MissionRequest) -> Any:
+    """A Task Specification Tree for one vehicle (delegation's reasons on rejection); the vehicle leaves
+    the team (a directed command)."""
+    svc = service_of(request)
+    return audited(request, "mission", f"vehicle {vid}", body.model_dump(),
+                   lambda: svc.give_mission(vid, body))
+
+
+@router.get("/vehicles/{vid}/mission")
+def get_mission(request: Request, vid: VehicleId) -> dict[str, Any]:
+    """The vehicle's mission tree with each node's status and progress (seed 000 Fig. 5)."""
+    status, answer = service_of(request).call(vid, "GET", "/mission")
+    if status != 200:
+        raise ApiError(409, f"vehicle {vid}: {answer}")
+    return answer
+
+
+@router.post("/vehicles/{vid}/start", response_model=CommandAnswer)
+def start(request: Request, vid: VehicleId) -> Any:
+    return _verb(request, vid, "start")
+
+
+@router.post("/vehicles/{vid}/take", response_model=CommandAnswer)
+def take(request: Request, vid: VehicleId, body: Annotated[TakeRequest | None, Body()] = None) -> Any:
+    """Out of the team (the team re-allocates its tasks)."""
+    return _verb(request, vid, "take", (body or TakeRequest()).model_dump())
+
+
+@router.post("/vehicles/{vid}/release", response_model=CommandAnswer)
+def release(request: Request, vid: VehicleId) -> Any:
+    return _verb(request, vid, "release")
+
+
+@router.post("/vehicles/{vid}/pause", response_model=CommandAnswer)
+def pause(request: Request, vid: VehicleId, body: Annotated[PauseRequest | None, Body()] = None) -> Any:
+    """The operator's break-in (seed 000 Sec. VII); joystick by default: the stick samples then come on
+    the WebSocket."""
+    return _verb(request, vid, "pause", (body or PauseRequest()).model_dump())
+
+
+@router.post("/vehicles/{vid}/resume", response_model=CommandAnswer)
+def resume(request: Request, vid: VehicleId) -> Any:
+    return _verb(request, vid, "resume")
+
+
+@router.post("/vehicles/{vid}/enough", response_model=CommandAnswer)
+def enough(request: Request, vid: VehicleId) -> Any:
+    """End the running task as done; the mission goes on (seed 000 Sec. VII)."""
+    return _verb(request, vid, "enough")
+
+
+@router.post("/vehicles/{vid}/user_confirm", response_model=CommandAnswer)
+def user_confirm(request: Request, vid: VehicleId) -> Any:
+    return _verb(request, vid, "user_confirm")
+
+
+@router.post("/vehicles/{vid}/abort", response_model=CommandAnswer)
+def abort(request: Request, vid: VehicleId) -> Any:
+    return _verb(request, vid, "abort")
+
+
+@router.post("/vehicles/{vid}/land", response_model=CommandAnswer)
+def land(request: Request, vid: VehicleId) -> Any:
+    return _verb(request, vid, "land")
+
+
+@router.get("/vehicles/{vid}/processes", response_model=list[dict[str, Any]])
+def processes(request: Request, vid: VehicleId) -> Any:
+    """The vehicle's processes (seed 003: the Process Monitor "displays the status of individual software
+    processes running on each UAV")."""
+    status, answer = service_of(request).call(vid, "GET", "/processes")
+    if status != 200 or not isinstance(answer, list):
+        raise ApiError(409, f"vehicle {vid}: no process list: {answer}")
+    return answer
+
+
+def _param(request: Request, vid: int, method: str, name: str, body: Any = None) -> dict[str, Any]:
+    status, answer = service_of(request).call(vid, method, f"/params/{name}", body)
+    if status != 200:
+        err = answer.get("error") if isinstance(answer, dict) else answer
+        raise ApiError(504 if status == 504 else 400 if status == 400 else 409, f"vehicle {vid}: {err}")
+    return answer
+
+
+@router.get("/vehicles/{vid}/params/{name}", response_model=ParamAnswer)
+def get_param(request: Request, vid: VehicleId, name: ParamName) -> Any:
+    return _param(request, vid, "GET", name)
+
+
+@router.put("/vehicles/{vid}/params/{name}", response_model=ParamAnswer)
+def put_param(request: Request, vid: VehicleId, name: ParamName, body: ParamSet) -> Any:
+    """In-flight gain tuning: the answer is the autopilot's read-back."""
+    return audited(request, "param", f"vehicle {vid} {name}", body.model_dump(),
+                   lambda: _param(request, vid, "PUT", name, body.model_dump()))

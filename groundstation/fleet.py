@@ -1,0 +1,293 @@
+"""The live model of the fleet (issue 12 item 2; seed 003 Sec. II, Fig. 1).
+
+Two sources per vehicle, as in seed 003's interface hierarchy:
+
+* the team link: the station's group state (seed 003 Sec. III-A) gives each vehicle's row: position,
+  velocity, team status, the task it flies, its claims, and whether it is gone (voc run out);
+* the companion's control surface (the Process Monitor tier), polled by :class:`Fleet`: the autopilot's
+  mode, armed state, battery, heading, the QAPI queue status and whether it waits for a confirmation,
+  the mission's active node and progress (seed 000 Fig. 5).
+
+:meth:`Fleet.snapshot` merges them into one record per vehicle with a health verdict (green / yellow /
+red with the reasons). The poller also turns changes into events (link lost, override, failsafe mode,
+confirmation required) through ``emit``.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from companion.team.station import TeamControlStation
+from companion.team.types import MemberEntry, MemberStatus
+
+from .companions import ApiError, CompanionClient
+
+log = logging.getLogger(__name__)
+
+#: no message for this long (s): yellow, then red
+STALE_S, LOST_S = 2.0, 5.0
+#: battery remaining (%) below which: yellow, red
+BATTERY_LOW, BATTERY_CRITICAL = 30.0, 15.0
+#: autopilot modes a failsafe (or a ground station) switches to
+FAILSAFE_MODES = frozenset({"RTL", "LAND", "BRAKE", "SMART_RTL"})
+
+Emit = Callable[..., None]
+
+
+@dataclass
+class Polled:
+    """What a companion's control surface said last."""
+
+    status: dict[str, Any] | None = None
+    mission: dict[str, Any] | None = None
+    ok_at: float = 0.0              #: monotonic time of the last good answer
+    error: str | None = None        #: why the last poll failed
+    reachable: bool | None = None   #: None: never polled
+
+
+@dataclass
+class Registered:
+    name: str = ""
+    control_url: str | None = None
+
+
+@dataclass
+class _Seen:
+    stamp: float = math.nan
+    seq: int = -1
+    at: float = 0.0                 #: monotonic time the row last changed
+
+
+@dataclass
+class Fleet:
+    """See module docstring. ``emit(kind, message, severity=, vehicle=, task=, data=)`` records events."""
+
+    station: TeamControlStation
+    client: CompanionClient
+    emit: Emit
+    poll_period_s: float = 0.5
+    registry: dict[int, Registered] = field(default_factory=dict)
+    _polled: dict[int, Polled] = field(default_factory=dict)
+    _seen: dict[int, _Seen] = field(default_factory=dict)
+    _lock: threading.Lock = field(default_factory=threading.Lock)
+    _stop: threading.Event = field(default_factory=threading.Event)
+    _thread: threading.Thread | None = None
+    _cache: tuple[float, list[dict[str, Any]]] = (-1.0, [])
+
+    # --- lifecycle -------------------------------------------------------------------------------------
+    def start(self) -> Fleet:
+        self._thread = threading.Thread(target=self._poll_loop, name="fleet-poll", daemon=True)
+        self._thread.start()
+        return self
+
+    def close(self) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=5.0)
+
+    def register(self, vid: int, name: str, control_url: str | None) -> None:
+        with self._lock:
+            self.registry[vid] = Registered(name, control_url)
+
+    def url_of(self, vid: int) -> str | None:
+        """The vehicle's control URL; ApiError 404 for a vehicle neither registered nor heard."""
+        with self._lock:
+            reg = self.registry.get(vid)
+        if reg is None:
+            if self.station.state.get(vid) is None or vid == 0:
+                raise ApiError(404, f"no vehicle {vid}")
+            return None
+        return reg.control_url
+
+    def ids(self) -> list[int]:
+        with self._lock:
+            ids = set(self.registry)
+        ids |= {m for m, e in self.station.state.entries().items() if e.status is not MemberStatus.STATION}
+        return sorted(ids)
+
+    # --- polling the companions ------------------------------------------------------------------------
+    def _poll_loop(self) -> None:
+        while not self._stop.is_set():
+            start = time.monotonic()
+            with self._lock:
+                targets = [(v, r.control_url) for v, r in self.registry.items() if r.control_url]
+            for vid, url in targets:
+                if self._stop.is_set():
+                    return
+                self._poll_one(vid, url)
+            self._stop.wait(max(0.05, self.poll_period_s - (time.monotonic() - start)))
+
+    def _poll_one(self, vid: int, url: str) -> None:
+        with self._lock:
+            p = self._polled.setdefault(vid, Polled())
+        try:
+            _s, status = self.client.call(vid, url, "GET", "/status", timeout_s=1.5)
+            _m, mission = self.client.call(vid, url, "GET", "/mission", timeout_s=1.5)
+        except ApiError as exc:
+            if p.reachable is not False:
+                self.emit("link_lost", f"vehicle {vid}: companion unreachable ({exc.message})",
+                          severity="warning", vehicle=vid)
+            with self._lock:
+                p.reachable, p.error = False, exc.message
+            return
+        prev = p.status
+        with self._lock:
+            if p.reachable is False:
+                self.emit("link_restored", f"vehicle {vid}: companion answers again", vehicle=vid)
+            p.status = status if isinstance(status, dict) and "queue" in status else None
+            p.mission = mission if isinstance(mission, dict) and _m == 200 else None
+            p.ok_at, p.error, p.reachable = time.monotonic(), None, True
+        self._watch(vid, prev, p.status)
+
+    def _watch(self, vid: int, prev: dict[str, Any] | None, cur: dict[str, Any] | None) -> None:
+        """Events from one poll to the next (seed 000 Sec. VII: the operator is told what needs him)."""
+        if cur is None:
+            return
+        was_q = (prev or {}).get("queue", {})
+        q = cur.get("queue", {})
+        if q.get("confirmation_required_status") and not was_q.get("confirmation_required_status"):
+            self.emit("confirmation_required", f"vehicle {vid} waits for the operator's confirmation",
+                      severity="warning", vehicle=vid)
+        if q.get("queue_system_status") == "OVERRIDDEN" and was_q.get("queue_system_status") != "OVERRIDDEN":
+            reason = cur.get("flight", {}).get("override_reason")
+            self.emit("override", f"vehicle {vid} overridden: {reason}", severity="warning", vehicle=vid)
+        mode = cur.get("vehicle", {}).get("mode")
+        was_mode = (prev or {}).get("vehicle", {}).get("mode")
+        if prev is not None and mode != was_mode and mode in FAILSAFE_MODES:
+            self.emit("failsafe", f"vehicle {vid} switched to {mode} (from {was_mode})", severity="warning",
+                      vehicle=vid, data={"mode": mode, "from": was_mode})
+
+    # --- the merged view -------------------------------------------------------------------------------
+    def snapshot(self, max_age_s: float = 0.05) -> list[dict[str, Any]]:
+        """One record per vehicle (the fields of :class:`~groundstation.schemas.VehicleOut`); a snapshot
+        at most ``max_age_s`` old is shared (the REST readers and the WebSocket broadcast)."""
+        now = time.monotonic()
+        at, cached = self._cache
+        if now - at <= max_age_s:
+            return cached
+        out = self._build(now)
+        self._cache = (now, out)
+        return out
+
+    def _build(self, now: float) -> list[dict[str, Any]]:
+        rows = self.station.state.entries()
+        with self._lock:
+            registry = dict(self.registry)
+            polled = {v: Polled(p.status, p.mission, p.ok_at, p.error, p.reachable)
+                      for v, p in self._polled.items()}
+            for m, e in rows.items():
+                seen = self._seen.setdefault(m, _Seen())
+                if (e.stamp, e.seq) != (seen.stamp, seen.seq):
+                    seen.stamp, seen.seq, seen.at = e.stamp, e.seq, now
+            seen_at = {m: s.at for m, s in self._seen.items()}
+        out = []
+        heard = {m for m, e in rows.items() if e.status is not MemberStatus.STATION}
+        for vid in sorted(set(registry) | heard):
+            out.append(self._record(vid, registry.get(vid, Registered()), rows.get(vid), polled.get(vid),
+                                    seen_at.get(vid), now))
+        return out
+
+    def _record(self, vid: int, reg: Registered, row: MemberEntry | None, p: Polled | None,
+                seen_at: float | None, now: float) -> dict[str, Any]:
+        status = p.status if p is not None else None
+        veh = (status or {}).get("vehicle", {})
+        queue = (status or {}).get("queue", {})
+        position = velocity = None
+        if row is not None and row.voc > 0:
+            position = {"lat": row.position[0], "lon": row.position[1], "alt": row.position[2]}
+            velocity = list(row.velocity)
+        elif veh.get("global_position"):
+            g = veh["global_position"]
+            position = {"lat": g[0], "lon": g[1], "alt": g[3]}
+        if velocity is None and veh.get("velocity"):
+            velocity = list(veh["velocity"])
+        att = veh.get("attitude")
+        heading = math.degrees(att[2]) % 360.0 if att else None
+        times = [t for t in (seen_at, p.ok_at if p and p.ok_at else None) if t]
+        age = round(now - max(times), 3) if times else None
+        if row is None:
+            team_state = "unknown"
+        elif row.voc == 0:
+            team_state = "gone"
+        else:
+            team_state = "available" if row.status.available else "taken"
+        mission = {"state": None, "node": None, "progress": None}
+        if p is not None and p.mission:
+            m = p.mission
+            mission = {"state": m.get("state"), "node": m.get("active_node"),
+                       "progress": _progress(m.get("tree"), m.get("active_node"))}
+        reachable = p is not None and p.reachable
+        companion = "none" if not reg.control_url else ("ok" if reachable else "unreachable")
+        rec = {
+            "id": vid, "name": reg.name or (row.name if row is not None else "") or f"vehicle {vid}",
+            "control_url": reg.control_url, "position": position, "velocity": velocity, "heading": heading,
+            "mode": veh.get("mode"), "armed": veh.get("armed"), "battery": veh.get("battery_remaining"),
+            "battery_voltage": veh.get("battery_voltage"), "age_s": age, "team_state": team_state,
+            "member_status": row.status.name.lower() if row is not None else None,
+            "task": (row.task or None) if row is not None else None,
+            "claims": [{"task": c.task, "version": c.version, "cost": round(c.cost, 2),
+                        "state": c.state.name.lower()} for c in row.claims] if row is not None else [],
+            "mission": mission, "queue_status": queue.get("queue_status"),
+            "confirmation_required": bool(queue.get("confirmation_required_status")),
+            "companion": companion,
+        }
+        rec["health"] = health(rec, veh, queue, p)
+        return rec
+
+
+def _progress(tree: dict[str, Any] | None, active: str | None) -> str | None:
+    if not tree or not active:
+        return None
+    stack = [tree]
+    while stack:
+        n = stack.pop()
+        if n.get("id") == active:
+            prog = n.get("progress") or {}
+            return prog.get("text") if isinstance(prog, dict) else None
+        stack += [c for c in n.get("children") or [] if isinstance(c, dict)]
+    return None
+
+
+def health(rec: dict[str, Any], veh: dict[str, Any], queue: dict[str, Any], p: Polled | None
+           ) -> dict[str, Any]:
+    """Green / yellow / red with the reasons (red: act now; yellow: look)."""
+    red: list[str] = []
+    yellow: list[str] = []
+    if rec["team_state"] == "gone":
+        red.append("gone from the team link")
+    if rec["companion"] == "unreachable":
+        red.append(f"companion unreachable{': ' + p.error if p and p.error else ''}")
+    age = rec["age_s"]
+    if age is not None and age > LOST_S:
+        red.append(f"nothing heard for {age:.1f} s")
+    elif age is not None and age > STALE_S:
+        yellow.append(f"last message {age:.1f} s old")
+    if rec["member_status"] == "overridden" or queue.get("queue_system_status") == "OVERRIDDEN":
+        red.append("overridden by a ground station")
+    batt = rec["battery"]
+    if isinstance(batt, int | float) and batt >= 0:
+        if batt < BATTERY_CRITICAL:
+            red.append(f"battery {batt:.0f} %")
+        elif batt < BATTERY_LOW:
+            yellow.append(f"battery {batt:.0f} %")
+    if rec["mode"] in FAILSAFE_MODES and rec["armed"]:
+        yellow.append(f"mode {rec['mode']}")
+    if rec["confirmation_required"]:
+        yellow.append("waiting for the operator's confirmation")
+    if rec["team_state"] == "taken":
+        yellow.append("out of the team (taken)")
+    fix = veh.get("gps_fix_type")
+    if isinstance(fix, int) and fix < 3:
+        yellow.append(f"GPS fix type {fix}")
+    if queue.get("limit_reached"):
+        yellow.append("a limit was reached")
+    if rec["team_state"] == "unknown" and rec["companion"] == "none":
+        yellow.append("never heard")
+    level = "red" if red else "yellow" if yellow else "green"
+    return {"level": level, "reasons": red + yellow}
