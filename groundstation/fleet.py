@@ -22,11 +22,20 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
+from urllib.parse import urlencode
 
 from companion.team.station import TeamControlStation
 from companion.team.types import MemberEntry, MemberStatus
+from taskflight.geo import ned_to_geodetic
 
 from .companions import ApiError, CompanionClient
+
+#: the camera's beliefs are read every this many polls
+DETECTION_EVERY = 4
+#: object kinds that are the vehicle's own beliefs about itself, not detections
+OWN_KINDS = frozenset({"aerial_robot"})
+#: the belief query of the companion's camera objects, URL-encoded
+DETECTIONS_PATH = "/beliefs?" + urlencode({"query": "object(?x, ?kind), position(?x, ?p)"})
 
 log = logging.getLogger(__name__)
 
@@ -49,6 +58,8 @@ class Polled:
     ok_at: float = 0.0              #: monotonic time of the last good answer
     error: str | None = None        #: why the last poll failed
     reachable: bool | None = None   #: None: never polled
+    detections: dict[str, dict[str, Any]] = field(default_factory=dict)  #: object id -> what was seen
+    polls: int = 0
 
 
 @dataclass
@@ -144,6 +155,34 @@ class Fleet:
             p.mission = mission if isinstance(mission, dict) and _m == 200 else None
             p.ok_at, p.error, p.reachable = time.monotonic(), None, True
         self._watch(vid, prev, p.status)
+        p.polls += 1
+        if p.polls % DETECTION_EVERY == 0:
+            self._detections(vid, url, p)
+
+    def _detections(self, vid: int, url: str, p: Polled) -> None:
+        """The companion's camera beliefs (seed 000 Sec. VII: ``object(7, person)``, ``position(7, (n, e,
+        d))``): an object seen for the first time is a ``detection`` event with its lat/lon."""
+        try:
+            code, answer = self.client.call(vid, url, "GET", DETECTIONS_PATH, timeout_s=1.5)
+        except ApiError:
+            return
+        if code != 200 or not isinstance(answer, dict):
+            return
+        home = ((p.status or {}).get("vehicle") or {}).get("home")
+        for b in answer.get("bindings") or []:
+            key = str(b.get("x"))
+            pos = b.get("p")
+            if key in p.detections or b.get("kind") in OWN_KINDS or not isinstance(pos, list | tuple) \
+                    or len(pos) != 3:
+                continue
+            data: dict[str, Any] = {"object": b.get("x"), "kind": b.get("kind"), "ned": list(pos)}
+            if isinstance(home, list | tuple) and len(home) == 3:
+                lat, lon, alt = ned_to_geodetic(tuple(home), *pos)
+                data.update(lat=lat, lon=lon, alt=alt - home[2])
+            with self._lock:
+                p.detections[key] = data
+            self.emit("detection", f"vehicle {vid} sees {data['kind']} {data['object']}", vehicle=vid,
+                      data=data)
 
     def _watch(self, vid: int, prev: dict[str, Any] | None, cur: dict[str, Any] | None) -> None:
         """Events from one poll to the next (seed 000 Sec. VII: the operator is told what needs him)."""

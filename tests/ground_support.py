@@ -165,12 +165,16 @@ class GroundRig:
 
     def start_companion(self, i: int) -> None:
         exe = Path(sys.executable).with_name("taskflight")
+        # vehicle 3's camera sees a person 6 m north of the fleet's home (its own home is 10 m east)
+        scenario = self.tmp / "scenario3.yaml"
+        scenario.write_text("objects:\n  - {id: 7, class: person, position: [6.0, -10.0]}\n")
+        extra = ["--scenario", str(scenario)] if i == 2 else []
         out = open(self.tmp / f"companion{i}.out", "ab")  # noqa: SIM115 - the child owns it
         self.companions[i] = subprocess.Popen(
             [str(exe), "companion", "--autopilot", f"udpout:127.0.0.1:{ports(self.base + i)[1]}",
              "--team", self.team_url, "--control-port", str(self.control_ports[i]),
              "--control-token", COMPANION_TOKEN, "--platform", str(PLATFORM),
-             "--flight-log", str(self.tmp / f"flight{i}.jsonl")],
+             "--flight-log", str(self.tmp / f"flight{i}.jsonl"), *extra],
             stdout=out, stderr=subprocess.STDOUT, cwd=ROOT)
         out.close()
 

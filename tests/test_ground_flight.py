@@ -184,6 +184,12 @@ def test_break_in_with_the_joystick_then_resume_and_enough(rig: GroundRig) -> No
         actions = [e["action"] for e in c.get("/api/audit").json()["entries"]]
         assert c.get("/api/missions", params={"vehicle": vid}).json()["missions"][-1]["status"] == 200
     assert {"mission", "pause", "joystick", "resume", "enough"} <= set(actions)
+    # the camera saw the person during the scan: a detection event with where it is
+    with rig.ground.http() as c:
+        seen = [e for e in c.get("/api/events", params={"kind": "detection"}).json()["events"]
+                if e["vehicle"] == vid]
+    assert seen and seen[0]["data"]["kind"] == "person", seen
+    assert math.dist(local((seen[0]["data"]["lat"], seen[0]["data"]["lon"])), (0.0, 6.0)) < 1.0
     assert post(rig, f"/api/vehicles/{vid}/release").status_code == 200  # back into the team
 
 
