@@ -46,9 +46,19 @@ import math
 from dataclasses import dataclass, replace
 
 import numpy as np
-from ruckig import ControlInterface, InputParameter, Result, Ruckig, Synchronization, Trajectory
 
 from .limits import Envelope, Limits
+from .planner import (
+    Array,
+    PathFrame,
+    Planner,
+    clamp_norm,
+    close_to,
+    perp_basis,
+    plan_key,
+    stopping_speed,
+    unit,
+)
 from .setpoint import Vec3
 
 log = logging.getLogger(__name__)
@@ -155,205 +165,19 @@ class StepResult:
     target_unreachable: bool = False
 
 
-# --- ruckig wrapper ---------------------------------------------------------------------------------
-Array = np.ndarray
-
-
-class _Planner:
-    """One ruckig problem of ``dofs`` degrees of freedom, kept while it stays valid (online use).
-
-    Like ruckig's own ``update()``, a trajectory is only recalculated when the request changes or
-    the reference left it (a channel switch, the guard): replanning every tick from a state on a
-    time-optimal braking curve would let rounding push it just past the curve and overshoot.
-    """
-
-    def __init__(self, dofs: int) -> None:
-        self.dofs = dofs
-        self._otg = Ruckig(dofs)
-        self._inp = InputParameter(dofs)
-        self._traj = Trajectory(dofs)
-        self.duration = 0.0
-        self.t = 0.0
-        self.ok = False
-        self.stretched = False
-        self._key: Array | None = None
-        self._target_p: Array | None = None
-        self._target_v = np.zeros(dofs)
-
-    @property
-    def remaining(self) -> float:
-        return max(0.0, self.duration - self.t) if self.ok else 0.0
-
-    def reusable(self, key: Array, p: Array, v: Array, a: Array, goal: float = 0.0,
-                 key_tol: float = 1e-9) -> bool:
-        """Whether the current trajectory serves ``key`` from state (p, v, a) with a modifier ``goal``."""
-        if not self.ok or self._key is None or key.shape != self._key.shape:
-            return False
-        if not _close(key, self._key, key_tol):
-            return False
-        if not self.on_track(p, v, a):
-            return False
-        rem = self.remaining
-        if goal > rem + 1e-6:  # a modifier now needs us to be slower
-            return False
-        return not (self.stretched and goal < rem - 1e-6)  # or allows us to be faster again
-
-    def on_track(self, p: Array, v: Array, a: Array) -> bool:
-        pp, vv, aa = self.state(self.t)
-        return _close(pp, p, 1e-9) and _close(vv, v, 1e-9) and _close(aa, a, 1e-9)
-
-    def plan(self, p: Array, v: Array, a: Array, target_p: Array | None, target_v: Array, vmax: Array,
-             amax: Array, jmax: Array, goal: float = 0.0, key: Array | None = None) -> bool:
-        """Plan to (target_p, target_v), or with ``target_p`` None to velocity ``target_v``; at least
-        ``goal`` seconds long (speed modifier) unless the motion is trivial."""
-        if not self._calculate(p, v, a, target_p, target_v, vmax, amax, jmax, None):
-            return False
-        self.stretched = False
-        trivial = (target_p is None or _close(target_p, p, 1e-6)) and _close(v, target_v, 1e-6) \
-            and _close(a, np.zeros(self.dofs), 1e-6)
-        if goal > self.duration + 1e-9 and not trivial:
-            if not self._calculate(p, v, a, target_p, target_v, vmax, amax, jmax, goal):
-                return False
-            self.stretched = True
-        self.t = 0.0
-        self._key = key
-        return True
-
-    def _calculate(self, p: Array, v: Array, a: Array, target_p: Array | None, target_v: Array, vmax: Array,
-                   amax: Array, jmax: Array, min_duration: float | None) -> bool:
-        inp = self._inp
-        inp.control_interface = ControlInterface.Velocity if target_p is None else ControlInterface.Position
-        inp.synchronization = Synchronization.Time
-        inp.current_position = [float(x) for x in p]
-        inp.current_velocity = [float(x) for x in v]
-        inp.current_acceleration = [float(x) for x in a]
-        inp.target_position = [float(x) for x in (target_p if target_p is not None else p)]
-        inp.target_velocity = [float(x) for x in target_v]
-        inp.target_acceleration = [0.0] * self.dofs
-        inp.max_velocity = [max(float(x), 1e-6) for x in vmax]
-        inp.max_acceleration = [max(float(x), 1e-6) for x in amax]
-        inp.max_jerk = [max(float(x), 1e-6) for x in jmax]
-        inp.minimum_duration = min_duration
-        self._target_p = None if target_p is None else np.array(target_p, dtype=float)
-        self._target_v = np.array(target_v, dtype=float)
-        try:
-            result = self._otg.calculate(inp, self._traj)
-        except Exception as exc:  # ruckig raises on invalid input or unmapped error codes
-            log.debug("ruckig failed (%s) for p=%s v=%s a=%s tp=%s tv=%s", exc, p, v, a, target_p, target_v)
-            result = Result.Error
-        self.ok = result in (Result.Working, Result.Finished)
-        self.duration = float(self._traj.duration) if self.ok else 0.0
-        if not self.ok:
-            self._key = None
-        return self.ok
-
-    def state(self, t: float) -> tuple[Array, Array, Array]:
-        """State at ``t`` after the start; after the end it continues with its final velocity."""
-        if t < self.duration:
-            p, v, a = self._traj.at_time(t)
-            return np.array(p), np.array(v), np.array(a)
-        # at and after the end: exactly the target, then on with the target velocity
-        if self._target_p is not None:
-            p_end = self._target_p
-        else:
-            p_end = np.array(self._traj.at_time(self.duration)[0])
-        return p_end + self._target_v * (t - self.duration), self._target_v.copy(), np.zeros(self.dofs)
-
-    def advance(self, dt: float) -> tuple[Array, Array, Array]:
-        """Move ``dt`` along the trajectory and return the state there."""
-        self.t += dt
-        return self.state(self.t)
-
-    def invalidate(self) -> None:
-        self._key = None
-
-
-_NONE = 1.2345e300  # stands for None in a key
-
-
-def _close(x: Array, y: Array, tol: float) -> bool:
-    """Max-norm closeness, fast for the tiny arrays used here."""
-    xs = x.tolist() if isinstance(x, np.ndarray) else list(x)
-    ys = y.tolist() if isinstance(y, np.ndarray) else list(y)
-    return len(xs) == len(ys) and all(abs(a - b) <= tol for a, b in zip(xs, ys, strict=True))
-
-
-def _key(*parts: object) -> Array:
-    out: list[float] = []
-    for part in parts:
-        if part is None:
-            out.append(_NONE)
-        elif isinstance(part, np.ndarray | list | tuple):
-            out.extend(float(x) for x in part)  # type: ignore[union-attr]
-        else:
-            out.append(float(part))  # type: ignore[arg-type]
-    return np.array(out)
-
-
-def _unit(x: np.ndarray) -> tuple[np.ndarray, float]:
-    n = float(np.linalg.norm(x))
-    return (x / n if n > _EPS else np.zeros_like(x)), n
-
-
-def _clamp_norm(x: np.ndarray, limit: float) -> tuple[np.ndarray, bool]:
-    n = float(np.linalg.norm(x))
-    if n > limit:
-        return x * (limit / n), True
-    return x, False
-
-
-def _perp_basis(u: np.ndarray) -> list[np.ndarray]:
-    """Orthonormal vectors spanning the space perpendicular to unit vector ``u`` (2-D or 3-D)."""
-    if u.shape[0] == 2:
-        return [np.array([-u[1], u[0]])]
-    helper = np.array([0.0, 0.0, 1.0]) if abs(u[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
-    n1, _ = _unit(np.cross(u, helper))
-    n2 = np.cross(u, n1)
-    return [n1, n2]
-
-
-def stopping_speed(distance: float, accel: float, jerk: float) -> float:
-    """Largest speed from which a jerk-limited stop (using half of ``accel``) fits in ``distance``."""
-    a = 0.5 * accel
-    d = max(0.0, distance - 0.1)
-    k = a * a / jerk
-    return -k + math.sqrt(k * k + 2.0 * a * d)
-
-
-@dataclass
-class _PathFrame:
-    """The line frame of a path plan: along ``u`` from the target, across along ``basis``."""
-
-    dims: int
-    u: Array
-    basis: list[Array]
-    target: Array
-    key: Array
-    cross_active: bool = False
-    t_cross: float = 0.0
-
-    def along_state(self, p: Array, v: Array, a: Array) -> tuple[Array, Array, Array]:
-        return (np.array([float((p - self.target) @ self.u)]), np.array([float(v @ self.u)]),
-                np.array([float(a @ self.u)]))
-
-    def cross_state(self, p: Array, v: Array, a: Array) -> tuple[Array, Array, Array]:
-        return (np.array([float((p - self.target) @ n) for n in self.basis]),
-                np.array([float(v @ n) for n in self.basis]), np.array([float(a @ n) for n in self.basis]))
-
-
 class ReferenceGenerator:
     """Turns :class:`ChannelTargets` into the next :class:`Reference` (see module docstring)."""
 
     def __init__(self, limits: Limits, envelope: Envelope | None = None) -> None:
         self.limits = limits
         self.envelope = envelope or Envelope()
-        self._along = _Planner(1)
-        self._cross2 = _Planner(1)
-        self._cross3 = _Planner(2)
-        self._hvel = _Planner(2)
-        self._vert = _Planner(1)
-        self._yaw = _Planner(1)
-        self._frame: _PathFrame | None = None
+        self._along = Planner(1)
+        self._cross2 = Planner(1)
+        self._cross3 = Planner(2)
+        self._hvel = Planner(2)
+        self._vert = Planner(1)
+        self._yaw = Planner(1)
+        self._frame: PathFrame | None = None
         #: How often the final guard had to correct the planned step (diagnostics).
         self.guard_interventions = 0
 
@@ -361,7 +185,7 @@ class ReferenceGenerator:
     def initial(self, t_s: float, p: Vec3, v: Vec3, yaw: float) -> Reference:
         """A reference at a measured state (start, or after an override): velocity within limits."""
         L = self.limits
-        vh, _ = _clamp_norm(np.array(v[:2], dtype=float), L.horizontal_speed)
+        vh, _ = clamp_norm(np.array(v[:2], dtype=float), L.horizontal_speed)
         vd = float(np.clip(v[2], -L.vertical_speed, L.vertical_speed))
         return Reference(t_s, tuple(float(x) for x in p), (float(vh[0]), float(vh[1]), vd),  # type: ignore[arg-type]
                          (0.0, 0.0, 0.0), float(yaw), 0.0, 0.0)
@@ -491,7 +315,7 @@ class ReferenceGenerator:
         lim_j = np.array([L.yaw_jerk_rad])
         if isinstance(t, YawTarget):
             rate = min(abs(t.rate), L.yaw_rate_rad)
-            key = _key(0, t.yaw, rate)
+            key = plan_key(0, t.yaw, rate)
             if pl.reusable(key, *cur, key_tol=1e-6) or pl.plan(*cur, np.array([t.yaw]), np.zeros(1),
                                                                 np.array([rate]), lim_a, lim_j, key=key):
                 remaining = pl.remaining
@@ -502,7 +326,7 @@ class ReferenceGenerator:
                 return float(y[0]), float(r[0]), float(acc[0]), remaining, False
         else:
             rate = float(np.clip(t.rate, -L.yaw_rate_rad, L.yaw_rate_rad))
-            key = _key(1, rate)
+            key = plan_key(1, rate)
             if pl.reusable(key, *cur) or pl.plan(*cur, None, np.array([rate]), np.array([L.yaw_rate_rad]),
                                                  lim_a, lim_j, key=key):
                 y, r, acc = pl.advance(dt)
@@ -523,7 +347,7 @@ class ReferenceGenerator:
         if isinstance(t, AxisTarget):
             speed = min(t.speed, L.vertical_speed)
             end_v = float(np.clip(t.end_velocity, -speed, speed))
-            key = _key(0, t.down, end_v, speed)
+            key = plan_key(0, t.down, end_v, speed)
             if pl.reusable(key, *cur, goal=goal) or pl.plan(*cur, np.array([t.down]), np.array([end_v]),
                                                             np.array([speed]), lim_a, lim_j, goal, key):
                 remaining = pl.remaining
@@ -534,7 +358,7 @@ class ReferenceGenerator:
                 return float(pp[0]), float(vv[0]), float(aa[0]), remaining, False
         else:
             target_v = float(np.clip(t.velocity[0], -L.vertical_speed, L.vertical_speed))
-            key = _key(1, target_v)
+            key = plan_key(1, target_v)
             if pl.reusable(key, *cur) or pl.plan(*cur, None, np.array([target_v]),
                                                  np.array([L.vertical_speed]), lim_a, lim_j, key=key):
                 pp, vv, aa = pl.advance(dt)
@@ -550,8 +374,8 @@ class ReferenceGenerator:
         limits whatever the direction of the previous change was (a joystick changes it every tick)."""
         L = self.limits
         pl = self._hvel
-        target_v, _ = _clamp_norm(target_v, L.horizontal_speed)
-        key = _key(target_v)
+        target_v, _ = clamp_norm(target_v, L.horizontal_speed)
+        key = plan_key(target_v)
         if pl.reusable(key, p, v, a) or pl.plan(p, v, a, None, target_v, np.full(2, L.horizontal_speed),
                                                 np.full(2, L.horizontal_acceleration * _SQRT1_2),
                                                 np.full(2, L.horizontal_jerk * _SQRT1_2), key=key):
@@ -568,10 +392,10 @@ class ReferenceGenerator:
         target = np.array(t.position, dtype=float)
         end_v = np.array(t.end_velocity, dtype=float) if t.end_velocity is not None else np.zeros(k)
         speed = min(t.speed, L.horizontal_speed)
-        key = _key(k, target, end_v, speed)
+        key = plan_key(k, target, end_v, speed)
         frame = self._frame
         reuse = (frame is not None and frame.dims == k and frame.key.shape == key.shape
-                 and _close(frame.key, key, 1e-9) and along.ok
+                 and close_to(frame.key, key, 1e-9) and along.ok
                  and along.reusable(key, *frame.along_state(p, v, a),
                                   goal=max(goal, cross.remaining if frame.cross_active else 0.0))
                  and (not frame.cross_active or cross.on_track(*frame.cross_state(p, v, a))))
@@ -595,19 +419,19 @@ class ReferenceGenerator:
         return p1, v1, a1, False
 
     def _plan_path(self, p: Array, v: Array, a: Array, target: Array, end_v: Array, speed: float, goal: float,
-                   key: Array) -> _PathFrame | None:
+                   key: Array) -> PathFrame | None:
         L = self.limits
         k = p.shape[0]
         m = k - 1
         along, cross = self._along, (self._cross2 if k == 2 else self._cross3)
-        u, dist = _unit(target - p)
+        u, dist = unit(target - p)
         if dist <= _EPS:
-            u, n = _unit(end_v)
+            u, n = unit(end_v)
             if n <= _EPS:
-                u, n = _unit(v)
+                u, n = unit(v)
             if n <= _EPS:
                 u = np.eye(k)[0]
-        frame = _PathFrame(k, u, _perp_basis(u), target, key)
+        frame = PathFrame(k, u, perp_basis(u), target, key)
         uh = float(np.linalg.norm(u[:2]))
         uv = abs(float(u[2])) if k == 3 else 0.0
 
@@ -648,7 +472,7 @@ class ReferenceGenerator:
     def _brake_path(self, p: Array, v: Array, dt: float) -> tuple[Array, Array, Array]:
         log.warning("planning failed; braking")
         L = self.limits
-        dv, _ = _clamp_norm(-v, min(L.horizontal_acceleration, L.vertical_acceleration) * dt)
+        dv, _ = clamp_norm(-v, min(L.horizontal_acceleration, L.vertical_acceleration) * dt)
         return p + (v + 0.5 * dv) * dt, v + dv, dv / dt
 
     # --- the guard --------------------------------------------------------------------------------------
