@@ -26,7 +26,6 @@ vehicle is taken out of the team first (see :mod:`companion.control_mission`).
 from __future__ import annotations
 
 import itertools
-import math
 from typing import Any
 
 from fastapi import FastAPI
@@ -35,6 +34,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator
 from companion.link.params import ParamClient, ParamError
 from companion.team.member import TeamMember
 from companion.team.types import TaskKind, TeamTask
+from taskflight.geo import check_point
 
 #: ids of directed tasks (outside the station's numbering)
 _directed_ids = itertools.count(1_000_000)
@@ -59,10 +59,7 @@ class DirectedTask(_Strict):
     @classmethod
     def _points(cls, points: list[list[float]]) -> list[list[float]]:
         for i, p in enumerate(points):
-            if len(p) not in (2, 3) or not all(math.isfinite(v) for v in p):
-                raise ValueError(f"points[{i}]: expected [lat, lon] or [lat, lon, alt] of finite numbers")
-            if not (-90.0 <= p[0] <= 90.0 and -180.0 <= p[1] <= 180.0):
-                raise ValueError(f"points[{i}]: latitude or longitude out of range")
+            check_point(p, f"points[{i}]")
         return points
 
 

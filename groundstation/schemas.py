@@ -6,10 +6,11 @@ frame the operator gives team tasks in (seed 003 Sec. II). Every refusal answers
 
 from __future__ import annotations
 
-import math
 from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+
+from taskflight.geo import check_point
 
 Point = list[float]
 TASK_TYPES = ("visit", "patrol_line", "border_patrol", "area_scan", "tst")
@@ -18,16 +19,6 @@ COMMANDS = ("start", "take", "release", "pause", "resume", "enough", "user_confi
 
 class _Strict(BaseModel):
     model_config = ConfigDict(extra="forbid")
-
-
-def check_point(p: list[float], where: str = "") -> list[float]:
-    """A ``[lat, lon(, alt)]`` (ValueError prefixed with ``where``, e.g. ``[3]``)."""
-    prefix = f"{where}: " if where else ""
-    if len(p) not in (2, 3) or not all(math.isfinite(v) for v in p):
-        raise ValueError(f"{prefix}expected [lat, lon] or [lat, lon, alt] of finite numbers")
-    if not (-90.0 <= p[0] <= 90.0 and -180.0 <= p[1] <= 180.0):
-        raise ValueError(f"{prefix}latitude or longitude out of range")
-    return p
 
 
 # --- errors ------------------------------------------------------------------------------------------

@@ -51,3 +51,14 @@ def geodetic_to_ned(origin: tuple[float, float, float], lat: float, lon: float, 
     n = (lat - lat0) / _DEG_PER_M
     e = dlon / _DEG_PER_M * longitude_scale((lat + lat0) / 2.0)
     return (n, e, alt0 - alt)
+
+
+def check_point(p: list[float], where: str = "") -> list[float]:
+    """A ``[lat, lon]`` or ``[lat, lon, alt]`` of finite numbers with latitude and longitude in range;
+    ValueError prefixed with ``where`` (e.g. ``points[3]``) otherwise. For request bodies."""
+    prefix = f"{where}: " if where else ""
+    if len(p) not in (2, 3) or not all(math.isfinite(v) for v in p):
+        raise ValueError(f"{prefix}expected [lat, lon] or [lat, lon, alt] of finite numbers")
+    if not (-90.0 <= p[0] <= 90.0 and -180.0 <= p[1] <= 180.0):
+        raise ValueError(f"{prefix}latitude or longitude out of range")
+    return p
