@@ -29,6 +29,12 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     return run_demo(args)
 
 
+def _cmd_up(args: argparse.Namespace) -> int:
+    from taskflight.up import run_up
+
+    return run_up(args)
+
+
 def _cmd_companion(args: argparse.Namespace) -> int:
     from companion.main import run_companion
 
@@ -147,6 +153,13 @@ def build_parser() -> argparse.ArgumentParser:
 
     add_demo_arguments(dp)
     handlers["demo"] = _cmd_demo
+
+    upp = sub.add_parser("up", help="a whole simulated fleet: N models, N companions on one team link, the "
+                                    "ground service (Ctrl-C stops everything)")
+    from taskflight.up import add_up_arguments
+
+    add_up_arguments(upp)
+    handlers["up"] = _cmd_up
 
     try:
         from companion.main import add_companion_arguments
