@@ -173,6 +173,8 @@ class UpOptions:
             raise UpError(f"--team-loss must be within 0..1, got {self.team_loss}", 2)
         if self.team is not None and "loss=" in self.team and self.team_loss:
             raise UpError("give the loss either in --team or with --team-loss, not both", 2)
+        if not self.platform.is_file():
+            raise UpError(f"--platform: no such file: {self.platform}", 2)
         if not 1 <= self.ground_port <= 65535:
             raise UpError(f"--ground-port must be within 1..65535, got {self.ground_port}", 2)
 
@@ -460,6 +462,8 @@ def add_up_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--state-dir", default=None, metavar="DIR",
                    help="logs, tokens, model parameters, the ground database (default "
                         "$TASKFLIGHT_STATE/up or ~/.taskflight/up)")
+    p.add_argument("--platform", default=str(PLATFORM), metavar="YAML",
+                   help="the companions' platform for delegation (default: the outdoor one)")
     p.add_argument("--no-ground", action="store_true", help="everything but the ground service")
     p.add_argument("--no-persist", action="store_true", help="the models neither load nor save parameters")
     p.add_argument("--ready-timeout", type=float, default=None, metavar="S",
@@ -474,7 +478,7 @@ def options_from_args(args: argparse.Namespace) -> UpOptions:
                      ground_port=args.ground_port, host=args.host, mavlink_host=args.mavlink_host,
                      tokens_file=Path(args.tokens) if args.tokens else None, team=args.team,
                      team_loss=args.team_loss, ready_timeout_s=args.ready_timeout,
-                     persist=not args.no_persist)
+                     persist=not args.no_persist, platform=Path(args.platform))
 
 
 def run_up(args: argparse.Namespace) -> int:
