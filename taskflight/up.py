@@ -141,6 +141,16 @@ def generate_tokens() -> dict[str, list[str]]:
     return {"operator": [secrets.token_urlsafe(24)], "observer": [secrets.token_urlsafe(24)]}
 
 
+def ground_available() -> bool:
+    """Whether ``taskflight ground`` (the ground service) is part of this installation."""
+    import importlib.util
+
+    try:
+        return importlib.util.find_spec("groundstation.service") is not None
+    except (ImportError, ValueError):
+        return False
+
+
 # --- options -----------------------------------------------------------------------------------------
 @dataclass
 class UpOptions:
@@ -240,6 +250,9 @@ class Up:
         """Start everything and wait until ready (UpError, everything stopped, if it cannot)."""
         o = self.opts
         o.check()
+        if o.ground and not ground_available():
+            raise UpError("the ground service (taskflight ground) is not installed here; --no-ground starts "
+                          "everything else", 2)
         taken = o.ports_taken()
         if taken:
             raise UpError("port(s) already in use: " + ", ".join(taken) + "; is another fleet running? "

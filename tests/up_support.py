@@ -44,13 +44,19 @@ class Summary:
     observer: str | None = None
 
 
+def child_env() -> dict[str, str]:
+    """The environment for ``python -m taskflight.cli`` children: this checkout first on the path."""
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join(p for p in (str(ROOT), env.get("PYTHONPATH", "")) if p)
+    env["PYTHONUNBUFFERED"] = "1"
+    return env
+
+
 class UpProcess:
     """``taskflight up ARGS`` in a child process; :meth:`wait_ready` parses its summary."""
 
     def __init__(self, args: Sequence[str], state_dir: Path) -> None:
-        env = dict(os.environ)
-        env["PYTHONPATH"] = os.pathsep.join(p for p in (str(ROOT), env.get("PYTHONPATH", "")) if p)
-        env["PYTHONUNBUFFERED"] = "1"
+        env = child_env()
         self.argv = [sys.executable, "-m", "taskflight.cli", "up", "--state-dir", str(state_dir), *args]
         self.proc = subprocess.Popen(self.argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                                      env=env, cwd=ROOT, stdin=subprocess.DEVNULL)
