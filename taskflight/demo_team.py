@@ -36,7 +36,7 @@ from typing import Any
 
 from taskflight.geo import ned_to_geodetic
 from taskflight.team_tasking import GroundTasking, StationTasking, Tasking, TaskRow, http_json
-from taskflight.up import ROOT, Up, UpError, UpOptions, _pause, ground_available
+from taskflight.up import ROOT, Up, UpError, UpOptions, ground_available, sleep_or_stop
 
 MISSION = ROOT / "mission_specs" / "scan_and_search_outdoor.yaml"
 #: the fleet's home (the bundled model's default, CMAC); vehicle i stands 5 i m east of it
@@ -183,7 +183,7 @@ def play(up: Up, tasking: Tasking, args: argparse.Namespace, stop: threading.Eve
         if time.monotonic() > t_end:
             raise RuntimeError(f"the scenario did not complete in {args.timeout:g} simulated s: mission "
                                f"{progress.mission_state}, tasks {states}")
-        _pause(stop, 0.5)
+        sleep_or_stop(stop, 0.5)
 
 
 # --- the report --------------------------------------------------------------------------------------

@@ -32,7 +32,6 @@ ground service's database: ``<state-dir>/ground.db``.
 from __future__ import annotations
 
 import argparse
-import json
 import logging
 import os
 import random
@@ -41,8 +40,6 @@ import socket
 import sys
 import threading
 import time
-import urllib.error
-import urllib.request
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -324,7 +321,7 @@ class Up:
             if time.monotonic() > end:
                 raise UpError(f"the fleet printed no READY line in time; the end of {fleet_log}:\n"
                               f"{self.fleet.tail()}")
-            _pause(stop, 0.05)
+            sleep_or_stop(stop, 0.05)
         ctl = free_tcp_ports(o.vehicles)
         for i in range(o.vehicles):
             tcp, udp = model_ports(o.base_instance + i)
@@ -374,29 +371,31 @@ class Up:
                 hint = "\n".join(f"--- {c.name}:\n{c.tail(5)}" for c in self.children
                                  if c.name == "ground" or c.name[len("companion"):] in map(str, pending))
                 raise UpError(f"not ready in time: {what}\n{hint}")
-            _pause(stop, 0.2)
+            sleep_or_stop(stop, 0.2)
 
     def _get(self, url: str, token: str) -> Any:
-        req = urllib.request.Request(url, headers={"Authorization": f"Bearer {token}"})
-        with urllib.request.urlopen(req, timeout=5.0) as r:
-            return json.loads(r.read())
+        from taskflight.team_tasking import http_json
+
+        return http_json("GET", url, token, timeout_s=5.0)
 
     def _vehicle_ready(self, v: VehicleInfo, want: set[int]) -> bool:
         """Its companion's MAVLink link is connected and it hears every vehicle on the team link."""
         try:
             status = self._get(v.control_url + "/status", self.control_token)
             team = self._get(v.control_url + "/team", self.control_token)
-        except (OSError, ValueError, urllib.error.URLError):
+        except (OSError, ValueError, RuntimeError):
             return False
         return bool(status.get("link", {}).get("connected")) and want <= set(team.get("alive", []))
 
     def _ground_ready(self) -> bool:
         try:
             body = self._get(f"{self.ground_url}/api/vehicles", self.tokens["operator"][0])
-        except (OSError, ValueError, urllib.error.URLError):
+        except (OSError, ValueError, RuntimeError):
             return False
-        rows = body if isinstance(body, list) else body.get("vehicles", []) if isinstance(body, dict) else []
-        return len(rows) >= self.opts.vehicles
+        rows = body.get("vehicles", []) if isinstance(body, dict) else body if isinstance(body, list) else []
+        heard = [r for r in rows if isinstance(r, dict) and r.get("team_state", "available") not in
+                 ("unknown", "gone")]
+        return len(heard) >= self.opts.vehicles
 
     # --- stop --------------------------------------------------------------------------------------
     def stop(self, timeout_s: float = 10.0) -> None:
@@ -433,7 +432,7 @@ class Up:
         return "\n".join(lines)
 
 
-def _pause(stop: threading.Event | None, s: float) -> None:
+def sleep_or_stop(stop: threading.Event | None, s: float) -> None:
     """Wait ``s`` seconds; KeyboardInterrupt if ``stop`` is set meanwhile (SIGINT/SIGTERM)."""
     if stop is None:
         time.sleep(s)
