@@ -81,6 +81,7 @@ class Row:
     ground_mb: float
     sim_rate: float
     note: str = ""
+    nice: int = 0
 
 
 def autopilot_time(up: Up) -> float:
@@ -88,10 +89,11 @@ def autopilot_time(up: Up) -> float:
     return float(http_json("GET", v.control_url + "/status", up.control_token)["link"]["autopilot_time_s"])
 
 
-def measure(n: int, speedup: float, settle_s: float, measure_s: float, ground: bool) -> Row:
+def measure(n: int, speedup: float, settle_s: float, measure_s: float, ground: bool, nice: int = 0) -> Row:
     with tempfile.TemporaryDirectory(prefix="bench-up-") as tmp:
         opts = UpOptions(vehicles=n, state_dir=Path(tmp), speedup=speedup, base_instance=free_base(n),
-                         ground=ground, ground_port=_free_tcp(), persist=False, ready_timeout_s=60 + 6.0 * n)
+                         ground=ground, ground_port=_free_tcp(), persist=False, ready_timeout_s=60 + 6.0 * n,
+                         companion_nice=nice)
         up = Up(opts)
         try:
             up.start()
@@ -110,10 +112,11 @@ def measure(n: int, speedup: float, settle_s: float, measure_s: float, ground: b
             return Row(n, speedup, up.startup_s, cpu["models"], mem["models"], cpu["companions"],
                        mem["companions"], cpu["ground"] if ground else float("nan"),
                        mem["ground"] if ground else float("nan"), (sim1 - sim0) / wall,
-                       f"died: {dead}" if dead else "")
+                       f"died: {dead}" if dead else "", nice)
         except UpError as exc:
             first = str(exc).splitlines()[0]
-            return Row(n, speedup, float("nan"), *([float("nan")] * 7), note=f"failed: {first[:100]}")
+            return Row(n, speedup, float("nan"), *([float("nan")] * 7), note=f"failed: {first[:100]}",
+                       nice=nice)
         finally:
             up.stop()
 
@@ -126,7 +129,8 @@ def _free_tcp() -> int:
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--configs", default="3:1,12:1,50:0", help="N:SPEEDUP,... (speedup 0: lockstep)")
+    p.add_argument("--configs", default="3:1,12:1,50:0,50:0:10", help="N:SPEEDUP[:NICE],... (speedup 0: "
+                   "lockstep; NICE: the companions' niceness, --companion-nice)")
     p.add_argument("--settle", type=float, default=10.0, help="wall seconds after READY before measuring")
     p.add_argument("--measure", type=float, default=20.0, help="wall seconds measured")
     p.add_argument("--no-ground", action="store_true", help="leave the ground service out")
@@ -134,15 +138,15 @@ def main(argv: list[str] | None = None) -> int:
     ground = ground_available() and not args.no_ground
     rows = []
     for item in args.configs.split(","):
-        n, k = item.split(":")
-        print(f"N = {n}, speedup {k} ...", file=sys.stderr, flush=True)
-        rows.append(measure(int(n), float(k), args.settle, args.measure, ground))
+        n, k, *nice = item.split(":")
+        print(f"N = {n}, speedup {k}, companions' niceness {nice or 0} ...", file=sys.stderr, flush=True)
+        rows.append(measure(int(n), float(k), args.settle, args.measure, ground, int(nice[0]) if nice else 0))
         print(rows[-1], file=sys.stderr, flush=True)
     print(f"taskflight up: {machine()}; idle fleet on the ground, measured {args.measure:g} s after "
           f"{args.settle:g} s; CPU in % of one core; ground service {'on' if ground else 'off'}")
-    print(table(["N", "speedup", "start-up s", "models CPU %", "models MB", "companions CPU % (each)",
+    print(table(["N", "speedup", "nice", "start-up s", "models CPU %", "models MB", "companions CPU % (each)",
                  "companions MB (each)", "ground CPU %", "ground MB", "sim s / wall s", "note"],
-                [[r.n, "lockstep" if r.speedup == 0 else f"{r.speedup:g}", f"{r.startup_s:.1f}",
+                [[r.n, "lockstep" if r.speedup == 0 else f"{r.speedup:g}", r.nice, f"{r.startup_s:.1f}",
                   f"{r.models_cpu:.1f}", f"{r.models_mb:.0f}",
                   f"{r.comp_cpu:.1f} ({r.comp_cpu / r.n:.1f})", f"{r.comp_mb:.0f} ({r.comp_mb / r.n:.0f})",
                   f"{r.ground_cpu:.1f}", f"{r.ground_mb:.0f}", f"{r.sim_rate:.2f}", r.note] for r in rows]))

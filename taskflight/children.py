@@ -1,7 +1,10 @@
 """Child processes of ``taskflight up`` (issue 12 item 8): started, logged, watched and stopped together.
 
-Each child runs in a session (and so a process group) of its own, with its output appended to a log
-file: a Ctrl-C at the terminal reaches ``taskflight up`` alone, which then stops the children in order
+Each child runs in a process group of its own (in the session of ``taskflight up``: one scheduler
+autogroup for the whole fleet, so the models' process competes with its own companions, whose niceness
+then means something, rather than each child counting as a user of the machine of its own), with its
+output appended to a log file: a Ctrl-C at the terminal reaches ``taskflight up`` alone (the terminal
+signals its foreground process group only), which then stops the children in order
 (:func:`stop_all`: SIGTERM to all of them at once, one shared deadline, then SIGKILL to each one's whole
 process group, so nothing it started is left behind either). :attr:`Child.tail` reads the last lines of
 the log, for the message when a child dies during start-up.
@@ -42,7 +45,7 @@ class Child:
         with open(self.log_path, "ab") as out:  # the child keeps its own descriptor
             self.proc = subprocess.Popen(self.argv, stdin=subprocess.DEVNULL, stdout=out,
                                          stderr=subprocess.STDOUT, env=env, cwd=self.cwd,
-                                         start_new_session=True)
+                                         process_group=0)
         log.debug("%s: pid %d: %s", self.name, self.proc.pid, " ".join(self.argv))
         return self
 
@@ -70,7 +73,7 @@ class Child:
         return "\n".join(text.splitlines()[-lines:])
 
     def signal_group(self, sig: int) -> None:
-        """Send ``sig`` to the child's process group (its session: the child and anything it started)."""
+        """Send ``sig`` to the child's process group (the child and anything it started)."""
         if self.proc is None:
             return
         with contextlib.suppress(ProcessLookupError, PermissionError):

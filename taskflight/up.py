@@ -3,7 +3,7 @@
     taskflight up --vehicles N [--speedup K] [--ground-port P] [--tokens FILE] [--team-loss F]
                   [--team URL] [--state-dir DIR] [--base-instance I] [--no-ground]
 
-starts, each as a child process in a session of its own (:mod:`taskflight.children`):
+starts, each as a child process in a process group of its own (:mod:`taskflight.children`):
 
 * the fleet: N bundled autopilot models in ONE process on one clock (:mod:`autopilot_model.fleet`).
   Vehicle i (from 0) is instance I+i: MAVLink system id i+1, ArduPilot SITL's TCP port 5760+10(I+i) for
@@ -167,6 +167,7 @@ class UpOptions:
     platform: Path = PLATFORM
     ready_timeout_s: float | None = None
     persist: bool = True
+    companion_nice: int = 0
 
     def check(self) -> None:
         if not 1 <= self.vehicles <= 200:
@@ -180,6 +181,8 @@ class UpOptions:
             raise UpError(f"--team-loss must be within 0..1, got {self.team_loss}", 2)
         if self.team is not None and "loss=" in self.team and self.team_loss:
             raise UpError("give the loss either in --team or with --team-loss, not both", 2)
+        if not 0 <= self.companion_nice <= 19:
+            raise UpError(f"--companion-nice must be within 0..19, got {self.companion_nice}", 2)
         if not self.platform.is_file():
             raise UpError(f"--platform: no such file: {self.platform}", 2)
         if not 1 <= self.ground_port <= 65535:
@@ -337,7 +340,8 @@ class Up:
         env = {**self._pythonpath(), TOKEN_ENV: self.control_token}
         for v in self.vehicles:
             port = v.control_url.rsplit(":", 1)[1]
-            argv = [*self._exe(), "companion", "--autopilot", f"udpout:127.0.0.1:{v.udp}",
+            nice = ["nice", "-n", str(o.companion_nice)] if o.companion_nice else []
+            argv = [*nice, *self._exe(), "companion", "--autopilot", f"udpout:127.0.0.1:{v.udp}",
                     "--team", self.member_url, "--control-port", port, "--control-host", "127.0.0.1",
                     "--platform", str(o.platform),
                     "--flight-log", str(o.state_dir / "logs" / f"flight{v.sysid}.jsonl")]
@@ -478,6 +482,9 @@ def add_up_arguments(p: argparse.ArgumentParser) -> None:
                    help="the companions' platform for delegation (default: the outdoor one)")
     p.add_argument("--no-ground", action="store_true", help="everything but the ground service")
     p.add_argument("--no-persist", action="store_true", help="the models neither load nor save parameters")
+    p.add_argument("--companion-nice", type=int, default=0, metavar="K",
+                   help="run the companions at niceness K (0..19), so that the models' one process keeps "
+                        "its clock when many companions load the machine (default 0)")
     p.add_argument("--ready-timeout", type=float, default=None, metavar="S",
                    help="give up starting after S seconds (default 60 + 3 N)")
 
@@ -490,7 +497,8 @@ def options_from_args(args: argparse.Namespace) -> UpOptions:
                      ground_port=args.ground_port, host=args.host, mavlink_host=args.mavlink_host,
                      tokens_file=Path(args.tokens) if args.tokens else None, team=args.team,
                      team_loss=args.team_loss, ready_timeout_s=args.ready_timeout,
-                     persist=not args.no_persist, platform=Path(args.platform))
+                     persist=not args.no_persist, platform=Path(args.platform),
+                     companion_nice=args.companion_nice)
 
 
 def run_up(args: argparse.Namespace) -> int:
