@@ -34,6 +34,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import yaml
+
 from taskflight.geo import ned_to_geodetic
 from taskflight.team_tasking import GroundTasking, StationTasking, Tasking, TaskRow, http_json
 from taskflight.up import ROOT, Up, UpError, UpOptions, ground_available, sleep_or_stop
@@ -143,15 +145,10 @@ def run_demo_team(args: argparse.Namespace) -> int:
 def play(up: Up, tasking: Tasking, args: argparse.Namespace, stop: threading.Event) -> Progress:
     """The scenario (module docstring); returns what it saw. RuntimeError if it does not complete."""
     k = max(args.speedup, 0.5) if args.speedup > 0 else 5.0
-    v1 = up.vehicles[0]
-    token = up.control_token
     progress = Progress()
-    answer = http_json("POST", v1.control_url + "/mission", token, content=MISSION.read_text("utf-8"),
-                       content_type=YAML)
-    if not answer.get("accepted"):
-        raise RuntimeError(f"the mission was rejected: {answer}")
-    http_json("POST", v1.control_url + "/mission/start", token, {})
-    print(f"vehicle 1: mission {MISSION.name} accepted and started", flush=True)
+    mission = VehicleMission(up, 1)
+    mission.give(MISSION)
+    print(f"vehicle 1: mission {MISSION.name} accepted and started ({mission.via})", flush=True)
     visit = tasking.add("visit", [geo(-20, 25, 8)], "visit")
     patrol = tasking.add("patrol_line", [geo(0, -30, 8), geo(20, -30, 8)], "patrol")
     print(f"team: visit {visit} and patrol line {patrol} added", flush=True)
@@ -161,12 +158,12 @@ def play(up: Up, tasking: Tasking, args: argparse.Namespace, stop: threading.Eve
     while True:
         for line in progress.update(tasking.tasks()):
             print(line, flush=True)
-        mission = http_json("GET", v1.control_url + "/mission", token)
-        if mission.get("state") != progress.mission_state:
-            progress.mission_state = str(mission.get("state"))
+        status = mission.status()
+        if status.get("state") != progress.mission_state:
+            progress.mission_state = str(status.get("state"))
             print(f"vehicle 1: mission {progress.mission_state}"
-                  + (f" ({mission.get('fail_reason')})" if mission.get("fail_reason") else ""), flush=True)
-        progress.mission_status = mission
+                  + (f" ({status.get('fail_reason')})" if status.get("fail_reason") else ""), flush=True)
+        progress.mission_status = status
         states = {r.id: r.state for r in progress.rows.values()}
         if patrol_since is None and all(states.get(t) == "active" for t in patrol):
             patrol_since = time.monotonic()
@@ -184,6 +181,38 @@ def play(up: Up, tasking: Tasking, args: argparse.Namespace, stop: threading.Eve
             raise RuntimeError(f"the scenario did not complete in {args.timeout:g} simulated s: mission "
                                f"{progress.mission_state}, tasks {states}")
         sleep_or_stop(stop, 0.5)
+
+
+class VehicleMission:
+    """A directed mission for one vehicle: through the ground service (``POST /api/vehicles/{id}/mission``
+    and ``/start``) when it runs, else straight to the vehicle's companion (``POST /mission``,
+    ``/mission/start``)."""
+
+    def __init__(self, up: Up, sysid: int) -> None:
+        self.up, self.sysid = up, sysid
+        self.companion = up.vehicles[sysid - 1].control_url
+        self.via = "the ground service" if up.ground_url else "its companion"
+
+    def give(self, path: Path) -> None:
+        up = self.up
+        if up.ground_url:
+            spec = yaml.safe_load(path.read_text("utf-8"))
+            base = f"{up.ground_url}/api/vehicles/{self.sysid}"
+            token = up.tokens["operator"][0]
+            http_json("POST", base + "/mission", token, {"mission": spec["mission"], "tree": spec["tree"]})
+            http_json("POST", base + "/start", token)
+            return
+        answer = http_json("POST", self.companion + "/mission", up.control_token,
+                           content=path.read_text("utf-8"), content_type=YAML)
+        if not answer.get("accepted"):
+            raise RuntimeError(f"the mission was rejected: {answer}")
+        http_json("POST", self.companion + "/mission/start", up.control_token, {})
+
+    def status(self) -> dict[str, Any]:
+        if self.up.ground_url:
+            return http_json("GET", f"{self.up.ground_url}/api/vehicles/{self.sysid}/mission",
+                             self.up.tokens["operator"][0])
+        return http_json("GET", self.companion + "/mission", self.up.control_token)
 
 
 # --- the report --------------------------------------------------------------------------------------
