@@ -25,6 +25,7 @@ from pymavlink import mavutil
 
 from companion.team.transport import open_transport
 from companion.team.wire import WireError, decode_packet
+from taskflight.team_tasking import HttpError, http_json
 
 N = 3
 SPEEDUP = 3.0
@@ -102,6 +103,21 @@ def test_every_companion_row_is_heard_on_the_team_link(running: Running) -> None
     finally:
         transport.close()
     assert set(range(1, N + 1)) <= heard
+
+
+@pytest.mark.skipif(not has_ground(), reason="the ground service (taskflight ground) is not installed")
+def test_the_ground_service_answers_with_the_printed_tokens(running: Running) -> None:
+    s = running.summary
+    assert s.ground and s.operator and s.observer and "ground" in s.pids
+    tokens = running.state / "tokens.yaml"
+    assert tokens.stat().st_mode & 0o777 == 0o600
+    assert s.operator in tokens.read_text() and s.observer in tokens.read_text()
+    for token in (s.operator, s.observer):
+        rows = http_json("GET", s.ground + "/api/vehicles", token)["vehicles"]
+        assert sorted(r["id"] for r in rows) == [1, 2, 3]
+    with pytest.raises(HttpError) as err:
+        http_json("GET", s.ground + "/api/vehicles", "not-a-token")
+    assert err.value.status == 401
 
 
 def test_sigint_stops_everything_and_frees_the_ports(running: Running) -> None:
