@@ -29,6 +29,18 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     return run_demo(args)
 
 
+def _cmd_up(args: argparse.Namespace) -> int:
+    from taskflight.up import run_up
+
+    return run_up(args)
+
+
+def _cmd_demo_team(args: argparse.Namespace) -> int:
+    from taskflight.demo_team import run_demo_team
+
+    return run_demo_team(args)
+
+
 def _cmd_companion(args: argparse.Namespace) -> int:
     from companion.main import run_companion
 
@@ -153,6 +165,20 @@ def build_parser() -> argparse.ArgumentParser:
 
     add_demo_arguments(dp)
     handlers["demo"] = _cmd_demo
+
+    dtp = sub.add_parser("demo-team", help="the team demo (scripts/demo): 3 vehicles, scan-and-search on "
+                                           "vehicle 1, a visit and a patrol for the team, a report")
+    from taskflight.demo_team import add_demo_team_arguments
+
+    add_demo_team_arguments(dtp)
+    handlers["demo-team"] = _cmd_demo_team
+
+    upp = sub.add_parser("up", help="a whole simulated fleet: N models, N companions on one team link, the "
+                                    "ground service (Ctrl-C stops everything)")
+    from taskflight.up import add_up_arguments
+
+    add_up_arguments(upp)
+    handlers["up"] = _cmd_up
 
     try:
         from companion.main import add_companion_arguments

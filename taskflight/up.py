@@ -1,0 +1,529 @@
+"""``taskflight up``: a whole simulated fleet in one command (issue 12 item 8; seed 003 Fig. 1).
+
+    taskflight up --vehicles N [--speedup K] [--ground-port P] [--tokens FILE] [--team-loss F]
+                  [--team URL] [--state-dir DIR] [--base-instance I] [--no-ground]
+
+starts, each as a child process in a process group of its own (:mod:`taskflight.children`):
+
+* the fleet: N bundled autopilot models in ONE process on one clock (:mod:`autopilot_model.fleet`).
+  Vehicle i (from 0) is instance I+i: MAVLink system id i+1, ArduPilot SITL's TCP port 5760+10(I+i) for
+  any ground station (MAVProxy, QGroundControl: the lowest tier of seed 003 Fig. 1) and UDP 14550+10(I+i)
+  for its companion. The default I = 0 gives the ports users expect (5760, 5770, ...); tests pick a free
+  block with ``--base-instance``;
+* N companions (``taskflight companion``), each on its vehicle's UDP port, all joined to one team link
+  (a free multicast port of 239.255.70.1 unless ``--team``; ``--team-loss F`` appends ``?loss=F`` to the
+  members' URL: that fraction of team packets is dropped at each member), each serving its control surface
+  on a free loopback port with a generated control token (given in the environment, not the command line);
+* the ground service (``taskflight ground``, the team-control station and the operator's REST API),
+  given every companion's URL and the control token; bearer tokens from ``--tokens FILE`` (YAML
+  ``{operator: [..], observer: [..]}``) or generated (one each) and written to
+  ``<state-dir>/tokens.yaml`` with mode 0600.
+
+It waits until every vehicle is heard (each companion's ``GET /status`` says its MAVLink link is
+connected and its ``GET /team`` hears every vehicle's row on the team link; the ground service answers
+with every vehicle), then prints ``READY`` and a summary (URL, tokens, each vehicle's MAVLink ports).
+A child that dies during start-up is reported with the tail of its log and everything is stopped (exit 1);
+ports already taken are reported before anything starts (exit 2). Ctrl-C / SIGTERM stops everything:
+the ground service, then the companions, then the models (SIGTERM with a deadline, then SIGKILL of each
+child's process group). Logs: ``<state-dir>/logs/``; model parameters: ``<state-dir>/models/``; the
+ground service's database: ``<state-dir>/ground.db``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import os
+import random
+import secrets
+import socket
+import sys
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from taskflight.children import Child, first_dead, stop_all
+
+log = logging.getLogger(__name__)
+
+ROOT = Path(__file__).resolve().parents[1]
+PLATFORM = ROOT / "mission_specs" / "platform_outdoor.yaml"
+TEAM_GROUP = "239.255.70.1"
+DEFAULT_GROUND_PORT = 8700
+TOKEN_ENV = "TASKFLIGHT_CONTROL_TOKEN"
+
+
+class UpError(RuntimeError):
+    """``taskflight up`` could not start; the message says why (and what a dead child printed)."""
+
+    def __init__(self, message: str, status: int = 1) -> None:
+        super().__init__(message)
+        self.status = status
+
+
+def model_ports(instance: int) -> tuple[int, int]:
+    """(TCP, UDP) MAVLink ports of an instance, as ArduPilot SITL numbers them."""
+    return 5760 + 10 * instance, 14550 + 10 * instance
+
+
+def port_free(kind: int, port: int, host: str = "127.0.0.1") -> bool:
+    with socket.socket(socket.AF_INET, kind) as sock:
+        if kind == socket.SOCK_STREAM:
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)  # as a listener binds it
+        try:
+            sock.bind((host, port))
+        except OSError:
+            return False
+    return True
+
+
+def free_tcp_ports(n: int, host: str = "127.0.0.1") -> list[int]:
+    """``n`` distinct free TCP ports (bound at the same time, so no two are the same)."""
+    socks = [socket.socket(socket.AF_INET, socket.SOCK_STREAM) for _ in range(n)]
+    try:
+        for s in socks:
+            s.bind((host, 0))
+        return [s.getsockname()[1] for s in socks]
+    finally:
+        for s in socks:
+            s.close()
+
+
+def free_team_url() -> str:
+    """A multicast team URL on a free UDP port."""
+    rng = random.Random()
+    for _ in range(50):
+        port = rng.randrange(20000, 60000)
+        if port_free(socket.SOCK_DGRAM, port, ""):
+            return f"udp://{TEAM_GROUP}:{port}"
+    raise UpError("no free UDP port for the team link")
+
+
+# --- tokens ------------------------------------------------------------------------------------------
+def load_tokens(path: Path) -> dict[str, list[str]]:
+    """The tokens file: YAML ``{operator: [tokens], observer: [tokens]}`` (at least one operator)."""
+    try:
+        data = yaml.safe_load(path.read_text(encoding="utf-8"))
+    except (OSError, yaml.YAMLError) as exc:
+        raise UpError(f"tokens file {path}: {exc}", 2) from None
+    if not isinstance(data, dict) or not set(data) <= {"operator", "observer"}:
+        raise UpError(f"tokens file {path}: expected a mapping with keys operator and observer", 2)
+    out: dict[str, list[str]] = {}
+    for role in ("operator", "observer"):
+        tokens = data.get(role) or []
+        if not isinstance(tokens, list) or not all(isinstance(t, str) and t.strip() for t in tokens):
+            raise UpError(f"tokens file {path}: {role} must be a list of non-empty strings", 2)
+        out[role] = list(tokens)
+    if not out["operator"]:
+        raise UpError(f"tokens file {path}: no operator token", 2)
+    return out
+
+
+def write_tokens(path: Path, tokens: dict[str, list[str]]) -> None:
+    """Write the tokens file readable by its owner only (mode 0600 from its creation on)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(".tmp")
+    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
+    with os.fdopen(fd, "w", encoding="utf-8") as f:
+        yaml.safe_dump(tokens, f)
+    os.chmod(tmp, 0o600)
+    os.replace(tmp, path)
+
+
+def generate_tokens() -> dict[str, list[str]]:
+    return {"operator": [secrets.token_urlsafe(24)], "observer": [secrets.token_urlsafe(24)]}
+
+
+def ground_available() -> bool:
+    """Whether ``taskflight ground`` (the ground service) is part of this installation."""
+    import importlib.util
+
+    try:
+        return importlib.util.find_spec("groundstation.service") is not None
+    except (ImportError, ValueError):
+        return False
+
+
+# --- options -----------------------------------------------------------------------------------------
+@dataclass
+class UpOptions:
+    """What ``taskflight up`` starts (see the module docstring)."""
+
+    vehicles: int
+    state_dir: Path
+    speedup: float = 1.0
+    base_instance: int = 0
+    ground: bool = True
+    ground_port: int = DEFAULT_GROUND_PORT
+    host: str = "127.0.0.1"
+    mavlink_host: str = "127.0.0.1"
+    tokens_file: Path | None = None
+    team: str | None = None
+    team_loss: float = 0.0
+    platform: Path = PLATFORM
+    ready_timeout_s: float | None = None
+    persist: bool = True
+    companion_nice: int = 0
+
+    def check(self) -> None:
+        if not 1 <= self.vehicles <= 200:
+            raise UpError(f"--vehicles must be within 1..200, got {self.vehicles}", 2)
+        if not self.speedup >= 0:
+            raise UpError(f"--speedup must be >= 0 (0: as fast as possible), got {self.speedup}", 2)
+        if not 0 <= self.base_instance <= 255 - self.vehicles:
+            raise UpError(f"instances {self.base_instance}..{self.base_instance + self.vehicles - 1} are "
+                          "not all within 0..254", 2)
+        if not 0.0 <= self.team_loss < 1.0:
+            raise UpError(f"--team-loss must be within 0..1, got {self.team_loss}", 2)
+        if self.team is not None and "loss=" in self.team and self.team_loss:
+            raise UpError("give the loss either in --team or with --team-loss, not both", 2)
+        if not 0 <= self.companion_nice <= 19:
+            raise UpError(f"--companion-nice must be within 0..19, got {self.companion_nice}", 2)
+        if not self.platform.is_file():
+            raise UpError(f"--platform: no such file: {self.platform}", 2)
+        if not 1 <= self.ground_port <= 65535:
+            raise UpError(f"--ground-port must be within 1..65535, got {self.ground_port}", 2)
+
+    def ports_taken(self) -> list[str]:
+        """Every MAVLink port (and the ground port) that is not free, described."""
+        out = []
+        for i in range(self.vehicles):
+            tcp, udp = model_ports(self.base_instance + i)
+            if not port_free(socket.SOCK_STREAM, tcp, self.mavlink_host):
+                out.append(f"TCP {tcp} (vehicle {i}, sysid {i + 1})")
+            if not port_free(socket.SOCK_DGRAM, udp, self.mavlink_host):
+                out.append(f"UDP {udp} (vehicle {i}, sysid {i + 1})")
+        if self.ground and not port_free(socket.SOCK_STREAM, self.ground_port, self.host):
+            out.append(f"TCP {self.ground_port} (the ground service)")
+        return out
+
+
+@dataclass(frozen=True)
+class VehicleInfo:
+    index: int
+    sysid: int
+    instance: int
+    tcp: int
+    udp: int
+    control_url: str
+
+
+# --- the fleet ---------------------------------------------------------------------------------------
+@dataclass
+class Up:
+    """The running fleet: :meth:`start` (returns once every vehicle is ready), :meth:`stop`."""
+
+    opts: UpOptions
+    children: list[Child] = field(default_factory=list)
+    vehicles: list[VehicleInfo] = field(default_factory=list)
+    tokens: dict[str, list[str]] = field(default_factory=dict)
+    control_token: str = ""
+    team_url: str = ""
+    member_url: str = ""
+    tokens_path: Path | None = None
+    startup_s: float = float("nan")
+    _stopped: threading.Event = field(default_factory=threading.Event)
+
+    @property
+    def ground_url(self) -> str | None:
+        if not self.opts.ground:
+            return None
+        host = "127.0.0.1" if self.opts.host in ("0.0.0.0", "") else self.opts.host
+        return f"http://{host}:{self.opts.ground_port}"
+
+    @property
+    def fleet(self) -> Child:
+        return self.children[0]
+
+    def companions(self) -> list[Child]:
+        return [c for c in self.children if c.name.startswith("companion")]
+
+    def ground(self) -> Child | None:
+        return next((c for c in self.children if c.name == "ground"), None)
+
+    # --- start -------------------------------------------------------------------------------------
+    def start(self, stop: threading.Event | None = None) -> Up:
+        """Start everything and wait until ready (UpError, everything stopped, if it cannot)."""
+        o = self.opts
+        o.check()
+        if o.ground and not ground_available():
+            raise UpError("the ground service (taskflight ground) is not installed here; --no-ground starts "
+                          "everything else", 2)
+        taken = o.ports_taken()
+        if taken:
+            raise UpError("port(s) already in use: " + ", ".join(taken) + "; is another fleet running? "
+                          "(--base-instance I moves the MAVLink ports to 5760+10I, --ground-port P)", 2)
+        if o.team is not None:
+            from companion.team.transport import open_transport
+
+            try:  # a bad URL fails here, before anything starts
+                open_transport(o.team, member=0, position_of=lambda m: None).close()
+            except (ValueError, OSError) as exc:
+                raise UpError(f"--team: {exc}", 2) from None
+        o.state_dir.mkdir(parents=True, exist_ok=True)
+        if o.tokens_file is not None:
+            self.tokens = load_tokens(o.tokens_file)
+            self.tokens_path = o.tokens_file
+        else:
+            self.tokens = generate_tokens()
+            self.tokens_path = o.state_dir / "tokens.yaml"
+            if o.ground:
+                write_tokens(self.tokens_path, self.tokens)
+        self.control_token = secrets.token_urlsafe(24)
+        self.team_url = o.team or free_team_url()
+        self.member_url = self.team_url + (f"{'&' if '?' in self.team_url else '?'}loss={o.team_loss}"
+                                           if o.team_loss else "")
+        t0 = time.monotonic()
+        try:
+            self._start_fleet(stop)
+            self._start_companions()
+            if o.ground:
+                self._start_ground()
+            self._wait_ready(stop)
+        except BaseException:
+            self.stop()
+            raise
+        self.startup_s = time.monotonic() - t0
+        return self
+
+    def _exe(self) -> list[str]:
+        return [sys.executable, "-m", "taskflight.cli"]
+
+    def _deadline(self) -> float:
+        t = self.opts.ready_timeout_s
+        return time.monotonic() + (t if t is not None else 60.0 + 3.0 * self.opts.vehicles)
+
+    def _check_alive(self) -> None:
+        dead = first_dead(self.children)
+        if dead is not None:
+            tail = dead.tail()
+            raise UpError(f"{dead.name} (pid {dead.pid}) exited with status {dead.returncode} during "
+                          f"start-up; the end of {dead.log_path}:\n{tail}")
+
+    def _start_fleet(self, stop: threading.Event | None) -> None:
+        o = self.opts
+        logs = o.state_dir / "logs"
+        argv = [sys.executable, "-m", "autopilot_model.fleet", "--vehicles", str(o.vehicles),
+                "--base-instance", str(o.base_instance), "--speedup", f"{o.speedup:g}",
+                "--state-dir", str(o.state_dir / "models"),
+                "--mavlink-template", f"tcpin:{o.mavlink_host}:{{tcp}}",
+                "--mavlink-template", f"udpin:{o.mavlink_host}:{{udp}}"]
+        if not o.persist:
+            argv.append("--no-persist")
+        fleet_log = logs / "fleet.log"
+        fleet_log.parent.mkdir(parents=True, exist_ok=True)
+        fleet_log.write_bytes(b"")  # READY is looked for in this run's output only
+        self.children.append(Child("fleet", argv, fleet_log, env=self._pythonpath(), cwd=ROOT).start())
+        end = self._deadline()
+        while "\nREADY" not in "\n" + self.fleet.tail(50):
+            self._check_alive()
+            if time.monotonic() > end:
+                raise UpError(f"the fleet printed no READY line in time; the end of {fleet_log}:\n"
+                              f"{self.fleet.tail()}")
+            sleep_or_stop(stop, 0.05)
+        ctl = free_tcp_ports(o.vehicles)
+        for i in range(o.vehicles):
+            tcp, udp = model_ports(o.base_instance + i)
+            self.vehicles.append(VehicleInfo(i, i + 1, o.base_instance + i, tcp, udp,
+                                             f"http://127.0.0.1:{ctl[i]}"))
+
+    def _pythonpath(self) -> dict[str, str]:
+        pp = os.environ.get("PYTHONPATH", "")
+        return {"PYTHONPATH": os.pathsep.join(p for p in (str(ROOT), pp) if p)}
+
+    def _start_companions(self) -> None:
+        o = self.opts
+        env = {**self._pythonpath(), TOKEN_ENV: self.control_token}
+        for v in self.vehicles:
+            port = v.control_url.rsplit(":", 1)[1]
+            nice = ["nice", "-n", str(o.companion_nice)] if o.companion_nice else []
+            argv = [*nice, *self._exe(), "companion", "--autopilot", f"udpout:127.0.0.1:{v.udp}",
+                    "--team", self.member_url, "--control-port", port, "--control-host", "127.0.0.1",
+                    "--platform", str(o.platform),
+                    "--flight-log", str(o.state_dir / "logs" / f"flight{v.sysid}.jsonl")]
+            self.children.append(Child(f"companion{v.sysid}", argv, o.state_dir / "logs" /
+                                       f"companion{v.sysid}.log", env=env, cwd=ROOT).start())
+
+    def _start_ground(self) -> None:
+        o = self.opts
+        assert self.tokens_path is not None
+        argv = [*self._exe(), *ground_arguments(self.member_url, o.state_dir / "ground.db", o.host,
+                                                o.ground_port, self.tokens_path, self.vehicles,
+                                                self.control_token)]
+        self.children.append(Child("ground", argv, o.state_dir / "logs" / "ground.log",
+                                   env=self._pythonpath(), cwd=ROOT).start())
+
+    def _wait_ready(self, stop: threading.Event | None) -> None:
+        end = self._deadline()
+        pending = {v.sysid for v in self.vehicles}
+        want = set(pending)
+        ground_ok = not self.opts.ground
+        while pending or not ground_ok:
+            self._check_alive()
+            for v in [v for v in self.vehicles if v.sysid in pending]:
+                if self._vehicle_ready(v, want):
+                    pending.discard(v.sysid)
+            if not pending and not ground_ok:
+                ground_ok = self._ground_ready()
+            if time.monotonic() > end:
+                what = (f"vehicle(s) {sorted(pending)} not heard" if pending
+                        else "the ground service did not answer with every vehicle")
+                hint = "\n".join(f"--- {c.name}:\n{c.tail(5)}" for c in self.children
+                                 if c.name == "ground" or c.name[len("companion"):] in map(str, pending))
+                raise UpError(f"not ready in time: {what}\n{hint}")
+            sleep_or_stop(stop, 0.2)
+
+    def _get(self, url: str, token: str) -> Any:
+        from taskflight.team_tasking import http_json
+
+        return http_json("GET", url, token, timeout_s=5.0)
+
+    def _vehicle_ready(self, v: VehicleInfo, want: set[int]) -> bool:
+        """Its companion's MAVLink link is connected and it hears every vehicle on the team link."""
+        try:
+            status = self._get(v.control_url + "/status", self.control_token)
+            team = self._get(v.control_url + "/team", self.control_token)
+        except (OSError, ValueError, RuntimeError):
+            return False
+        return bool(status.get("link", {}).get("connected")) and want <= set(team.get("alive", []))
+
+    def _ground_ready(self) -> bool:
+        try:
+            body = self._get(f"{self.ground_url}/api/vehicles", self.tokens["operator"][0])
+        except (OSError, ValueError, RuntimeError):
+            return False
+        rows = body.get("vehicles", []) if isinstance(body, dict) else body if isinstance(body, list) else []
+        heard = [r for r in rows if isinstance(r, dict) and r.get("team_state", "available") not in
+                 ("unknown", "gone")]
+        return len(heard) >= self.opts.vehicles
+
+    # --- stop --------------------------------------------------------------------------------------
+    def stop(self, timeout_s: float = 10.0) -> None:
+        """The ground service, then the companions, then the models; idempotent."""
+        if self._stopped.is_set():
+            return
+        self._stopped.set()
+        ground = [c for c in self.children if c.name == "ground"]
+        stop_all(ground, timeout_s)
+        stop_all(self.companions(), timeout_s)
+        stop_all([c for c in self.children if c.name == "fleet"], timeout_s)
+
+    # --- telling the user --------------------------------------------------------------------------
+    def summary(self) -> str:
+        o = self.opts
+        lines = [f"READY {o.vehicles} vehicles, speedup {o.speedup:g}" + (" (lockstep)" if o.speedup == 0
+                                                                          else "")
+                 + f", started in {self.startup_s:.1f} s"]
+        if o.ground:
+            lines.append(f"ground service: {self.ground_url}  (API {self.ground_url}/api, "
+                         f"docs {self.ground_url}/docs)")
+            lines.append(f"operator token: {self.tokens['operator'][0]}")
+            if self.tokens.get("observer"):
+                lines.append(f"observer token: {self.tokens['observer'][0]}")
+            lines.append(f"tokens file: {self.tokens_path}")
+        lines.append(f"team link: {self.member_url}")
+        lines.append(f"pids: fleet {self.fleet.pid}; companions "
+                     + " ".join(str(c.pid) for c in self.companions())
+                     + (f"; ground {g.pid}" if (g := self.ground()) is not None else ""))
+        for v in self.vehicles:
+            lines.append(f"vehicle {v.index}: sysid {v.sysid}  MAVLink tcp:{o.mavlink_host}:{v.tcp}  "
+                         f"(mavproxy.py --master=tcp:127.0.0.1:{v.tcp})  companion {v.control_url}")
+        lines.append(f"logs: {o.state_dir / 'logs'}; Ctrl-C stops everything")
+        return "\n".join(lines)
+
+
+def sleep_or_stop(stop: threading.Event | None, s: float) -> None:
+    """Wait ``s`` seconds; KeyboardInterrupt if ``stop`` is set meanwhile (SIGINT/SIGTERM)."""
+    if stop is None:
+        time.sleep(s)
+    elif stop.wait(s):
+        raise KeyboardInterrupt
+
+
+def ground_arguments(team_url: str, db: Path, host: str, port: int, tokens: Path,
+                     vehicles: list[VehicleInfo], companion_token: str) -> list[str]:
+    """``taskflight ground ...``'s arguments for this fleet (each vehicle's companion by system id)."""
+    argv = ["ground", "--team", team_url, "--db", str(db), "--host", host, "--port", str(port),
+            "--tokens", str(tokens)]
+    for v in vehicles:
+        argv += ["--companion", f"{v.sysid}={v.control_url}"]
+    return [*argv, "--companion-token", companion_token]
+
+
+# --- command line ------------------------------------------------------------------------------------
+def add_up_arguments(p: argparse.ArgumentParser) -> None:
+    """Options of ``taskflight up``."""
+    p.add_argument("--vehicles", "-n", type=int, required=True, help="number of vehicles N")
+    p.add_argument("--speedup", type=float, default=1.0,
+                   help="simulated seconds per wall second (default 1: real time; 0: as fast as possible)")
+    p.add_argument("--base-instance", "-I", type=int, default=0,
+                   help="instance of vehicle 0 (default 0): vehicle i serves MAVLink on TCP 5760+10(I+i) "
+                        "and UDP 14550+10(I+i); its system id stays i+1")
+    p.add_argument("--ground-port", type=int, default=DEFAULT_GROUND_PORT,
+                   help=f"the ground service's HTTP port (default {DEFAULT_GROUND_PORT})")
+    p.add_argument("--host", default="127.0.0.1", help="the ground service's bind address (default loopback)")
+    p.add_argument("--mavlink-host", default="127.0.0.1",
+                   help="bind address of the models' MAVLink ports (default loopback; 0.0.0.0 for a LAN)")
+    p.add_argument("--tokens", default=None, metavar="FILE",
+                   help="YAML {operator: [..], observer: [..]} (default: generate one of each, written to "
+                        "<state-dir>/tokens.yaml, mode 0600)")
+    p.add_argument("--team", default=None, metavar="URL",
+                   help=f"the team link (default udp://{TEAM_GROUP}:<a free port>)")
+    p.add_argument("--team-loss", type=float, default=0.0, metavar="F",
+                   help="drop this fraction of team-link packets at every member (a test of loss)")
+    p.add_argument("--state-dir", default=None, metavar="DIR",
+                   help="logs, tokens, model parameters, the ground database (default "
+                        "$TASKFLIGHT_STATE/up or ~/.taskflight/up)")
+    p.add_argument("--platform", default=str(PLATFORM), metavar="YAML",
+                   help="the companions' platform for delegation (default: the outdoor one)")
+    p.add_argument("--no-ground", action="store_true", help="everything but the ground service")
+    p.add_argument("--no-persist", action="store_true", help="the models neither load nor save parameters")
+    p.add_argument("--companion-nice", type=int, default=0, metavar="K",
+                   help="run the companions at niceness K (0..19), so that the models' one process keeps "
+                        "its clock when many companions load the machine (default 0)")
+    p.add_argument("--ready-timeout", type=float, default=None, metavar="S",
+                   help="give up starting after S seconds (default 60 + 3 N)")
+
+
+def options_from_args(args: argparse.Namespace) -> UpOptions:
+    state = Path(args.state_dir) if args.state_dir else Path(
+        os.environ.get("TASKFLIGHT_STATE") or Path.home() / ".taskflight") / "up"
+    return UpOptions(vehicles=args.vehicles, state_dir=state, speedup=args.speedup,
+                     base_instance=args.base_instance, ground=not args.no_ground,
+                     ground_port=args.ground_port, host=args.host, mavlink_host=args.mavlink_host,
+                     tokens_file=Path(args.tokens) if args.tokens else None, team=args.team,
+                     team_loss=args.team_loss, ready_timeout_s=args.ready_timeout,
+                     persist=not args.no_persist, platform=Path(args.platform),
+                     companion_nice=args.companion_nice)
+
+
+def run_up(args: argparse.Namespace) -> int:
+    """Start the fleet, print READY and the summary, run until SIGINT/SIGTERM, stop everything."""
+    from taskflight.runtime import stop_on_signals
+
+    stop = stop_on_signals()
+    up = Up(options_from_args(args))
+    try:
+        up.start(stop)
+    except UpError as exc:
+        print(f"taskflight up: error: {exc}", file=sys.stderr, flush=True)
+        return exc.status
+    except KeyboardInterrupt:
+        print("taskflight up: interrupted during start-up; everything stopped", file=sys.stderr, flush=True)
+        return 130
+    print(up.summary(), flush=True)
+    try:
+        while not stop.wait(0.5):
+            dead = first_dead(up.children)
+            if dead is not None:
+                print(f"taskflight up: {dead.name} exited with status {dead.returncode}; stopping "
+                      f"everything. The end of {dead.log_path}:\n{dead.tail()}", file=sys.stderr, flush=True)
+                return 1
+    finally:
+        up.stop()
+        print("taskflight up: stopped", flush=True)
+    return 0
