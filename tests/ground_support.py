@@ -165,9 +165,10 @@ class GroundRig:
 
     def start_companion(self, i: int) -> None:
         exe = Path(sys.executable).with_name("taskflight")
-        # vehicle 3's camera sees a person 6 m north of the fleet's home (its own home is 10 m east)
+        # vehicle 3's camera sees a person 1 m north of where it takes off (its home is 10 m east of the
+        # fleet's), as soon as it climbs
         scenario = self.tmp / "scenario3.yaml"
-        scenario.write_text("objects:\n  - {id: 7, class: person, position: [6.0, -10.0]}\n")
+        scenario.write_text("objects:\n  - {id: 7, class: person, position: [1.0, 0.0]}\n")
         extra = ["--scenario", str(scenario)] if i == 2 else []
         out = open(self.tmp / f"companion{i}.out", "ab")  # noqa: SIM115 - the child owns it
         self.companions[i] = subprocess.Popen(
