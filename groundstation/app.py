@@ -19,8 +19,8 @@ import asyncio
 import contextlib
 import json
 import logging
-from pathlib import Path
 from collections.abc import AsyncIterator, Awaitable, Callable, MutableMapping
+from pathlib import Path
 from typing import Any
 
 from fastapi import FastAPI, Request
