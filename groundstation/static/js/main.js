@@ -12,7 +12,6 @@ const $ = (id) => document.getElementById(id);
 const stats = { snapshots: 0, renders: 0, renderTimes: [], frameTimes: [], intervals: [], lastRender: 0, lastFrame: 0, seq: 0 };
 let role = null, live = null, fmap = null, fleet = null, tasks = null, alerts = null, panel = null, joystick = null;
 let pending = null, vehiclesById = new Map(), tasksById = new Map();
-const confirmAsked = new Set();
 
 /** A modal dialog; resolves to the value of the button pressed. */
 function dialog(title, bodyHtml, buttons) {
@@ -94,12 +93,23 @@ async function commandMany() {
     : `refused: ${r.body?.error}`;
 }
 
-async function askConfirm(v) {
-  confirmAsked.add(v.id);
-  const ans = await dialog(`Vehicle ${v.id} waits for confirmation`,
-    `<p>${v.name || "vehicle " + v.id}: ${v.mission?.node || "the mission"} needs the operator's confirmation.</p>`,
-    [["yes", "Confirm"], ["", "Later"]]);
-  if (ans === "yes") await call("POST", `/api/vehicles/${v.id}/user_confirm`);
+/** The vehicles waiting for the operator's confirmation: a non-modal dialog with a Confirm per vehicle. */
+function updateConfirm(vehicles) {
+  const waiting = vehicles.filter((v) => v.confirmation_required);
+  const d = $("confirm");
+  const ul = $("confirm-list");
+  const key = waiting.map((v) => `${v.id}:${v.mission?.node || ""}`).join(",");
+  if (ul.dataset.key !== key) {
+    ul.dataset.key = key;
+    ul.innerHTML = waiting.map((v) => `<li data-vehicle="${v.id}">${v.name || "vehicle " + v.id}: ${v.mission?.node ||
+      "the mission"} <button type="button" data-cmd data-confirm="${v.id}">Confirm</button></li>`).join("");
+    for (const b of ul.querySelectorAll("[data-confirm]")) {
+      b.addEventListener("click", () => call("POST", `/api/vehicles/${b.dataset.confirm}/user_confirm`));
+    }
+    applyRole();
+  }
+  if (waiting.length && !d.open) d.show();
+  if (!waiting.length && d.open) d.close();
 }
 
 function onMessage(msg) {
@@ -134,10 +144,7 @@ function render(snap) {
   tasks.update(snap.tasks);
   panel.record(snap.vehicles, now);
   panel.update(vehiclesById.get(panel.vid));
-  if (canCommand()) for (const v of snap.vehicles) {
-    if (v.confirmation_required && !confirmAsked.has(v.id) && !$("dialog").open) askConfirm(v);
-    if (!v.confirmation_required) confirmAsked.delete(v.id);
-  }
+  updateConfirm(snap.vehicles);
   const t1 = performance.now();
   stats.renderTimes.push(t1 - t0);
   if (stats.lastRender) stats.intervals.push(t1 - stats.lastRender);
