@@ -143,9 +143,9 @@ def test_break_in_with_the_keyboard_joystick_resume_and_enough_ends_the_scan(rig
                                                                             shots: Shots) -> None:
     d, i, vid = page, 2, 3
     with rig.ground.http() as c:
-        if rig.gcs[i].armed():  # a mission starts with a take-off: from the ground
+        if rig.vehicles()[vid]["armed"]:  # a mission starts with a take-off: from the ground
             assert c.post(f"/api/vehicles/{vid}/land").status_code == 200
-            wait_for(lambda: not rig.gcs[i].armed(), rig.wall(90), "vehicle 3 landed (MAVLink)")
+            wait_for(lambda: rig.vehicles()[vid]["armed"] is False, rig.wall(90), "vehicle 3 landed")
         r = c.post(f"/api/vehicles/{vid}/mission", json={**SCAN_AND_SEARCH, "start": True})
         assert r.status_code == 200, r.text
 
