@@ -43,6 +43,7 @@ export class VehiclePanel {
     if (this.vid === vid) return;
     this.vid = vid;
     this.breakIn = false;
+    this.lastState = null;
     this.ui.joystick.engage(null);
     this.el.innerHTML = `<h3 style="color:${colour(vid)}">vehicle ${vid} <span class="vstate"></span></h3>
       <div class="buttons">${VERBS.map((v) => `<button type="button" data-cmd data-verb="${v}">${v === "pause" ?
@@ -124,7 +125,12 @@ export class VehiclePanel {
     const st = this.el.querySelector(".vstate");
     const text = `${v.mode || ""} · ${m.state || "no mission"}${m.node ? " · " + m.node : ""}${v.alert ? " · ⚠ " + v.alert : ""}`;
     if (st.textContent !== text) st.textContent = text;
-    if (m.state === "paused" && !this.breakIn && this.ui.canCommand()) this.setBreakIn(true);
+    // a break-in begun elsewhere (another operator's page): the stick here too, on the change to paused only
+    // (a snapshot older than our own resume still says paused)
+    if (m.state === "paused" && this.lastState !== "paused" && !this.breakIn && this.ui.canCommand()) {
+      this.setBreakIn(true);
+    }
+    this.lastState = m.state;
     if (this.breakIn) {
       const j = this.ui.joystick;
       this.el.querySelector(".jout").textContent = `[${j.last.map((x) => x.toFixed(1)).join(", ")}] · ${j.sent} sent`;
