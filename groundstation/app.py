@@ -20,11 +20,13 @@ import contextlib
 import json
 import logging
 from collections.abc import AsyncIterator, Awaitable, Callable, MutableMapping
+from pathlib import Path
 from typing import Any
 
 from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
-from fastapi.responses import JSONResponse
+from fastapi.responses import FileResponse, JSONResponse
+from fastapi.staticfiles import StaticFiles
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from .api import commands, events, tasks, vehicles, ws
@@ -39,6 +41,8 @@ Scope = MutableMapping[str, Any]
 Receive = Callable[[], Awaitable[MutableMapping[str, Any]]]
 Send = Callable[[MutableMapping[str, Any]], Awaitable[None]]
 READ_METHODS = frozenset({"GET", "HEAD", "OPTIONS"})
+#: the operator's web UI (issue 13): plain ES modules and a vendored Leaflet, served at ``/``
+STATIC = Path(__file__).with_name("static")
 
 
 def _error(status: int, message: str, headers: dict[str, str] | None = None) -> JSONResponse:
@@ -161,4 +165,11 @@ def create_app(service: GroundService, snapshot_period_s: float = 0.1) -> FastAP
     for module in (vehicles, tasks, commands, events):
         app.include_router(module.router, prefix="/api")
     app.include_router(ws.router, prefix="/api")
+    app.mount("/static", StaticFiles(directory=STATIC), name="static")
+
+    @app.get("/", include_in_schema=False)
+    def index() -> FileResponse:
+        """The operator's web UI (issue 13); every asset is served from ``/static``."""
+        return FileResponse(STATIC / "index.html", headers={"Cache-Control": "no-cache"})
+
     return app

@@ -1,0 +1,137 @@
+// The map (issue 13 items 1-2; seed 003 Sec. II "All UAVs and tasks are displayed on a map, which is also
+// used to input new tasks"): Leaflet with L.CRS.Simple in local metres around home, no tiles.
+import { colour, toGeo, toLocal } from "./geo.js";
+
+const L = window.L;
+const TRACK_S = 180;  // the track's length (s)
+const GREY = "#888";
+
+function arrow(c) {
+  return `<svg width="24" height="24" viewBox="-12 -12 24 24"><g class="hdg">
+    <path d="M0,-11 L7,8 L0,4 L-7,8 Z" fill="${c}" stroke="#000" stroke-width="1"/></g></svg>`;
+}
+
+export class FleetMap {
+  constructor(el, onPick) {
+    this.map = L.map(el, { crs: L.CRS.Simple, minZoom: -3, maxZoom: 6, zoomSnap: 0.25,
+      attributionControl: false, doubleClickZoom: false });
+    this.map.setView([0, 0], 2);
+    L.control.scale({ imperial: false, maxWidth: 150 }).addTo(this.map);
+    // a 10 m grid and home, drawn once (no tiles: offline)
+    const grid = [];
+    for (let i = -500; i <= 500; i += 10) {
+      const w = i % 100 === 0 ? 1 : 0.3;
+      grid.push(L.polyline([[i, -500], [i, 500]], { color: "#bbb", weight: w, interactive: false }));
+      grid.push(L.polyline([[-500, i], [500, i]], { color: "#bbb", weight: w, interactive: false }));
+    }
+    L.layerGroup(grid).addTo(this.map);
+    L.circleMarker([0, 0], { radius: 5, color: "#000", fillOpacity: 0 }).bindTooltip("home").addTo(this.map);
+    this.vehicles = new Map();  // vid -> {marker, track, target, pts}
+    this.tasks = new Map();     // tid -> {layer, key}
+    this.detections = L.layerGroup().addTo(this.map);
+    this.onPick = onPick;
+    this.draw = null;
+    this.drawLayer = L.layerGroup().addTo(this.map);
+    this.map.on("click", (e) => this._click(e));
+    this.map.on("dblclick", () => { if (this.draw && this.draw.type !== "visit") this.finish(); });
+  }
+
+  /** Vehicles: icon with heading, name and colour; track; dashed line to the current target. */
+  updateVehicles(vehicles, tasksById, now) {
+    for (const v of vehicles) {
+      if (!v.position) continue;
+      const p = toLocal(v.position.lat, v.position.lon);
+      let e = this.vehicles.get(v.id);
+      if (!e) {
+        const c = colour(v.id);
+        const icon = L.divIcon({ className: "", iconSize: [0, 0],
+          html: `<div class="vmarker" data-vehicle="${v.id}">${arrow(c)}<span class="label"></span></div>` });
+        const marker = L.marker(p, { icon, keyboard: false }).addTo(this.map);
+        marker.on("click", () => this.onPick(v.id));
+        const track = L.polyline([], { color: c, weight: 2, opacity: 0.6, interactive: false }).addTo(this.map);
+        const target = L.polyline([], { color: c, weight: 1.5, dashArray: "4 4", interactive: false }).addTo(this.map);
+        e = { marker, track, target, pts: [], el: null };
+        this.vehicles.set(v.id, e);
+      }
+      e.marker.setLatLng(p);
+      if (!e.el) e.el = e.marker.getElement()?.querySelector(".vmarker");
+      if (e.el) {
+        e.el.dataset.n = p[0].toFixed(2);
+        e.el.dataset.e = p[1].toFixed(2);
+        e.el.querySelector(".hdg").setAttribute("transform", `rotate(${v.heading || 0})`);
+        const warn = v.alert ? ` <span class="alert">⚠ ${v.alert}</span>` : "";
+        const text = `${v.name || "vehicle " + v.id}${warn}`;
+        const label = e.el.querySelector(".label");
+        if (label.innerHTML !== text) label.innerHTML = text;
+      }
+      const last = e.pts[e.pts.length - 1];
+      if (!last || Math.hypot(last[0] - p[0], last[1] - p[1]) > 0.3 || now - last[2] > 2) e.pts.push([p[0], p[1], now]);
+      while (e.pts.length && now - e.pts[0][2] > TRACK_S) e.pts.shift();
+      e.track.setLatLngs(e.pts.map((q) => [q[0], q[1]]));
+      const t = v.task != null ? tasksById.get(v.task) : null;
+      const goal = t && t.points.length ? toLocal(t.points[0][0], t.points[0][1]) : null;
+      e.target.setLatLngs(goal ? [p, goal] : []);
+    }
+  }
+
+  /** Tasks by type, coloured by their assignee, unassigned grey; finished ones faded, cancelled hidden. */
+  updateTasks(tasks) {
+    const seen = new Set();
+    for (const t of tasks) {
+      seen.add(t.id);
+      const key = `${t.state}/${t.holder}/${t.version}`;
+      const old = this.tasks.get(t.id);
+      if (old && old.key === key) continue;
+      if (old) old.layer.remove();
+      if (t.state === "cancelled") { this.tasks.set(t.id, { layer: L.layerGroup(), key }); continue; }
+      const c = t.holder ? colour(t.holder) : GREY;
+      const style = { color: c, weight: 3, opacity: t.state === "done" ? 0.3 : 0.9, fillOpacity: 0.15 };
+      const pts = t.points.map((q) => toLocal(q[0], q[1]));
+      let layer;
+      if (t.kind === "visit" || pts.length === 1) layer = L.circleMarker(pts[0], { ...style, radius: 7 });
+      else if (t.kind === "area_scan" || t.kind === "area") layer = L.polygon(pts, style);
+      else layer = L.polyline(pts, { ...style, dashArray: t.kind.includes("border") ? "8 4" : null });
+      layer.bindTooltip(`task ${t.id} ${t.kind} ${t.state}${t.holder ? " → " + t.holder : ""}`);
+      layer.addTo(this.map);
+      this.tasks.set(t.id, { layer, key });
+    }
+    for (const [id, e] of this.tasks) if (!seen.has(id)) { e.layer.remove(); this.tasks.delete(id); }
+  }
+
+  addDetection(lat, lon, text) {
+    L.circleMarker(toLocal(lat, lon), { radius: 6, color: "#d00", fillColor: "#ff0", fillOpacity: 0.9 })
+      .bindTooltip(text).addTo(this.detections);
+  }
+
+  /** Start entering a task of ``type``; ``done(points)`` gets [[lat, lon], ...]. */
+  startDraw(type, done) {
+    this.cancelDraw();
+    this.draw = { type, pts: [], done };
+  }
+
+  cancelDraw() { this.draw = null; this.drawLayer.clearLayers(); }
+
+  finish() {
+    const d = this.draw;
+    if (!d) return;
+    const need = d.type === "area_scan" ? 3 : d.type === "visit" ? 1 : 2;
+    if (d.pts.length < need) return;
+    this.cancelDraw();
+    d.done(d.pts.map((p) => toGeo(p[0], p[1])));
+  }
+
+  _click(e) {
+    if (!this.draw) return;
+    const p = [e.latlng.lat, e.latlng.lng];
+    this.draw.pts.push(p);
+    this.drawLayer.clearLayers();
+    const pts = this.draw.pts;
+    for (const q of pts) L.circleMarker(q, { radius: 4, color: "#000" }).addTo(this.drawLayer);
+    if (pts.length > 1) (this.draw.type === "area_scan" ? L.polygon : L.polyline)(pts, { color: "#000", dashArray: "3 3" })
+      .addTo(this.drawLayer);
+    if (this.draw.type === "visit") this.finish();
+  }
+
+  /** The map's container pixel of the point ``n`` m north and ``e`` m east of home (for the tests). */
+  pixelOf(n, e) { const p = this.map.latLngToContainerPoint([n, e]); return [p.x, p.y]; }
+}

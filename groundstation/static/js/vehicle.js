@@ -1,0 +1,159 @@
+// The vehicle panel (issue 13 item 4): the mission tree with each node's Fig. 5 status (seed 000 Sec. IV),
+// pause (break-in) / resume / enough / abort / land (seed 000 Sec. VII), the joystick during a break-in, a
+// live plot of altitude and speed, processes and in-flight gain tuning (seed 003 Sec. II, Process Monitor).
+import { call } from "./api.js";
+import { colour } from "./geo.js";
+
+const VERBS = ["pause", "resume", "enough", "user_confirm", "abort", "land", "take", "release", "start"];
+const PLOT_S = 60;
+
+function esc(s) { return String(s ?? "").replace(/[&<>"]/g, (c) => `&#${c.charCodeAt(0)};`); }
+
+function treeHtml(node) {
+  if (!node) return "";
+  const kids = node.children || [node.then, node.else].filter(Boolean);
+  const prog = node.progress && node.progress.progress ? ` ${esc(node.progress.progress)}` : "";
+  return `<li data-node="${esc(node.id)}">${esc(node.id)} <small>${esc(node.type)}</small>` +
+    `<span class="state state-${esc(node.state)}">${esc(node.state)}</span>${prog}` +
+    (kids.length ? `<ul>${kids.map(treeHtml).join("")}</ul>` : "") + "</li>";
+}
+
+export class VehiclePanel {
+  constructor(el, ui) {
+    this.el = el;
+    this.ui = ui;  // {joystick, confirmMany, canCommand, note}
+    this.vid = null;
+    this.series = new Map();  // vid -> [[t, alt, speed]]
+    this.breakIn = false;
+    this.treeTimer = null;
+  }
+
+  record(vehicles, now) {
+    for (const v of vehicles) {
+      if (!v.position) continue;
+      let s = this.series.get(v.id);
+      if (!s) { s = []; this.series.set(v.id, s); }
+      const sp = v.velocity ? Math.hypot(v.velocity[0], v.velocity[1]) : 0;
+      s.push([now, v.position.alt, sp]);
+      while (s.length && now - s[0][0] > PLOT_S) s.shift();
+    }
+  }
+
+  select(vid) {
+    if (this.vid === vid) return;
+    this.vid = vid;
+    this.breakIn = false;
+    this.lastState = null;
+    this.ui.joystick.engage(null);
+    this.el.innerHTML = `<h3 style="color:${colour(vid)}">vehicle ${vid} <span class="vstate"></span></h3>
+      <div class="buttons">${VERBS.map((v) => `<button type="button" data-cmd data-verb="${v}">${v === "pause" ?
+        "pause (break in)" : v === "user_confirm" ? "confirm" : v}</button>`).join("")}</div>
+      <div class="result hint"></div>
+      <div class="joystick" hidden><b>Break-in joystick</b> — arrows/WASD move, Q/E yaw, R/F up/down, or a gamepad.
+        <div style="display:flex;gap:1em;align-items:center"><div class="pad"><div class="knob"></div></div>
+        <label>speed <input class="jspeed" type="range" min="0.5" max="5" step="0.5" value="2"></label>
+        <span class="jout"></span></div></div>
+      <canvas class="plot" width="440" height="90"></canvas>
+      <div class="tree"><ul></ul></div>
+      <details class="procs"><summary>Processes</summary><div class="plist"></div></details>
+      <details class="params"><summary>Gains (in-flight tuning)</summary>
+        <input class="pname" value="ATC_RAT_RLL_P"> <button type="button" class="pget">read</button>
+        <input class="pval" type="number" step="any"> <button type="button" class="pset" data-cmd>set</button>
+        <span class="pout"></span></details>`;
+    for (const b of this.el.querySelectorAll("[data-verb]")) b.addEventListener("click", () => this.command(b.dataset.verb));
+    this.ui.joystick.bindPad(this.el.querySelector(".pad"));
+    this.el.querySelector(".jspeed").addEventListener("input", (e) => { this.ui.joystick.speed = Number(e.target.value); });
+    this.el.querySelector(".procs").addEventListener("toggle", () => this.processes());
+    this.el.querySelector(".pget").addEventListener("click", () => this.param("GET"));
+    this.el.querySelector(".pset").addEventListener("click", () => this.param("PUT"));
+    this.ui.applyRole();
+    clearInterval(this.treeTimer);
+    this.treeTimer = setInterval(() => this.tree(), 1000);
+    this.tree();
+  }
+
+  async command(verb) {
+    const out = this.el.querySelector(".result");
+    const vid = this.vid;
+    out.textContent = `${verb}…`;
+    const r = await call("POST", `/api/vehicles/${vid}/${verb}`);
+    out.textContent = r.status === 200 ? `${verb}: ok` : `${verb}: ${r.status} ${r.body?.error || ""}`;
+    out.dataset.last = `${verb}:${r.status}`;
+    if (vid !== this.vid) return;
+    if (verb === "pause" && r.status === 200) this.setBreakIn(true);
+    if (["resume", "abort", "land", "enough"].includes(verb) && r.status === 200) this.setBreakIn(false);
+    this.tree();
+  }
+
+  setBreakIn(on) {
+    this.breakIn = on;
+    this.el.querySelector(".joystick").hidden = !on;
+    this.ui.joystick.engage(on ? this.vid : null);
+  }
+
+  async tree() {
+    if (this.vid == null) return;
+    const vid = this.vid;
+    const r = await call("GET", `/api/vehicles/${vid}/mission`);
+    if (vid !== this.vid) return;
+    const ul = this.el.querySelector(".tree ul");
+    if (r.status !== 200) { ul.innerHTML = `<li class="hint">no mission (${esc(r.body?.error || r.status)})</li>`; return; }
+    const html = r.body.tree ? treeHtml(r.body.tree) : `<li class="hint">no mission</li>`;
+    if (ul.innerHTML !== html) ul.innerHTML = html;
+    this.el.querySelector(".tree").dataset.state = r.body.state || "none";
+  }
+
+  async processes() {
+    const r = await call("GET", `/api/vehicles/${this.vid}/processes`);
+    const div = this.el.querySelector(".plist");
+    div.innerHTML = r.status === 200 ? `<ul>${r.body.map((p) => `<li>${esc(p.name)}: ${esc(p.status ?? p.state ?? "")}
+      </li>`).join("")}</ul>` : esc(r.body?.error || r.status);
+  }
+
+  async param(method) {
+    const name = this.el.querySelector(".pname").value.trim();
+    const out = this.el.querySelector(".pout");
+    const body = method === "PUT" ? { value: Number(this.el.querySelector(".pval").value) } : undefined;
+    const r = await call(method, `/api/vehicles/${this.vid}/params/${encodeURIComponent(name)}`, body);
+    out.textContent = r.status === 200 ? `${r.body.name} = ${r.body.value}` : `${r.status} ${r.body?.error || ""}`;
+  }
+
+  /** Each snapshot: state line, joystick read-out, plot. */
+  update(v) {
+    if (!v || v.id !== this.vid) return;
+    const m = v.mission || {};
+    const st = this.el.querySelector(".vstate");
+    const text = `${v.mode || ""} · ${m.state || "no mission"}${m.node ? " · " + m.node : ""}${v.alert ? " · ⚠ " + v.alert : ""}`;
+    if (st.textContent !== text) st.textContent = text;
+    // a break-in begun elsewhere (another operator's page): the stick here too, on the change to paused only
+    // (a snapshot older than our own resume still says paused)
+    if (m.state === "paused" && this.lastState !== "paused" && !this.breakIn && this.ui.canCommand()) {
+      this.setBreakIn(true);
+    }
+    this.lastState = m.state;
+    if (this.breakIn) {
+      const j = this.ui.joystick;
+      this.el.querySelector(".jout").textContent = `[${j.last.map((x) => x.toFixed(1)).join(", ")}] · ${j.sent} sent`;
+    }
+    this.plot();
+  }
+
+  plot() {
+    const c = this.el.querySelector("canvas.plot");
+    const s = this.series.get(this.vid) || [];
+    const g = c.getContext("2d");
+    g.clearRect(0, 0, c.width, c.height);
+    if (s.length < 2) return;
+    const t1 = s[s.length - 1][0];
+    const x = (t) => c.width - ((t1 - t) / PLOT_S) * c.width;
+    const line = (k, max, col, label) => {
+      g.strokeStyle = col; g.beginPath();
+      s.forEach((p, i) => { const y = c.height - 4 - (p[k] / max) * (c.height - 14); if (i) g.lineTo(x(p[0]), y); else g.moveTo(x(p[0]), y); });
+      g.stroke(); g.fillStyle = col; g.fillText(label, k === 1 ? 4 : 140, 10);
+    };
+    const amax = Math.max(5, ...s.map((p) => p[1]));
+    const vmax = Math.max(2, ...s.map((p) => p[2]));
+    line(1, amax, "#2760c4", `alt ${s[s.length - 1][1].toFixed(1)} m (max ${amax.toFixed(0)})`);
+    line(2, vmax, "#c42727", `speed ${s[s.length - 1][2].toFixed(1)} m/s`);
+  }
+}
