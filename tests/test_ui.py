@@ -1,6 +1,7 @@
 """The operator's web UI end to end in headless Chromium (issue 13 "Done means").
 
-A fleet of 3 models, 3 companion processes and ``taskflight ground`` (tests/ground_support.GroundRig);
+``taskflight up --vehicles 3`` (3 models in one process, 3 companion processes on one team link and
+``taskflight ground``; tests/up_support.UpRig, with a pymavlink ground station per vehicle);
 Debian's Chromium driven by selenium logs in through the page and works it as an operator: three vehicles
 move on the map after visits clicked on it (allocated and flown: the MAVLink tracks reach the points); a
 patrol drawn on the map is cancelled from the task list; a vehicle flying a scan is broken into, flown
@@ -29,6 +30,7 @@ from selenium.webdriver.common.action_chains import ActionChains
 from selenium.webdriver.common.by import By
 from selenium.webdriver.support.ui import WebDriverWait
 from team_support import HOME, ROOT
+from up_support import UpRig
 
 SCAN_AND_SEARCH = yaml.safe_load((ROOT / "mission_specs" / "scan_and_search.yaml").read_text())
 SCAN_AND_SEARCH["tree"]["children"][2]["params"]["position"][2] = 5.0  # the outdoor platform's 3 m floor
@@ -42,7 +44,7 @@ def local(p: Any) -> tuple[float, float]:
 
 @pytest.fixture(scope="module")
 def rig(tmp_path_factory: pytest.TempPathFactory) -> Iterator[GroundRig]:
-    r = GroundRig(tmp_path_factory.mktemp("ui"), n=3, speedup=3.0)
+    r = UpRig(tmp_path_factory.mktemp("ui"), n=3, speedup=3.0)
     yield r
     r.close()
 

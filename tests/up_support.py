@@ -11,6 +11,7 @@ from __future__ import annotations
 import os
 import re
 import signal
+import socket
 import subprocess
 import sys
 import threading
@@ -19,7 +20,9 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from fleet_support import _rng, base_free
+from fleet_support import _rng, base_free, ports
+from ground_support import OBSERVER, OPERATOR, GroundRig, _Api
+from mavlink_support import Gcs, free_ports, wait_for
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -158,3 +161,51 @@ def processes_mentioning(text: str) -> list[int]:
         if text in cmd and alive(int(d)):
             out.append(int(d))
     return out
+
+
+class UpRig(GroundRig):
+    """The fleet exactly as an operator starts it: ``taskflight up --vehicles N`` (models, companions on one
+    team link, the ground service with the tests' tokens), plus a pymavlink ground station per vehicle on
+    its model's UDP port (positions read from the autopilots over MAVLink). Offers GroundRig's views
+    (``ground.url``, ``ground.http()``, ``vehicles()``, ``tasks()``, ``position(i)``, ``tracks``)."""
+
+    def __init__(self, tmp: Path, n: int = 3, speedup: float = 3.0) -> None:
+        self.tmp, self.n, self.speedup = tmp, n, speedup
+        self.base = free_base(n)
+        tokens = tmp / "tokens.yaml"
+        tokens.write_text(f"operator: [{OPERATOR}]\nobserver: [{OBSERVER}]\n")
+        tokens.chmod(0o600)
+        self.companions = []
+        self.gcs: list[Gcs] = []
+        port = free_ports(1, socket.SOCK_STREAM)[0]
+        self.up = UpProcess(["--vehicles", str(n), "--speedup", str(speedup), "--base-instance",
+                             str(self.base), "--ground-port", str(port), "--tokens", str(tokens),
+                             "--no-persist"], tmp / "state")
+        try:
+            summary = self.up.wait_ready(180.0)
+            assert summary.ground, self.up.output
+            self.ground = _UpGround(summary.ground)
+            for i in range(n):
+                g = Gcs(ports(self.base + i)[1], speedup, background=True, target=i + 1)
+                g.request_streams(10)
+                self.gcs.append(g)
+            self.tracks = [[] for _ in range(n)]
+            self._stop = threading.Event()
+            self._sampler = threading.Thread(target=self._sample, daemon=True)
+            self._sampler.start()
+            wait_for(lambda: self.ready(), 120, f"{n} vehicles in the team, companions answering")
+        except BaseException:
+            self.close()
+            raise
+
+    def close(self) -> None:
+        if hasattr(self, "_stop"):
+            self._stop.set()
+        for g in self.gcs:
+            g.close()
+        self.up.close()
+
+
+class _UpGround(_Api):
+    def __init__(self, url: str) -> None:
+        self.url = url
