@@ -33,6 +33,9 @@ def add_ground_arguments(parser: argparse.ArgumentParser) -> None:
                         help="a vehicle's companion control URL, e.g. 1=http://127.0.0.1:8765 (repeatable)")
     parser.add_argument("--companion-token", default=None, metavar="TOKEN",
                         help=f"bearer token toward the companions (default ${TOKEN_ENV})")
+    parser.add_argument("--fence", default=None, metavar="YAML",
+                        help="the operational fence, 'fence: [[lat, lon], ...]': tasks outside it are "
+                             "refused and the map draws it")
     parser.add_argument("--snapshot-period", type=float, default=0.1, metavar="S",
                         help="WebSocket fleet snapshot period (default 0.1 s)")
 
@@ -55,15 +58,17 @@ def run_ground(args: argparse.Namespace) -> int:
 
     from .app import create_app
     from .auth import Tokens
-    from .service import GroundService
+    from .service import GroundService, load_fence
 
     try:
         companions = parse_companions(args.companion)
         tokens = Tokens.load(args.tokens) if args.tokens else Tokens.generate()
         if not 0.02 <= args.snapshot_period <= 1.0:
             raise ValueError("--snapshot-period: between 0.02 and 1 s")
+        fence = load_fence(args.fence) if args.fence else None
         service = GroundService(args.db, tokens, team_url=args.team, companions=companions,
-                                companion_token=args.companion_token or os.environ.get(TOKEN_ENV))
+                                companion_token=args.companion_token or os.environ.get(TOKEN_ENV),
+                                fence=fence)
     except (ValueError, OSError) as exc:
         print(f"taskflight ground: error: {exc}", file=sys.stderr)
         return 2

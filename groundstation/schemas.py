@@ -265,3 +265,9 @@ class MissionList(BaseModel):
 class WhoAmI(BaseModel):
     role: str
     name: str
+
+
+class FenceOut(BaseModel):
+    """The operational fence the station refuses tasks outside of (``taskflight ground --fence``)."""
+
+    points: list[Point] | None = Field(description="[lat, lon] vertices, or null without a fence")

@@ -17,11 +17,16 @@ import math
 import threading
 import time
 from dataclasses import replace
+from pathlib import Path
 from typing import Any
 
+import yaml
+from shapely.geometry import Polygon
+
 from companion.team.station import TeamControlStation
-from companion.team.tasks import TaskDef
+from companion.team.tasks import Fence, TaskDef
 from companion.team.transport import Transport, open_transport
+from taskflight.geo import check_point
 
 from .auth import Principal, Tokens
 from .companions import VERBS, ApiError, CompanionClient
@@ -66,13 +71,36 @@ def _offer(q: asyncio.Queue[dict[str, Any]], event: dict[str, Any]) -> None:
         q.put_nowait(event)
 
 
+def fence_of(points: list[list[float]]) -> Fence:
+    """The station's fence from [lat, lon] vertices (ValueError for fewer than 3 or a polygon that is not
+    simple)."""
+    if len(points) < 3:
+        raise ValueError(f"fence: needs at least 3 [lat, lon] vertices, got {len(points)}")
+    for i, p in enumerate(points):
+        check_point(list(p), f"fence[{i}]")
+    poly = Polygon([(float(p[0]), float(p[1])) for p in points])
+    if not poly.is_valid or poly.area <= 0:
+        raise ValueError("fence: not a simple polygon")
+    return Fence(poly)
+
+
+def load_fence(path: str) -> list[list[float]]:
+    """``fence: [[lat, lon], ...]`` from a YAML file (a team task file or a file of its own)."""
+    data = yaml.safe_load(Path(path).read_text())
+    points = data.get("fence") if isinstance(data, dict) else None
+    if not isinstance(points, list):
+        raise ValueError(f"{path}: expected 'fence: [[lat, lon], ...]'")
+    fence_of(points)
+    return [list(map(float, p[:2])) for p in points]
+
+
 class GroundService:
     """See module docstring. ``companions``: vehicle id -> control URL (also stored in the registry)."""
 
     def __init__(self, db_path: str, tokens: Tokens, *, team_url: str | None = None,
                  transport: Transport | None = None, companions: dict[int, str] | None = None,
                  companion_token: str | None = None, station_period_s: float | None = None,
-                 poll_period_s: float = 0.5) -> None:
+                 poll_period_s: float = 0.5, fence: list[list[float]] | None = None) -> None:
         self.db = Database(db_path)
         self.tokens = tokens
         self.hub = EventHub()
@@ -80,7 +108,9 @@ class GroundService:
         if transport is None:
             transport = open_transport(team_url or "udp://239.255.70.1:14600", member=0,
                                        position_of=lambda m: None)
-        self.station = TeamControlStation(transport, period_s=station_period_s, name="ground")
+        self.fence_points = [list(p[:2]) for p in fence] if fence else None
+        self.station = TeamControlStation(transport, period_s=station_period_s, name="ground",
+                                          fence=fence_of(fence) if fence else None)
         self.station.listeners.append(self._on_station)
         self.fleet = Fleet(self.station, self.client, self.emit, poll_period_s=poll_period_s)
         for v in self.db.vehicles():

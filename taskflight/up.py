@@ -47,6 +47,7 @@ from typing import Any
 import yaml
 
 from taskflight.children import Child, first_dead, stop_all
+from taskflight.geo import ned_to_geodetic
 
 log = logging.getLogger(__name__)
 
@@ -354,6 +355,9 @@ class Up:
         argv = [*self._exe(), *ground_arguments(self.member_url, o.state_dir / "ground.db", o.host,
                                                 o.ground_port, self.tokens_path, self.vehicles,
                                                 self.control_token)]
+        fence = write_fence(o.platform, o.state_dir / "fence.yaml")
+        if fence is not None:
+            argv += ["--fence", str(fence)]
         self.children.append(Child("ground", argv, o.state_dir / "logs" / "ground.log",
                                    env=self._pythonpath(), cwd=ROOT).start())
 
@@ -442,6 +446,20 @@ def sleep_or_stop(stop: threading.Event | None, s: float) -> None:
         time.sleep(s)
     elif stop.wait(s):
         raise KeyboardInterrupt
+
+
+def write_fence(platform: Path, path: Path) -> Path | None:
+    """The platform's envelope (north/east metres around its home) as a ``fence: [[lat, lon], ...]`` file
+    for the ground service, which refuses tasks outside it and draws it; None without a horizontal one."""
+    from companion.tst.platform import load_platform
+
+    p = load_platform(platform)
+    if p.envelope.vertices is None:
+        return None
+    origin = (p.home[0], p.home[1], 0.0)
+    points = [list(ned_to_geodetic(origin, n, e, 0.0)[:2]) for n, e in p.envelope.vertices]
+    path.write_text(f"fence: {points}\n")
+    return path
 
 
 def ground_arguments(team_url: str, db: Path, host: str, port: int, tokens: Path,

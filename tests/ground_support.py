@@ -73,10 +73,10 @@ class InProcessGround(_Api):
     """The service and uvicorn in this process (a thread), on a free port."""
 
     def __init__(self, tmp: Path, team_url: str | None = None, companions: dict[int, str] | None = None,
-                 snapshot_period_s: float = 0.1) -> None:
+                 snapshot_period_s: float = 0.1, fence: list[list[float]] | None = None) -> None:
         self.team_url = team_url or f"udp://239.255.70.1:{free_udp_port()}"
         self.service = GroundService(str(tmp / "ground.db"), Tokens(TOKENS), team_url=self.team_url,
-                                     companions=companions).start()
+                                     companions=companions, fence=fence).start()
         port = free_tcp_port()
         self.url = f"http://127.0.0.1:{port}"
         config = uvicorn.Config(create_app(self.service, snapshot_period_s), host="127.0.0.1", port=port,

@@ -23,6 +23,7 @@ from companion.team.tasks import LedgerSnapshot, TaskDef, TaskLedger
 from companion.team.types import TaskState
 from groundstation.auth import Tokens
 from groundstation.db import Database
+from groundstation.service import fence_of
 
 BORDER = [list(geo(0, 0, 5)), list(geo(0, 100, 5)), list(geo(50, 100, 5))]
 AREA = [list(geo(10, 10)), list(geo(10, 60)), list(geo(60, 60)), list(geo(60, 10))]
@@ -294,3 +295,23 @@ def _fuzz(ground: InProcessGround, tmp_path: Path) -> None:
                         "--phases", "examples,coverage,fuzzing"],
                        capture_output=True, text=True, timeout=280, cwd=tmp_path)
     assert r.returncode == 0, r.stdout[-4000:] + r.stderr[-2000:]
+
+
+def test_fence_is_served_and_tasks_outside_it_are_refused(tmp_path: Path) -> None:
+    corners = [geo(-100, -100), geo(100, -100), geo(100, 100), geo(-100, 100)]
+    g = InProcessGround(tmp_path, fence=[list(c[:2]) for c in corners])
+    try:
+        with g.http() as c:
+            got = c.get("/api/fence").json()["points"]
+            assert got == [list(c[:2]) for c in corners]
+            r = c.post("/api/tasks", json={"type": "visit", "point": list(geo(150, 0, 10))})
+            assert r.status_code == 400 and "outside the fence" in r.json()["error"], r.text
+            assert c.get("/api/tasks").json()["tasks"] == []  # nothing added
+            r = c.post("/api/tasks", json={"type": "visit", "point": list(geo(50, 0, 10))})
+            assert r.status_code == 201, r.text
+        with g.http(OBSERVER) as c:
+            assert c.get("/api/fence").status_code == 200  # read: every role
+    finally:
+        g.close()
+    with pytest.raises(ValueError, match="fence: needs at least 3"):
+        fence_of([list(corners[0][:2]), list(corners[1][:2])])

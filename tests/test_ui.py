@@ -95,6 +95,8 @@ def task_ids(d: Any) -> set[int]:
 def test_three_vehicles_move_to_visits_clicked_on_the_map(rig: GroundRig, page: Any, shots: Shots) -> None:
     d = page
     WebDriverWait(d, 30).until(lambda d: len(markers(d)) == 3)
+    # taskflight up gives the ground service the platform's envelope: the map draws it
+    WebDriverWait(d, 10).until(lambda d: d.find_elements(By.CSS_SELECTOR, "path.fence"), "the fence drawn")
     shots(d, "1_fleet")
     start = markers(d)
     before = task_ids(d)

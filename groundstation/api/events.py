@@ -7,7 +7,7 @@ from typing import Annotated, Any
 
 from fastapi import APIRouter, Query, Request
 
-from groundstation.schemas import AssignmentList, AuditList, EventList, MissionList, WhoAmI
+from groundstation.schemas import AssignmentList, AuditList, EventList, FenceOut, MissionList, WhoAmI
 
 from . import principal_of, service_of
 
@@ -47,3 +47,9 @@ def missions(request: Request, vehicle: Annotated[int | None, Query(ge=1, le=255
 def whoami(request: Request) -> Any:
     who = principal_of(request)
     return {"role": who.role, "name": who.name}
+
+
+@router.get("/fence", response_model=FenceOut)
+def fence(request: Request) -> Any:
+    """The fence (tasks with a point outside it are refused, 400), for the map."""
+    return {"points": service_of(request).fence_points}

@@ -12,6 +12,7 @@ const $ = (id) => document.getElementById(id);
 const stats = { snapshots: 0, renders: 0, renderTimes: [], frameTimes: [], intervals: [], lastRender: 0, lastFrame: 0, seq: 0 };
 let role = null, live = null, fmap = null, fleet = null, tasks = null, alerts = null, panel = null, joystick = null;
 let pending = null, vehiclesById = new Map(), tasksById = new Map();
+let fencePoints = null, fenceDrawn = false;
 
 /** A modal dialog; resolves to the value of the button pressed. */
 function dialog(title, bodyHtml, buttons) {
@@ -136,6 +137,7 @@ function render(snap) {
     const h = q ? q.split(",").map(Number) : [first.position.lat, first.position.lon];
     setHome(h[0], h[1]);
   }
+  if (fencePoints && !fenceDrawn) { fmap.setFence(fencePoints); fenceDrawn = true; }
   tasksById = new Map(snap.tasks.map((t) => [t.id, t]));
   vehiclesById = new Map(snap.vehicles.map((v) => [v.id, v]));
   for (const v of snap.vehicles) v.alert = v.confirmation_required ? "confirmation required" : alerts.of(v.id);
@@ -197,6 +199,8 @@ async function start() {
     const q = toGeo(lat, lon);
     $("readout").textContent = `N ${lat.toFixed(1)} m  E ${lon.toFixed(1)} m   lat ${q[0].toFixed(7)}  lon ${q[1].toFixed(7)}`;
   });
+  const fence = await call("GET", "/api/fence");
+  fencePoints = fence.status === 200 && fence.body.points ? fence.body.points : null;
   applyRole();
   live.open();
   requestAnimationFrame(frame);

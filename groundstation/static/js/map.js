@@ -98,6 +98,14 @@ export class FleetMap {
     for (const [id, e] of this.tasks) if (!seen.has(id)) { e.layer.remove(); this.tasks.delete(id); }
   }
 
+  /** The operational fence (lat/lon vertices from GET /api/fence), dashed red. */
+  setFence(points) {
+    if (this.fence) this.fence.remove();
+    this.fence = L.polygon(points.map((q) => toLocal(q[0], q[1])),
+      { color: "#c00", weight: 2, dashArray: "6 4", fill: false, interactive: false, className: "fence" })
+      .addTo(this.map);
+  }
+
   addDetection(lat, lon, text) {
     L.circleMarker(toLocal(lat, lon), { radius: 6, color: "#d00", fillColor: "#ff0", fillOpacity: 0.9 })
       .bindTooltip(text).addTo(this.detections);
