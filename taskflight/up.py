@@ -169,6 +169,7 @@ class UpOptions:
     ready_timeout_s: float | None = None
     persist: bool = True
     companion_nice: int = 0
+    scenario: Path | None = None
 
     def check(self) -> None:
         if not 1 <= self.vehicles <= 200:
@@ -186,6 +187,8 @@ class UpOptions:
             raise UpError(f"--companion-nice must be within 0..19, got {self.companion_nice}", 2)
         if not self.platform.is_file():
             raise UpError(f"--platform: no such file: {self.platform}", 2)
+        if self.scenario is not None and not self.scenario.is_file():
+            raise UpError(f"--scenario: no such file: {self.scenario}", 2)
         if not 1 <= self.ground_port <= 65535:
             raise UpError(f"--ground-port must be within 1..65535, got {self.ground_port}", 2)
 
@@ -345,7 +348,8 @@ class Up:
             argv = [*nice, *self._exe(), "companion", "--autopilot", f"udpout:127.0.0.1:{v.udp}",
                     "--team", self.member_url, "--control-port", port, "--control-host", "127.0.0.1",
                     "--platform", str(o.platform),
-                    "--flight-log", str(o.state_dir / "logs" / f"flight{v.sysid}.jsonl")]
+                    "--flight-log", str(o.state_dir / "logs" / f"flight{v.sysid}.jsonl"),
+                    *(["--scenario", str(o.scenario)] if o.scenario is not None else [])]
             self.children.append(Child(f"companion{v.sysid}", argv, o.state_dir / "logs" /
                                        f"companion{v.sysid}.log", env=env, cwd=ROOT).start())
 
@@ -498,6 +502,9 @@ def add_up_arguments(p: argparse.ArgumentParser) -> None:
                         "$TASKFLIGHT_STATE/up or ~/.taskflight/up)")
     p.add_argument("--platform", default=str(PLATFORM), metavar="YAML",
                    help="the companions' platform for delegation (default: the outdoor one)")
+    p.add_argument("--scenario", default=None, metavar="YAML",
+                   help="objects for every vehicle's simulated downward camera (north, east of its own home; "
+                        "companion.sensing.scenario): detections reach the ground service as events")
     p.add_argument("--no-ground", action="store_true", help="everything but the ground service")
     p.add_argument("--no-persist", action="store_true", help="the models neither load nor save parameters")
     p.add_argument("--companion-nice", type=int, default=0, metavar="K",
@@ -516,7 +523,8 @@ def options_from_args(args: argparse.Namespace) -> UpOptions:
                      tokens_file=Path(args.tokens) if args.tokens else None, team=args.team,
                      team_loss=args.team_loss, ready_timeout_s=args.ready_timeout,
                      persist=not args.no_persist, platform=Path(args.platform),
-                     companion_nice=args.companion_nice)
+                     companion_nice=args.companion_nice,
+                     scenario=Path(args.scenario) if args.scenario else None)
 
 
 def run_up(args: argparse.Namespace) -> int:
