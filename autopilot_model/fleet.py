@@ -44,6 +44,7 @@ from typing import Any
 
 from taskflight.clock import SimClock
 from taskflight.geo import ned_to_geodetic
+from taskflight.runtime import setup_logging
 
 log = logging.getLogger(__name__)
 
@@ -335,8 +336,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("-v", "--verbose", action="count", default=0)
     add_fleet_arguments(parser)
     args = parser.parse_args(argv)
-    level = logging.DEBUG if args.verbose > 1 else logging.INFO if args.verbose else logging.WARNING
-    logging.basicConfig(level=level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+    setup_logging(args.verbose)
     return run_fleet(args)
 
 

@@ -33,7 +33,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from taskflight.runtime import stop_on_signals
+from taskflight.runtime import setup_logging, stop_on_signals
 
 log = logging.getLogger(__name__)
 
@@ -221,8 +221,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("-v", "--verbose", action="count", default=0)
     add_autopilot_arguments(parser)
     args = parser.parse_args(argv)
-    level = logging.DEBUG if args.verbose > 1 else logging.INFO if args.verbose else logging.WARNING
-    logging.basicConfig(level=level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+    setup_logging(args.verbose)
     return run_autopilot(args)
 
 

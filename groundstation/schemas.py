@@ -175,16 +175,6 @@ class TakeRequest(_Strict):
     reason: str = Field("operator", max_length=200)
 
 
-class ParamSet(_Strict):
-    value: float = Field(..., allow_inf_nan=False)
-
-
-class ParamAnswer(BaseModel):
-    name: str
-    value: float
-    type: int
-
-
 class CommandAnswer(BaseModel):
     """One vehicle's answer to a command: the companion's answer (``status``: its HTTP status)."""
 

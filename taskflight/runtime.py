@@ -1,7 +1,9 @@
-"""What every long-running ``taskflight`` process does the same way: stop cleanly on SIGTERM / SIGINT."""
+"""What every long-running ``taskflight`` process does the same way: stop cleanly on SIGTERM / SIGINT, log
+in one format."""
 
 from __future__ import annotations
 
+import logging
 import signal
 import threading
 from typing import Any
@@ -18,3 +20,9 @@ def stop_on_signals() -> threading.Event:
         signal.signal(signal.SIGTERM, _stop)
         signal.signal(signal.SIGINT, _stop)
     return stop
+
+
+def setup_logging(verbose: int, quiet_level: int = logging.WARNING) -> None:
+    """``-v`` INFO, ``-vv`` DEBUG, else ``quiet_level``; one format for every process."""
+    level = logging.DEBUG if verbose > 1 else logging.INFO if verbose else quiet_level
+    logging.basicConfig(level=level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")

@@ -9,12 +9,11 @@ from typing import Annotated, Any
 from fastapi import APIRouter, Body, Path, Request
 from fastapi.responses import JSONResponse
 
+from companion.control_team import ParamAnswer, ParamSet  # the companion's own contract, proxied
 from groundstation.companions import ApiError
 from groundstation.schemas import (
     CommandAnswer,
     MissionRequest,
-    ParamAnswer,
-    ParamSet,
     PauseRequest,
     TakeRequest,
     VehicleList,
