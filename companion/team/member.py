@@ -17,8 +17,9 @@ A claim is flown once it has been held for ``settle_s`` (one broadcast period by
 out-bid, so that most conflicts are declared and resolved before the vehicle turns (seed 003 Sec. V: "On
 three occasions, conflicts were declared when two UAVs claimed the same task. These conflicts were
 resolved"). A task whose tree succeeded is reported DONE in the row until the board says it is done; a task
-whose tree failed (rejected by delegation, or failed in flight) is reported FAILED and never claimed again
-by this vehicle.
+whose tree failed (rejected by delegation, or failed in flight) is reported FAILED and not claimed again by
+this vehicle for :data:`RETRY_FAILED_S`. A vehicle bids only once it is localized (seed 001's
+SELF_LOCALIZE active: ArduCopter's EKF takes tens of seconds after boot).
 """
 
 from __future__ import annotations
@@ -46,6 +47,9 @@ if TYPE_CHECKING:
     from .transport import Transport
 
 log = logging.getLogger(__name__)
+
+#: seconds after which a task this vehicle failed may be bid for again
+RETRY_FAILED_S = 30.0
 
 
 
@@ -81,6 +85,7 @@ class TeamMember:
         self.velocity: tuple[float, float, float] = (0.0, 0.0, 0.0)
         self.done: dict[int, int] = {}      # task id -> version this vehicle finished
         self.failed: dict[int, str] = {}    # task id -> why this vehicle could not fly it
+        self._failed_at: dict[int, float] = {}
         self.events: list[dict[str, Any]] = []
         self._claimed_at: dict[int, float] = {}
         self._verdicts: dict[tuple[int, int], str] = {}  # (task, version) -> "" (can) or why not
@@ -175,6 +180,10 @@ class TeamMember:
                 return
             if self.switchboard.controller is Controller.TEAM and self._paused():
                 return  # a break-in by the operator: the claims stand until it is resumed
+            if not self._ready():
+                self.claims = ()  # no bids before the vehicle knows where it is (its estimate healthy)
+                return
+            self._forget_failures()
             board = self.state.board
             rows = {m: e for m, e in self.state.alive().items() if m != self.id}
             self._progress(board)
@@ -197,6 +206,11 @@ class TeamMember:
             lat, lon, _alt, rel = s.global_position
             self.position = (lat, lon, rel)
         self.velocity = tuple(float(v) for v in s.velocity)  # type: ignore[assignment]
+
+    def _ready(self) -> bool:
+        """The executive layer localizes the vehicle (SELF_LOCALIZE active: a healthy estimate), so the
+        motion behaviors a task needs may start."""
+        return self.missions.layer.coordinator.is_active("SELF_LOCALIZE")
 
     def _paused(self) -> bool:
         return self.missions.execution.status().get("state") == "paused"
@@ -227,13 +241,25 @@ class TeamMember:
                 self._event("done", task=task.id)
                 self.switchboard.loiter()
             elif out.state in ("failed", "aborted"):
-                self.failed[task.id] = out.reason or out.state
+                self._fail(task.id, out.reason or out.state)
                 self._event("failed", task=task.id, reason=out.reason)
                 self.switchboard.loiter()
         for tid in list(self.done):
             t = board.get(tid)
             if t is None or t.state.final:
                 del self.done[tid]
+
+    def _fail(self, task_id: int, reason: str) -> None:
+        self.failed[task_id] = reason
+        self._failed_at[task_id] = self.clock()
+
+    def _forget_failures(self) -> None:
+        """A task this vehicle failed is bid for again after :data:`RETRY_FAILED_S` (what made it fail, a
+        vehicle not yet localized, a busy autopilot, may have passed); the others had it first."""
+        now = self.clock()
+        for tid in [t for t, at in self._failed_at.items() if now - at >= RETRY_FAILED_S]:
+            self.failed.pop(tid, None)
+            del self._failed_at[tid]
 
     def _candidates(self, board: TaskBoard, rows: Mapping[int, MemberEntry]) -> TaskBoard:
         """The board without what is over: tasks reported done by anyone, and those this vehicle failed."""
@@ -306,7 +332,7 @@ class TeamMember:
             self._event("fly", task=task.id, version=task.version)
             self._set_status(MemberStatus.BUSY)
         else:
-            self.failed[task.id] = self.switchboard.errors[-1] if self.switchboard.errors else "refused"
+            self._fail(task.id, self.switchboard.errors[-1] if self.switchboard.errors else "refused")
 
     # --- bookkeeping -------------------------------------------------------------------------------------
     def _set_status(self, status: MemberStatus, why: str = "") -> None:
