@@ -136,7 +136,9 @@ class TeamRig:
             return c.get("/team").json()
 
     def wall(self, sim_s: float) -> float:
-        return sim_s / self.speedup
+        """A wall deadline for ``sim_s`` of flight: twice the time at the speed-up, plus 10 s (a loaded
+        machine runs the companions' ticks and the models late)."""
+        return 10.0 + 2.0 * sim_s / self.speedup
 
     def position(self, i: int) -> tuple[float, float, float] | None:
         """Vehicle i's (lat, lon, alt above home) from its autopilot's GLOBAL_POSITION_INT."""

@@ -50,7 +50,7 @@ class Member:
         self.station = TeamControlStation(open_transport(self.url)).start()
 
     def wall(self, sim_s: float) -> float:
-        return sim_s / SPEEDUP
+        return 10.0 + 2.0 * sim_s / SPEEDUP
 
     def team(self) -> dict[str, Any]:
         with httpx.Client(base_url=f"http://127.0.0.1:{self.port}", timeout=10) as c:
