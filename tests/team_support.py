@@ -116,6 +116,10 @@ class TeamRig:
             if p is None or p.poll() is not None:
                 self.start_companion(i)
         wait_for(lambda: len(self.station.vehicle_rows()) == self.n, 60, "every vehicle in the team")
+        for i in range(self.n):  # a test that failed half-way may have left a vehicle out of the team
+            if self.team(i)["status"] == "taken":
+                with self.http(i) as c:
+                    c.post("/team/release")
 
     def close(self) -> None:
         for g in self.gcs:
