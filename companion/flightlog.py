@@ -255,6 +255,28 @@ def _is_vec(v: Any) -> bool:
             and all(isinstance(x, int | float) and not isinstance(x, bool) for x in v))
 
 
+#: autopilot seconds without a streamed setpoint that end a stream (the companion was not in control: an
+#: override by a ground station, the autopilot's own take-off or landing)
+STREAM_GAP_S = 0.5
+
+
+def streamed_segments(records: list[dict[str, Any]], gap_s: float = STREAM_GAP_S) -> list[list[Setpoint]]:
+    """The streamed setpoints in uninterrupted runs: a new run starts after ``gap_s`` of autopilot time
+    without one (e.g. a ground station took the vehicle and gave it back: the companion's new stream
+    starts from the vehicle's own state, not from its last setpoint). Check each run with
+    :func:`companion.flight.simulate.step_violations`."""
+    runs: list[list[Setpoint]] = []
+    last_t: float | None = None
+    for r in records:
+        if r["type"] != "setpoint" or "qt" not in r:
+            continue
+        if last_t is None or float(r["t"]) - last_t > gap_s:
+            runs.append([])
+        last_t = float(r["t"])
+        runs[-1].extend(streamed_setpoints([r]))
+    return runs
+
+
 def streamed_setpoints(records: list[dict[str, Any]]) -> list[Setpoint]:
     """The streamed setpoints of a flight log (queue time, position, velocity, yaw, kind) as
     :class:`~companion.flight.setpoint.Setpoint` s, for :func:`companion.flight.simulate.step_violations`

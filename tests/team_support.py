@@ -29,7 +29,7 @@ from mavlink_support import Gcs, free_ports, wait_for
 
 from companion.flight.limits import Limits
 from companion.flight.simulate import step_violations
-from companion.flightlog import read_flight_log, streamed_setpoints
+from companion.flightlog import read_flight_log, streamed_segments
 from companion.team.station import TeamControlStation
 from companion.team.tasks import TaskDef
 from companion.team.transport import open_transport
@@ -169,8 +169,8 @@ class TeamRig:
         for logs in self.logs:
             for path in logs:
                 if path.is_file():
-                    out += step_violations(streamed_setpoints(read_flight_log(path)), self.limits,
-                                           rel_tol=1e-3)
+                    for run in streamed_segments(read_flight_log(path)):
+                        out += step_violations(run, self.limits, rel_tol=1e-3)
         return out
 
 
@@ -184,16 +184,18 @@ def fly_nine_tasks(rig: TeamRig) -> None:
     area = rig.add(TaskDef("area_scan", (geo(15, 40), geo(15, 60), geo(45, 60), geo(45, 40)), n=2,
                            name="area"))
     wait_for(lambda: all(rig.state(t) == "done" for t in visits), rig.wall(120), "the first visits done")
+    visits += [rig.add(TaskDef("visit", (geo(35, 10, 8),), name="visit-3"))[0],
+               rig.add(TaskDef("visit", (geo(-10, -25, 8),), name="visit-4"))[0]]
+    # the tasks that end come first: a vehicle flying a patrol keeps it until it is cancelled
+    wait_for(lambda: all(rig.state(t) == "done" for t in [*visits, *area]), rig.wall(240),
+             "visits and area parts flown")
     patrol = rig.add(TaskDef("patrol_line", (geo(0, -30, 8), geo(20, -30, 8)), name="patrol"))[0]
     border = rig.add(TaskDef("border_patrol", (geo(-30, -10, 8), geo(-30, 10, 8), geo(-30, 30, 8)), n=2,
                              name="border"))
-    visits += [rig.add(TaskDef("visit", (geo(35, 10, 8),), name="visit-3"))[0],
-               rig.add(TaskDef("visit", (geo(-10, -25, 8),), name="visit-4"))[0]]
     ids = [*visits, *area, patrol, *border]
     assert len(ids) >= 8  # nine when the border kept N = 2 (a smaller N was offered otherwise)
-    wait_for(lambda: rig.state(patrol) == "active", rig.wall(120), "the patrol flown")
-    wait_for(lambda: all(rig.state(t) in ("done", "active") for t in [*visits, *area]), rig.wall(240),
-             "visits and area parts flown")
+    wait_for(lambda: rig.state(patrol) == "active" and all(rig.state(t) == "active" for t in border),
+             rig.wall(120), "the patrol and the border flown")
     st.cancel(patrol)
     st.cancel(st.tasks()[[v.id for v in st.tasks()].index(border[0])].group or border[0])
     wait_for(lambda: all(rig.state(t) in ("done", "cancelled") for t in ids), rig.wall(240),

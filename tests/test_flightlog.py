@@ -370,3 +370,18 @@ def test_companion_takes_a_flight_log_option() -> None:
     assert args.flight_log == "flight.jsonl"
     without = build_parser().parse_args(["companion", "--autopilot", "udpout:127.0.0.1:14550"])
     assert without.flight_log is None
+
+
+def test_streamed_segments_split_where_the_companion_did_not_stream() -> None:
+    from companion.flightlog import streamed_segments
+
+    def sp(t: float, v: float) -> dict[str, object]:
+        return {"type": "setpoint", "t": t, "qt": t, "kind": "POSITION", "p": [v * t, 0.0, -5.0],
+                "v": [v, 0.0, 0.0], "yaw": 0.0}
+
+    records = [sp(10.0, 1.0), sp(10.05, 1.0), sp(10.1, 1.0),  # then a ground station takes the vehicle
+               {"type": "position", "t": 10.6, "p": [10.0, 0.0, -5.0], "v": [0.0, 0.0, 0.0]},
+               sp(11.3, 0.0), sp(11.35, 0.0)]
+    runs = streamed_segments(records)
+    assert [len(r) for r in runs] == [3, 2]
+    assert runs[1][0].t_s == 11.3
