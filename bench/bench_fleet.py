@@ -23,7 +23,6 @@ import itertools
 import json
 import logging
 import os
-import random
 import socket
 import struct
 import subprocess
@@ -37,6 +36,7 @@ from typing import Any
 os.environ.setdefault("MAVLINK20", "1")
 
 from bench.common import machine, pct, table
+from taskflight.ports import free_base
 
 ROOT = Path(__file__).resolve().parents[1]
 #: (vehicles, speedup) measured by default; speedup 0 = lockstep
@@ -199,25 +199,6 @@ class Stations:
             sock.close()
 
 
-def _free_base(n: int) -> int:
-    """A base instance (60..254-n) whose instances' TCP 5760+10i and UDP 14550+10i ports are all free."""
-    def free(kind: int, port: int) -> bool:
-        with socket.socket(socket.AF_INET, kind) as s:
-            try:
-                s.bind(("127.0.0.1", port))
-            except OSError:
-                return False
-        return True
-
-    rng = random.Random(os.getpid())
-    for _ in range(50):
-        base = rng.randrange(60, 255 - n)
-        if all(free(socket.SOCK_STREAM, 5760 + 10 * i) and free(socket.SOCK_DGRAM, 14550 + 10 * i)
-               for i in range(base, base + n)):
-            return base
-    raise RuntimeError(f"no block of {n} free instance numbers")
-
-
 def _spawn(args: list[str]) -> subprocess.Popen[str]:
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(p for p in (str(ROOT), os.environ.get("PYTHONPATH", ""))
                                                       if p), PYTHONUNBUFFERED="1")
@@ -241,7 +222,7 @@ def _wait_line(proc: subprocess.Popen[str], prefix: str, timeout_s: float) -> st
 
 def measure_fleet(n: int, speedup: float, warmup: float, window: float, spin_us: float = 0.0
                   ) -> dict[str, Any]:
-    base = _free_base(n)
+    base = free_base(n)
     proc = _spawn(["-m", "bench.bench_fleet", "--child", "--vehicles", str(n), "--speedup", str(speedup),
                    "--base", str(base), "--warmup", str(warmup), "--window", str(window),
                    "--spin-us", str(spin_us)])
@@ -285,7 +266,7 @@ def _proc_rss_mb(pid: int) -> float:
 
 def measure_single(warmup: float, window: float) -> dict[str, Any]:
     """The single-vehicle model process at real time, measured from outside."""
-    base = _free_base(1)
+    base = free_base(1)
     with tempfile.TemporaryDirectory() as tmp:
         proc = _spawn(["-m", "autopilot_model.sitl", "--instance", str(base), "--speedup", "1",
                        "--state-dir", tmp, "--no-persist", "--mavlink", f"tcpin:127.0.0.1:{5760 + 10 * base}",

@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import random
 import socket
 import sys
 import tempfile
@@ -33,8 +32,9 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from bench.common import machine, table  # noqa: E402
+from taskflight.ports import free_base  # noqa: E402
 from taskflight.team_tasking import http_json  # noqa: E402
-from taskflight.up import Up, UpError, UpOptions, ground_available, model_ports, port_free  # noqa: E402
+from taskflight.up import Up, UpError, UpOptions, ground_available  # noqa: E402
 
 TICK = os.sysconf("SC_CLK_TCK")
 PAGE = os.sysconf("SC_PAGE_SIZE")
@@ -56,16 +56,6 @@ def rss_mb(pid: int) -> float:
             return int(f.read().split()[1]) * PAGE / 1e6
     except OSError:
         return float("nan")
-
-
-def free_base(n: int) -> int:
-    rng = random.Random()
-    for _ in range(100):
-        base = rng.randrange(60, 254 - n)
-        tcp_udp = [model_ports(i) for i in range(base, base + n)]
-        if all(port_free(socket.SOCK_STREAM, t) and port_free(socket.SOCK_DGRAM, u) for t, u in tcp_udp):
-            return base
-    raise RuntimeError("no free block of instance numbers")
 
 
 @dataclass

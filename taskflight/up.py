@@ -48,6 +48,7 @@ import yaml
 
 from taskflight.children import Child, first_dead, stop_all
 from taskflight.geo import ned_to_geodetic
+from taskflight.ports import free_ports, model_ports, port_free
 
 log = logging.getLogger(__name__)
 
@@ -64,34 +65,6 @@ class UpError(RuntimeError):
     def __init__(self, message: str, status: int = 1) -> None:
         super().__init__(message)
         self.status = status
-
-
-def model_ports(instance: int) -> tuple[int, int]:
-    """(TCP, UDP) MAVLink ports of an instance, as ArduPilot SITL numbers them."""
-    return 5760 + 10 * instance, 14550 + 10 * instance
-
-
-def port_free(kind: int, port: int, host: str = "127.0.0.1") -> bool:
-    with socket.socket(socket.AF_INET, kind) as sock:
-        if kind == socket.SOCK_STREAM:
-            sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)  # as a listener binds it
-        try:
-            sock.bind((host, port))
-        except OSError:
-            return False
-    return True
-
-
-def free_tcp_ports(n: int, host: str = "127.0.0.1") -> list[int]:
-    """``n`` distinct free TCP ports (bound at the same time, so no two are the same)."""
-    socks = [socket.socket(socket.AF_INET, socket.SOCK_STREAM) for _ in range(n)]
-    try:
-        for s in socks:
-            s.bind((host, 0))
-        return [s.getsockname()[1] for s in socks]
-    finally:
-        for s in socks:
-            s.close()
 
 
 def free_team_url() -> str:
@@ -329,7 +302,7 @@ class Up:
                 raise UpError(f"the fleet printed no READY line in time; the end of {fleet_log}:\n"
                               f"{self.fleet.tail()}")
             sleep_or_stop(stop, 0.05)
-        ctl = free_tcp_ports(o.vehicles)
+        ctl = free_ports(o.vehicles)
         for i in range(o.vehicles):
             tcp, udp = model_ports(o.base_instance + i)
             self.vehicles.append(VehicleInfo(i, i + 1, o.base_instance + i, tcp, udp,

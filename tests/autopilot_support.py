@@ -21,8 +21,9 @@ from pathlib import Path
 
 import pytest
 from companion_support import WireTap
-from mavlink_support import ROOT, Gcs, SitlProcess, free_port, free_ports, port_free, wait_for
+from mavlink_support import ROOT, Gcs, SitlProcess, free_port, free_ports, wait_for
 
+from taskflight.ports import port_free
 from taskflight.sitlproc import stop_child
 
 #: the ArduCopter SITL binary, or None

@@ -4,11 +4,9 @@ from __future__ import annotations
 
 import os
 import random
-import socket
 from pathlib import Path
 
-from mavlink_support import port_free
-
+from taskflight.ports import base_free, model_ports
 from taskflight.sitlproc import ModelProcess
 
 SPEEDUP = 5.0
@@ -16,15 +14,7 @@ N = 3
 _rng = random.Random(os.getpid())
 
 
-def ports(instance: int) -> tuple[int, int]:
-    """(TCP, UDP) ports of an instance, as ArduPilot SITL numbers them."""
-    return 5760 + 10 * instance, 14550 + 10 * instance
-
-
-def base_free(base: int, n: int) -> bool:
-    """Every port of instances base..base+n-1 is free (cf. ``_instance_free`` in autopilot_support)."""
-    return all(port_free(socket.SOCK_STREAM, ports(i)[0]) and port_free(socket.SOCK_DGRAM, ports(i)[1])
-               for i in range(base, base + n))
+ports = model_ports
 
 
 def start_fleet(tmp: Path, n: int = N, speedup: float = SPEEDUP) -> tuple[ModelProcess, int]:

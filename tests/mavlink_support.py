@@ -47,16 +47,6 @@ def free_port(kind: int = socket.SOCK_DGRAM) -> int:
     return port
 
 
-def port_free(kind: int, port: int) -> bool:
-    """Nothing on this machine holds ``port`` (SOCK_STREAM or SOCK_DGRAM) on loopback."""
-    with socket.socket(socket.AF_INET, kind) as sock:
-        try:
-            sock.bind(("127.0.0.1", port))
-        except OSError:
-            return False
-    return True
-
-
 def free_ports(n: int, kind: int = socket.SOCK_DGRAM) -> list[int]:
     """``n`` distinct free ports (bound at the same time: two :func:`free_port` calls may return the same
     port, and pymavlink's udpin sets SO_REUSEADDR, so two listeners would then share it silently)."""

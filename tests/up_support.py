@@ -20,20 +20,13 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from fleet_support import _rng, base_free, ports
+from fleet_support import ports
 from ground_support import OBSERVER, OPERATOR, GroundRig, _Api
 from mavlink_support import Gcs, free_ports, wait_for
 
+from taskflight.ports import free_base
+
 ROOT = Path(__file__).resolve().parents[1]
-
-
-def free_base(n: int) -> int:
-    """A base instance (60..) whose 2n MAVLink ports are free."""
-    for _ in range(50):
-        base = _rng.randrange(60, 254 - n)
-        if base_free(base, n):
-            return base
-    raise RuntimeError("no free block of instance numbers")
 
 
 @dataclass
