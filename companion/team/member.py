@@ -213,7 +213,8 @@ class TeamMember:
         return self.missions.layer.coordinator.is_active("SELF_LOCALIZE")
 
     def _paused(self) -> bool:
-        return self.missions.execution.status().get("state") == "paused"
+        status = self.missions.execution.root_status()
+        return status is not None and status.state == "paused"
 
     def _tier(self, s: Any) -> bool:
         """Set the status from the hierarchy; True if the team may give this vehicle tasks."""

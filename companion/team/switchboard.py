@@ -123,9 +123,10 @@ class Switchboard:
         with self._lock:
             if self.task is None:
                 return None
-            status = self.missions.execution.status()
-            state = status.get("state", "none")
-            return Outcome(self.task.id, state, status.get("fail_reason", "") or "")
+            status = self.missions.execution.root_status()
+            if status is None:
+                return Outcome(self.task.id, "loaded")
+            return Outcome(self.task.id, status.state, status.fail_reason)
 
     def _stop_tree(self) -> None:
         if self.missions.execution.running:

@@ -242,6 +242,12 @@ class TstExecutionSystem:
     def running(self) -> bool:
         return self.root_run is not None and not self.root_run.finished
 
+    def root_status(self) -> NodeExecutionStatus | None:
+        """The root's Fig. 5 status (None before a start): what :meth:`status` reports as state and
+        fail_reason, without building the tree view."""
+        with self._lock:
+            return self.root_run.status if self.root_run is not None else None
+
     def make_run(self, node: TstNode, ctx: ExecContext) -> Run:
         if node.is_control:
             run: Run = ControlRun(node, self, ctx)
