@@ -62,7 +62,9 @@ from taskflight.jsonlines import json_lines
 
 if TYPE_CHECKING:
     from companion.flight.commands import FlightCommand
+    from companion.flight.limits import Limits
     from companion.flight.setpoint import Setpoint
+    from companion.flight.simulate import Violation
     from companion.link.setpoints import TargetFields
     from companion.node import QuadNode
 
@@ -78,7 +80,14 @@ class FlightLogError(ValueError):
     """A malformed flight-log line; the message names the file and line."""
 
 
-def _r(x: float, nd: int = 4) -> float | None:
+#: decimals of the log's positions, velocities and angles (0.1 mm, 0.1 mm/s, 0.1 mrad)
+DECIMALS = 4
+#: the most that rounding to :data:`DECIMALS` can add to the horizontal norm of a difference of two logged
+#: vectors (each component of each end off by half a unit: sqrt(2) * 1e-4), with a margin
+ROUNDING_TOLERANCE = 1.5 * 10.0 ** -DECIMALS
+
+
+def _r(x: float, nd: int = DECIMALS) -> float | None:
     """A float rounded for the log (mm and better); None for NaN / infinite."""
     x = float(x)
     return round(x, nd) if math.isfinite(x) else None
@@ -277,10 +286,23 @@ def streamed_segments(records: list[dict[str, Any]], gap_s: float = STREAM_GAP_S
     return runs
 
 
+def log_violations(records: list[dict[str, Any]], limits: Limits) -> list[Violation]:
+    """Continuity violations (:func:`companion.flight.simulate.step_violations`) of every uninterrupted
+    run of streamed setpoints of a flight log, with the log's rounding (:data:`ROUNDING_TOLERANCE`)
+    allowed: the generator's guard clamps a step to exactly its bound, and a logged step may then read
+    up to that much over it."""
+    from companion.flight.simulate import step_violations
+
+    out: list[Violation] = []
+    for run in streamed_segments(records):
+        out += step_violations(run, limits, rel_tol=1e-6, abs_tol=ROUNDING_TOLERANCE)
+    return out
+
+
 def streamed_setpoints(records: list[dict[str, Any]]) -> list[Setpoint]:
     """The streamed setpoints of a flight log (queue time, position, velocity, yaw, kind) as
     :class:`~companion.flight.setpoint.Setpoint` s, for :func:`companion.flight.simulate.step_violations`
-    (values are rounded to 0.1 mm in the log: compare with a small relative tolerance)."""
+    (values are rounded to 0.1 mm in the log: :func:`log_violations` allows for that)."""
     from companion.flight.setpoint import Setpoint, SetpointKind
 
     out = []

@@ -28,8 +28,7 @@ from fleet_support import ports, start_fleet
 from mavlink_support import Gcs, free_ports, wait_for
 
 from companion.flight.limits import Limits
-from companion.flight.simulate import step_violations
-from companion.flightlog import read_flight_log, streamed_segments
+from companion.flightlog import log_violations, read_flight_log
 from companion.team.station import TeamControlStation
 from companion.team.tasks import TaskDef
 from companion.team.transport import open_transport
@@ -169,8 +168,7 @@ class TeamRig:
         for logs in self.logs:
             for path in logs:
                 if path.is_file():
-                    for run in streamed_segments(read_flight_log(path)):
-                        out += step_violations(run, self.limits, rel_tol=1e-3)
+                    out += log_violations(read_flight_log(path), self.limits)
         return out
 
 

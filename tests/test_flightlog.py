@@ -385,3 +385,29 @@ def test_streamed_segments_split_where_the_companion_did_not_stream() -> None:
     runs = streamed_segments(records)
     assert [len(r) for r in runs] == [3, 2]
     assert runs[1][0].t_s == 11.3
+
+
+def test_log_violations_allow_the_logs_rounding_and_catch_a_real_jump() -> None:
+    """The CI failure of 2026-11-27: the guard had clamped a step to exactly a_max*dt, and the log's
+    rounding (0.1 mm/s) read it back 1.3e-4 m/s over the bound; a real jump (1 % over) is still caught."""
+    from companion.flight.limits import Limits
+    from companion.flightlog import ROUNDING_TOLERANCE, _vec, log_violations
+
+    lim = Limits()
+    dt = 0.05
+    step = lim.horizontal_acceleration * dt  # exactly on the bound, diagonally
+    ang = 0.914196295321024  # a step whose rounded ends read 1.3e-4 m/s long (found by a seeded search)
+    vs = [(0.0002485067476139794, 0.0009474921060157811, 0.0)]
+    vs.append((vs[0][0] + step * math.cos(ang), vs[0][1] + step * math.sin(ang), 0.0))
+
+    def rec(t: float, v: tuple[float, float, float]) -> dict[str, Any]:
+        return {"type": "setpoint", "t": t, "qt": t, "kind": "VELOCITY", "p": [0.0, 0.0, -5.0],
+                "v": _vec(v), "yaw": 0.0}
+
+    exact = [rec(20.0, vs[0]), rec(20.0 + dt, vs[1])]
+    read = math.hypot(exact[1]["v"][0] - exact[0]["v"][0], exact[1]["v"][1] - exact[0]["v"][1])
+    assert step * 1e-3 < read - step <= ROUNDING_TOLERANCE  # over the old relative tolerance, in the new
+    assert log_violations(exact, lim) == []
+    over = (vs[0][0] + 1.01 * step * math.cos(ang), vs[0][1] + 1.01 * step * math.sin(ang), 0.0)
+    found = log_violations([exact[0], rec(20.0 + dt, over)], lim)
+    assert [v.quantity for v in found] == ["dv_h"]

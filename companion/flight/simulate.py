@@ -30,11 +30,14 @@ class Violation:
     bound: float
 
 
-def step_violations(setpoints: Sequence[Setpoint], limits: Limits, rel_tol: float = 1e-9) -> list[Violation]:
+def step_violations(setpoints: Sequence[Setpoint], limits: Limits, rel_tol: float = 1e-9,
+                    abs_tol: float = 1e-12) -> list[Violation]:
     """All violations of |dv| <= a_max*dt, |dp| <= v_max*dt (horizontal norm, vertical) and
     |dyaw| <= yaw_rate*dt between consecutive setpoints (dt from their time stamps). Positions are
     compared between position setpoints only: a velocity-only setpoint gives the autopilot none (as
-    the wire check does)."""
+    the wire check does). A step is a violation when it exceeds ``bound * (1 + rel_tol) + abs_tol``:
+    ``abs_tol`` absorbs the quantisation of setpoints read back from a log (the generator's guard
+    clamps a step to exactly its bound, so rounding alone can push a logged step past it)."""
     out: list[Violation] = []
     L = limits
     for i in range(1, len(setpoints)):
@@ -53,7 +56,7 @@ def step_violations(setpoints: Sequence[Setpoint], limits: Limits, rel_tol: floa
             checks += [("dp_h", math.hypot(s1.p[0] - s0.p[0], s1.p[1] - s0.p[1]), L.horizontal_speed * dt),
                        ("dp_v", abs(s1.p[2] - s0.p[2]), L.vertical_speed * dt)]
         for name, value, bound in checks:
-            if value > bound * (1.0 + rel_tol) + 1e-12:
+            if value > bound * (1.0 + rel_tol) + abs_tol:
                 out.append(Violation(i, s1.t_s, name, value, bound))
     return out
 
