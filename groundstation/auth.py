@@ -12,11 +12,12 @@ from __future__ import annotations
 
 import hashlib
 import hmac
-import secrets
 from dataclasses import dataclass
 from pathlib import Path
 
 import yaml
+
+from taskflight.tokens import new_token
 
 ROLES = ("operator", "observer")
 
@@ -70,7 +71,7 @@ class Tokens:
 
     @classmethod
     def generate(cls) -> Tokens:
-        return cls({"operator": [secrets.token_urlsafe(24)], "observer": [secrets.token_urlsafe(24)]})
+        return cls({"operator": [new_token()], "observer": [new_token()]})
 
     def check(self, token: str | None) -> Principal | None:
         """The caller holding ``token``, or None."""

@@ -35,7 +35,6 @@ import argparse
 import logging
 import os
 import random
-import secrets
 import socket
 import sys
 import threading
@@ -49,6 +48,7 @@ import yaml
 from taskflight.children import Child, first_dead, stop_all
 from taskflight.geo import ned_to_geodetic
 from taskflight.ports import free_ports, model_ports, port_free
+from taskflight.tokens import new_token
 
 log = logging.getLogger(__name__)
 
@@ -109,7 +109,7 @@ def write_tokens(path: Path, tokens: dict[str, list[str]]) -> None:
 
 
 def generate_tokens() -> dict[str, list[str]]:
-    return {"operator": [secrets.token_urlsafe(24)], "observer": [secrets.token_urlsafe(24)]}
+    return {"operator": [new_token()], "observer": [new_token()]}
 
 
 def ground_available() -> bool:
@@ -250,7 +250,7 @@ class Up:
             self.tokens_path = o.state_dir / "tokens.yaml"
             if o.ground:
                 write_tokens(self.tokens_path, self.tokens)
-        self.control_token = secrets.token_urlsafe(24)
+        self.control_token = new_token()
         self.team_url = o.team or free_team_url()
         self.member_url = self.team_url + (f"{'&' if '?' in self.team_url else '?'}loss={o.team_loss}"
                                            if o.team_loss else "")
@@ -446,7 +446,7 @@ def ground_arguments(team_url: str, db: Path, host: str, port: int, tokens: Path
             "--tokens", str(tokens)]
     for v in vehicles:
         argv += ["--companion", f"{v.sysid}={v.control_url}"]
-    return [*argv, "--companion-token", companion_token]
+    return [*argv, f"--companion-token={companion_token}"]  # '=': a token is never taken for an option
 
 
 # --- command line ------------------------------------------------------------------------------------
