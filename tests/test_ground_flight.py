@@ -91,6 +91,7 @@ def test_team_tasks_of_every_type_added_flown_and_cancelled(rig: GroundRig) -> N
     holder = rig.tasks()[patrol]["holder"]
     wait_for(lambda: holder - 1 in visited(rig, LineString([local(p) for p in line]), 1.5, t1), rig.wall(60),
              "the patrol's holder on its line (MAVLink)")
+    _break_in_on_a_team_task(rig, holder, patrol)
     with rig.ground.http() as c:
         assert c.delete(f"/api/tasks/{patrol}").json() == {"cancelled": [patrol]}
         assert sorted(c.delete(f"/api/tasks/{border['group']}").json()["cancelled"]) == sorted(border["ids"])
@@ -102,6 +103,25 @@ def test_team_tasks_of_every_type_added_flown_and_cancelled(rig: GroundRig) -> N
         history = c.get("/api/assignments", params={"task": visit}).json()["assignments"]
     assert {"task_added", "task_state", "task_cancelled"} <= kinds
     assert [h["state"] for h in history][-1] == "done" and any(h["holder"] for h in history)
+
+
+def _break_in_on_a_team_task(rig: GroundRig, vid: int, task: int) -> None:
+    """The operator breaks in on a vehicle flying a team task (seed 000 Sec. VII through seed 003's process
+    monitor): the task's tree pauses, the stick moves the vehicle, the team keeps the task with it (a
+    break-in is not a take-over), and resume flies the task on."""
+    i = vid - 1
+    r = post(rig, f"/api/vehicles/{vid}/pause")
+    assert r.status_code == 200, r.text
+    wait_for(lambda: rig.vehicles()[vid]["mission"]["state"] == "paused", 10, "the team task's tree paused")
+    alt0 = rig.position(i)[2]
+    errors = _stick(rig, vid, [0.0, 0.0, -1.0, 0.0], 2.0)  # up 1 m/s for 6 s of autopilot time
+    assert len(errors) < 5, errors[:3]
+    climbed = rig.position(i)[2] - alt0
+    assert climbed > 2.0, f"the stick moved vehicle {vid} up {climbed:.1f} m (GLOBAL_POSITION_INT)"
+    assert rig.tasks()[task]["holder"] == vid and state(rig, task) == "active", rig.tasks()[task]
+    assert post(rig, f"/api/vehicles/{vid}/resume").status_code == 200
+    wait_for(lambda: rig.vehicles()[vid]["mission"]["state"] == "executing", 10, "the team task resumed")
+    assert rig.tasks()[task]["holder"] == vid
 
 
 def test_gain_changed_in_flight_is_read_back_from_the_autopilot(rig: GroundRig) -> None:
