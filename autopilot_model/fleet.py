@@ -44,7 +44,7 @@ from typing import Any
 
 from taskflight.clock import SimClock
 from taskflight.geo import ned_to_geodetic
-from taskflight.runtime import setup_logging
+from taskflight.runtime import die_with_parent, setup_logging
 
 log = logging.getLogger(__name__)
 
@@ -336,6 +336,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("-v", "--verbose", action="count", default=0)
     add_fleet_arguments(parser)
     args = parser.parse_args(argv)
+    die_with_parent()  # a child of taskflight up stops when it dies
     setup_logging(args.verbose)
     return run_fleet(args)
 

@@ -6,8 +6,10 @@ then means something, rather than each child counting as a user of the machine o
 output appended to a log file: a Ctrl-C at the terminal reaches ``taskflight up`` alone (the terminal
 signals its foreground process group only), which then stops the children in order
 (:func:`stop_all`: SIGTERM to all of them at once, one shared deadline, then SIGKILL to each one's whole
-process group, so nothing it started is left behind either). :attr:`Child.tail` reads the last lines of
-the log, for the message when a child dies during start-up.
+process group, so nothing it started is left behind either). A ``taskflight up`` killed with SIGKILL
+cannot do that: each child then stops by itself (:func:`taskflight.runtime.die_with_parent`, the kernel's
+parent-death signal). :attr:`Child.tail` reads the last lines of the log, for the message when a child dies
+during start-up.
 """
 
 from __future__ import annotations
@@ -21,6 +23,8 @@ import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+
+from taskflight.runtime import PARENT_ENV
 
 log = logging.getLogger(__name__)
 
@@ -40,6 +44,7 @@ class Child:
         self.log_path.parent.mkdir(parents=True, exist_ok=True)
         env = dict(os.environ)
         env["PYTHONUNBUFFERED"] = "1"
+        env[PARENT_ENV] = str(os.getpid())  # the child stops if this process dies (runtime.die_with_parent)
         if self.env:
             env.update(self.env)
         with open(self.log_path, "ab") as out:  # the child keeps its own descriptor

@@ -11,6 +11,7 @@ companion that dies while starting (its log's tail reported, the fleet stopped).
 from __future__ import annotations
 
 import os
+import signal
 import socket
 import time
 from collections.abc import Iterator
@@ -173,3 +174,22 @@ def test_a_companion_dying_at_start_up_is_reported_and_everything_stops(tmp_path
     assert "exited with status 2 during start-up" in up.output
     assert "platform.yaml" in up.output  # the companion's own error, from the tail of its log
     assert processes_mentioning(str(tmp_path)) == []
+
+
+def test_sigkill_of_up_stops_every_child_by_itself(tmp_path: Path) -> None:
+    """``taskflight up`` killed with SIGKILL cannot stop its children: each stops by itself on the kernel's
+    parent-death signal (taskflight.runtime.die_with_parent), as on Ctrl-C; nothing is left running."""
+    up = UpProcess(["--vehicles", "1", "--base-instance", str(free_base(1)), "--no-persist", *ground_args()],
+                   tmp_path)
+    try:
+        pids = dict(up.wait_ready(READY_S).pids)
+        assert len(pids) >= 2 and all(alive(p) for p in pids.values()), pids
+        up.proc.send_signal(signal.SIGKILL)
+        up.proc.wait(10)
+        wait_for(lambda: not [p for p in pids.values() if alive(p)], 30,
+                 f"every child of the killed taskflight up gone: {pids}")
+        wait_for(lambda: processes_mentioning(str(tmp_path)) == [], 10, "no process of its state dir left")
+    finally:
+        up.close()
+        for pid in processes_mentioning(str(tmp_path)):  # the old behaviour: clean up what it left
+            os.kill(pid, signal.SIGKILL)
