@@ -188,6 +188,10 @@ def test_tasks_offer_accept_cancel(ground: InProcessGround) -> None:
         r = c.post("/api/tasks", json={"type": "border_patrol", "points": BORDER, "vehicles": 3})
         assert r.status_code == 409 and r.json()["offer"] == 1 and r.json()["free"] == 0, r.text
         assert c.get("/api/tasks").json() == before
+        # asked again with the N offered (1) while still no vehicle is free: taken, it waits (no second offer)
+        r = c.post("/api/tasks", json={"type": "border_patrol", "points": BORDER, "vehicles": 1})
+        assert r.status_code == 201 and len(r.json()["ids"]) == 1, r.text
+        assert c.delete(f"/api/tasks/{r.json()['group'] or r.json()['ids'][0]}").status_code == 200
         r = c.post("/api/tasks", json={"type": "border_patrol", "points": BORDER, "vehicles": 3,
                                        "accept_smaller": True})
         assert r.status_code == 201 and r.json()["vehicles"] == 1 and len(r.json()["ids"]) == 1

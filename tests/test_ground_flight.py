@@ -60,7 +60,9 @@ def post(rig: GroundRig, path: str, body: Any = None) -> Any:
 
 def add(rig: GroundRig, body: dict[str, Any]) -> dict[str, Any]:
     r = post(rig, "/api/tasks", body)
-    if r.status_code == 409 and "offer" in r.json():  # seed 003: take the smaller N offered
+    for _ in range(3):  # seed 003: take the smaller N offered (it shrinks if vehicles get busy meanwhile)
+        if not (r.status_code == 409 and "offer" in r.json()):
+            break
         r = post(rig, "/api/tasks", {**body, "vehicles": r.json()["offer"]})
     assert r.status_code == 201, r.text
     return r.json()

@@ -86,6 +86,7 @@ def test_offer_smaller_n() -> None:
     assert offer_smaller_n(2, 5) is None
     assert offer_smaller_n(4, 2) == 2
     assert offer_smaller_n(3, 0) == 1
+    assert offer_smaller_n(1, 0) is None  # the offer of 1 with no vehicle free is accepted (it waits)
     with pytest.raises(ValueError, match="requested"):
         offer_smaller_n(0, 2)
 

@@ -143,6 +143,39 @@ def test_a_patrol_drawn_on_the_map_is_cancelled_from_the_task_list(rig: GroundRi
     shots(d, "6_cancelled")
 
 
+def test_a_border_for_more_vehicles_than_are_free_takes_the_offered_smaller_n(rig: GroundRig, page: Any,
+                                                                             shots: Shots) -> None:
+    """Seed 003 Sec. II: a border patrol asked of more vehicles than are free; the service offers a smaller N
+    in a dialog, the operator accepts it, the border is divided into that many pieces (then cancelled)."""
+    d = page
+    before = task_ids(d)
+    n_box = d.find_element(By.ID, "task-n")
+    n_box.clear()
+    n_box.send_keys("9")
+    try:
+        d.find_element(By.CSS_SELECTOR, "[data-draw='border_patrol']").click()
+        for n, e in ((-30.0, -20.0), (-30.0, 0.0), (-30.0, 20.0)):
+            click_map(d, n, e)
+        d.find_element(By.ID, "draw-finish").click()
+        wait = WebDriverWait(d, 20)
+        wait.until(lambda d: d.find_element(By.ID, "dialog").get_attribute("open") is not None,
+                   "the dialog offering a smaller N")
+        offer = int(d.find_element(By.CSS_SELECTOR, "#dialog-body .offer").text)
+        assert 1 <= offer < 9 and "9 vehicles asked for" in d.find_element(By.ID, "dialog-body").text
+        shots(d, "6b_smaller_n_offered")
+        d.find_element(By.CSS_SELECTOR, "#dialog-buttons button[data-answer='accept']").click()
+        wait.until(lambda d: len(task_ids(d) - before) == offer, f"{offer} border pieces listed")
+    finally:
+        n_box.clear()
+        n_box.send_keys("2")
+    pieces = {t: rig.tasks()[t] for t in task_ids(d) - before}
+    assert {t["kind"] for t in pieces.values()} == {"border_piece"}
+    assert len({t["group"] for t in pieces.values()}) == 1
+    d.find_element(By.CSS_SELECTOR, f"#tasks tr[data-task='{min(pieces)}'] button.cancel").click()  # all
+    WebDriverWait(d, 20).until(lambda d: all(task_state(d, t) == "cancelled" for t in pieces),
+                               "the border cancelled")
+
+
 def test_break_in_with_the_keyboard_joystick_resume_and_enough_ends_the_scan(rig: GroundRig, page: Any,
                                                                             shots: Shots) -> None:
     d, i, vid = page, 2, 3

@@ -189,12 +189,14 @@ def divide(defn: TaskDef, ids: Iterable[int], fence: Fence | None = None, group:
 
 def offer_smaller_n(requested: int, free: int) -> int | None:
     """Seed 003 Sec. II: more pieces than unassigned vehicles -> the smaller N to offer the operator
-    (``free``, at least 1); None when ``requested`` pieces fit the free vehicles."""
+    (``free``, at least 1); None when ``requested`` pieces fit the free vehicles, and always for one piece
+    (the offer itself: asked again with the N offered while every vehicle is busy, one piece is taken and
+    waits for a vehicle, as any task does, instead of the same offer being made again)."""
     if requested < 1:
         raise ValueError(f"requested: must be >= 1, got {requested}")
     if free < 0:
         raise ValueError(f"free: must be >= 0, got {free}")
-    return None if requested <= free else max(1, free)
+    return None if requested <= max(1, free) else max(1, free)
 
 
 #: legal state transitions of a task on the station's ledger
