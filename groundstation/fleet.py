@@ -190,7 +190,7 @@ class Fleet:
             return
         was_q = (prev or {}).get("queue", {})
         q = cur.get("queue", {})
-        if q.get("confirmation_required_status") and not was_q.get("confirmation_required_status"):
+        if waits_for_operator(cur) and not waits_for_operator(prev):
             self.emit("confirmation_required", f"vehicle {vid} waits for the operator's confirmation",
                       severity="warning", vehicle=vid)
         if q.get("queue_system_status") == "OVERRIDDEN" and was_q.get("queue_system_status") != "OVERRIDDEN":
@@ -273,11 +273,22 @@ class Fleet:
             "claims": [{"task": c.task, "version": c.version, "cost": round(c.cost, 2),
                         "state": c.state.name.lower()} for c in row.claims] if row is not None else [],
             "mission": mission, "queue_status": queue.get("queue_status"),
-            "confirmation_required": bool(queue.get("confirmation_required_status")),
+            "confirmation_required": waits_for_operator(status),
             "companion": companion,
         }
         rec["health"] = health(rec, veh, queue, p)
         return rec
+
+
+def waits_for_operator(status: dict[str, Any] | None) -> bool:
+    """The vehicle's command waits for the operator's confirmation (QAPI ``confirmation_required_status``,
+    seed 000 Sec. IV-A: E_User), and not merely because it is idle: the executive layer's *default*
+    KEEP_HOVERING also ends on E_User (a confirmation, or another behavior, ends it), but nobody asked the
+    operator anything then; telling every idle vehicle's operator to confirm would bury the real requests."""
+    if not status or not status.get("queue", {}).get("confirmation_required_status"):
+        return False
+    active = status.get("behaviors") or []
+    return not any(b.get("behavior") == "KEEP_HOVERING" and b.get("requester") == "default" for b in active)
 
 
 def _progress(tree: dict[str, Any] | None, active: str | None) -> str | None:

@@ -100,6 +100,9 @@ def test_team_tasks_of_every_type_added_flown_and_cancelled(rig: GroundRig) -> N
     wait_for(lambda: all(state(rig, t) == "cancelled" for t in live), 10, "cancelled")
     wait_for(lambda: all(not v["claims"] or all(c["state"] == "done" for c in v["claims"])
                          for v in rig.vehicles().values()), rig.wall(60), "every vehicle idle again")
+    # idle, they hover by default (KEEP_HOVERING ends on E_User): nobody is asked to confirm anything
+    wait_for(lambda: not any(v["confirmation_required"] for v in rig.vehicles().values()), 10,
+             f"no confirmation asked of idle vehicles: {rig.vehicles()}")
     with rig.ground.http() as c:
         kinds = {e["kind"] for e in c.get("/api/events").json()["events"]}
         history = c.get("/api/assignments", params={"task": visit}).json()["assignments"]
@@ -115,6 +118,7 @@ def _break_in_on_a_team_task(rig: GroundRig, vid: int, task: int) -> None:
     r = post(rig, f"/api/vehicles/{vid}/pause")
     assert r.status_code == 200, r.text
     wait_for(lambda: rig.vehicles()[vid]["mission"]["state"] == "paused", 10, "the team task's tree paused")
+    assert rig.vehicles()[vid]["confirmation_required"]  # a real wait: the break-in ends on resume
     alt0 = rig.position(i)[2]
     errors = _stick(rig, vid, [0.0, 0.0, -1.0, 0.0], 2.0)  # up 1 m/s for 6 s of autopilot time
     assert len(errors) < 5, errors[:3]
