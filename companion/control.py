@@ -317,9 +317,8 @@ def create_app(node: QuadNode, token: str | None = None, behaviors: ExecutiveLay
     @app.get("/status", response_model=StatusResponse)
     def status() -> StatusResponse:
         out = node.status()
-        if behaviors is not None:  # e.g. a ground station tells the default hover from a real wait
-            out["behaviors"] = [{"behavior": a.behavior, "requester": a.requester}
-                                for a in behaviors.coordinator.active()]
+        if behaviors is not None:
+            out["awaits_operator"] = behaviors.awaits_operator()
         return StatusResponse.model_validate(out)
 
     @app.get("/commands", response_model=CommandListResponse)

@@ -144,13 +144,6 @@ class NodeInfo(BaseModel):
     last_setpoint: dict[str, Any] | None
 
 
-class ActiveBehavior(BaseModel):
-    """One active behavior of the executive layer and who asked for it (seed 001 Definition 3)."""
-
-    behavior: str = Field(description="e.g. KEEP_HOVERING")
-    requester: str = Field(description="emergency, operator, mission or default")
-
-
 class StatusResponse(BaseModel):
     """``GET /status``."""
 
@@ -161,8 +154,9 @@ class StatusResponse(BaseModel):
     link: dict[str, Any] = Field(description="the MAVLink link: connection, clock, statistics")
     vehicle: dict[str, Any] = Field(description="the mirrored vehicle state")
     node: NodeInfo
-    behaviors: list[ActiveBehavior] | None = Field(
-        None, description="the executive layer's active behaviors, when it is served (seed 001)")
+    awaits_operator: bool | None = Field(
+        None, description="the command waits for the operator's confirmation because someone asked for "
+                          "it (not an idle vehicle's default hover); when the executive layer is served")
 
 
 class CommandEntry(BaseModel):

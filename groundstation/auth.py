@@ -17,7 +17,7 @@ from pathlib import Path
 
 import yaml
 
-from taskflight.tokens import new_token
+from taskflight.tokens import role_tokens
 
 ROLES = ("operator", "observer")
 
@@ -71,7 +71,7 @@ class Tokens:
 
     @classmethod
     def generate(cls) -> Tokens:
-        return cls({"operator": [new_token()], "observer": [new_token()]})
+        return cls(role_tokens())
 
     def check(self, token: str | None) -> Principal | None:
         """The caller holding ``token``, or None."""

@@ -281,14 +281,14 @@ class Fleet:
 
 
 def waits_for_operator(status: dict[str, Any] | None) -> bool:
-    """The vehicle's command waits for the operator's confirmation (QAPI ``confirmation_required_status``,
-    seed 000 Sec. IV-A: E_User), and not merely because it is idle: the executive layer's *default*
-    KEEP_HOVERING also ends on E_User (a confirmation, or another behavior, ends it), but nobody asked the
-    operator anything then; telling every idle vehicle's operator to confirm would bury the real requests."""
-    if not status or not status.get("queue", {}).get("confirmation_required_status"):
+    """The vehicle waits for the operator's confirmation: the companion's executive layer says so
+    (``awaits_operator``: not an idle vehicle's default hover, which also ends on E_User); a companion
+    without one, by the QAPI flag alone (``confirmation_required_status``, seed 000 Sec. IV-A)."""
+    if not status:
         return False
-    active = status.get("behaviors") or []
-    return not any(b.get("behavior") == "KEEP_HOVERING" and b.get("requester") == "default" for b in active)
+    if status.get("awaits_operator") is not None:
+        return bool(status["awaits_operator"])
+    return bool(status.get("queue", {}).get("confirmation_required_status"))
 
 
 def _progress(tree: dict[str, Any] | None, active: str | None) -> str | None:

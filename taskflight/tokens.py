@@ -18,3 +18,9 @@ def new_token(nbytes: int = 24) -> str:
         token = secrets.token_urlsafe(nbytes)
         if not token.startswith("-"):
             return token
+
+
+def role_tokens() -> dict[str, list[str]]:
+    """One new operator and one new observer token, as a tokens file holds them
+    (``{operator: [...], observer: [...]}``)."""
+    return {"operator": [new_token()], "observer": [new_token()]}

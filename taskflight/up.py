@@ -48,7 +48,7 @@ import yaml
 from taskflight.children import Child, first_dead, stop_all
 from taskflight.geo import ned_to_geodetic
 from taskflight.ports import free_ports, model_ports, port_free
-from taskflight.tokens import new_token
+from taskflight.tokens import new_token, role_tokens
 
 log = logging.getLogger(__name__)
 
@@ -106,10 +106,6 @@ def write_tokens(path: Path, tokens: dict[str, list[str]]) -> None:
         yaml.safe_dump(tokens, f)
     os.chmod(tmp, 0o600)
     os.replace(tmp, path)
-
-
-def generate_tokens() -> dict[str, list[str]]:
-    return {"operator": [new_token()], "observer": [new_token()]}
 
 
 def ground_available() -> bool:
@@ -246,7 +242,7 @@ class Up:
             self.tokens = load_tokens(o.tokens_file)
             self.tokens_path = o.tokens_file
         else:
-            self.tokens = generate_tokens()
+            self.tokens = role_tokens()
             self.tokens_path = o.state_dir / "tokens.yaml"
             if o.ground:
                 write_tokens(self.tokens_path, self.tokens)

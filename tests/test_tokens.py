@@ -7,15 +7,15 @@ from __future__ import annotations
 from pathlib import Path
 
 from taskflight.cli import build_parser
-from taskflight.tokens import new_token
-from taskflight.up import VehicleInfo, generate_tokens, ground_arguments
+from taskflight.tokens import new_token, role_tokens
+from taskflight.up import VehicleInfo, ground_arguments
 
 
 def test_new_tokens_never_start_with_a_dash() -> None:
     tokens = [new_token() for _ in range(2000)]  # P(no '-' start among 2000 token_urlsafe) ~ 1e-14
     assert not any(t.startswith("-") for t in tokens)
     assert len(set(tokens)) == len(tokens) and all(len(t) == 32 for t in tokens)
-    assert all(not t.startswith("-") for role in generate_tokens().values() for t in role)
+    assert all(not t.startswith("-") for role in role_tokens().values() for t in role)
 
 
 def test_the_ground_command_line_of_up_takes_a_token_that_starts_with_a_dash(tmp_path: Path) -> None:

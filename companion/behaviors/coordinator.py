@@ -49,6 +49,7 @@ from .catalog import BehaviorCatalog
 from .controller import (
     BehaviorContext,
     BehaviorExecutionController,
+    FlightBehavior,
     StartError,
     Termination,
     TerminationCause,
@@ -232,6 +233,13 @@ class BehaviorCoordinator:
     def activation(self, behavior: str) -> Activation | None:
         with self._lock:
             return self._active.get(behavior)
+
+    def queue_writer(self) -> Activation | None:
+        """The running (not paused) flight behavior: the one writer of the flight-command queue (the flight
+        maneuvers are mutually exclusive), or None."""
+        with self._lock:
+            return next((a for a in self._active.values()
+                         if isinstance(a.controller, FlightBehavior) and not a.controller.paused), None)
 
     def status(self) -> dict[str, Any]:
         with self._lock:

@@ -142,6 +142,16 @@ class ExecutiveLayer:
     def __exit__(self, *exc: object) -> None:
         self.close()
 
+    def awaits_operator(self) -> bool:
+        """The queue's command waits for the operator's confirmation (QAPI ``confirmation_required_status``,
+        seed 000 Sec. IV-A: E_User) because someone asked for it, not merely because the vehicle is idle: the
+        *default* flight behavior (KEEP_HOVERING, seed 001 Sec. 5.1.2) also ends on E_User, but asks nobody
+        anything (another behavior replaces it)."""
+        if not self.queue.status().confirmation_required_status:
+            return False
+        writer = self.coordinator.queue_writer()
+        return writer is None or writer.requester != "default"
+
     # --- one monitor cycle ---------------------------------------------------------------------------
     def step(self, now_s: float) -> None:
         """Performance monitoring, defaults, the processes' periodic work (the monitor cycle)."""
