@@ -10,6 +10,7 @@ from __future__ import annotations
 import os
 import queue
 import shutil
+import socket
 import subprocess
 import sys
 import threading
@@ -59,7 +60,7 @@ class Lines:
 
 @pytest.fixture(scope="module")
 def setup(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Lines, Gcs]]:
-    tcp, udp = free_port(), free_port()
+    tcp, udp = free_port(socket.SOCK_STREAM), free_port()  # each free for its own protocol
     d = tmp_path_factory.mktemp("mavproxy")
     sitl = SitlProcess([f"tcpin:127.0.0.1:{tcp}", f"udpin:127.0.0.1:{udp}"], d / "state", speedup=10)
     env = dict(os.environ, PYTHONPATH=str(ROOT))

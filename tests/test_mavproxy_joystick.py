@@ -13,6 +13,7 @@ from __future__ import annotations
 import contextlib
 import math
 import os
+import socket
 import subprocess
 from collections.abc import Iterator
 from pathlib import Path
@@ -50,7 +51,7 @@ class MavProxy:
 
 @pytest.fixture()
 def setup(tmp_path: Path) -> Iterator[tuple[MavProxy, Gcs]]:
-    tcp, udp = free_port(), free_port()
+    tcp, udp = free_port(socket.SOCK_STREAM), free_port()  # each free for its own protocol
     sitl = SitlProcess([f"tcpin:127.0.0.1:{tcp}", f"udpin:127.0.0.1:{udp}"], tmp_path / "state",
                        speedup=SPEEDUP, extra=["--no-persist"])
     gcs = Gcs(udp, SPEEDUP, sysid=254, background=True)  # an observer; MAVProxy is the pilot's GCS (255)

@@ -9,6 +9,7 @@ step: the edited item changed, every other item as uploaded, the count unchanged
 
 from __future__ import annotations
 
+import socket
 from pathlib import Path
 from typing import Any
 
@@ -48,7 +49,7 @@ def _download(gcs: Gcs) -> list[Any]:
 
 @pytest.fixture()
 def setup(tmp_path: Path):
-    tcp, udp = free_port(), free_port()
+    tcp, udp = free_port(socket.SOCK_STREAM), free_port()  # each free for its own protocol
     sitl = SitlProcess([f"tcpin:127.0.0.1:{tcp}", f"udpin:127.0.0.1:{udp}"], tmp_path / "state",
                        speedup=SPEEDUP, extra=["--no-persist"])
     gcs = Gcs(udp, SPEEDUP, sysid=254, background=True)
