@@ -14,10 +14,11 @@ work only (13-28 us of CPU per 2 ms period with a ground station streaming at 10
 ``spin_s`` of each wait (less lateness, that much more CPU).
 
 When behind (a loaded machine), periods run back to back until the fleet has caught up; more than
-``max_lag_s`` behind, the fleet gives up the lost time (re-anchors its pacing, counted in ``slips``)
-instead of racing through it. ``speedup=0`` is lockstep: never waits. Two things a single vehicle's sleep
-hides are spread out: the vehicles' statistics flushes (staggered) and the collector's full passes over
-the vehicles' long-lived objects (``gc.freeze`` once they are built).
+``max_lag_s`` behind, the fleet gives up the lost time (its clock's pacing moves, counted in
+``slips``: :meth:`taskflight.clock.SimClock.pace`) instead of racing through it. ``speedup=0`` is
+lockstep: never waits. Two things a single vehicle's sleep hides are spread out: the vehicles'
+statistics flushes (staggered) and the collector's full passes over the vehicles' long-lived objects
+(``gc.freeze`` once they are built).
 
 Vehicle ``i`` (from 0) is instance ``base_instance + i``: system id ``first_sysid + i`` (MAV_SYSID; 1..N
 by default, whatever the instance numbers, as issue 12 item 8 asks), the endpoints of a single Sitl of
@@ -113,9 +114,8 @@ class Fleet:
             raise ValueError(f"{len(homes)} homes for {n} vehicles")
         if urls is not None and len(urls) != n:
             raise ValueError(f"{len(urls)} URL lists for {n} vehicles")
-        self.clock = SimClock(speedup, spin_s=spin_s)
+        self.clock = SimClock(speedup, spin_s=spin_s, max_lag_s=max_lag_s)
         self.batch = batch
-        self.max_lag_s = max_lag_s
         self.vehicles: list[Sitl] = []
         seed = sitl_options.pop("seed", 0)
         try:
@@ -144,8 +144,6 @@ class Fleet:
         self._stagger_flushes()
         self.rounds = 0
         """Main-loop periods run (every vehicle one iteration each)."""
-        self.slips = 0
-        """Times the fleet was more than ``max_lag_s`` behind and gave the lost time up."""
         self.lateness_s: deque[float] = deque(maxlen=LATENESS_KEPT)
         """Wall seconds by which each recent period started after its deadline (real time only)."""
         # the vehicles' ~3000 objects each live as long as the fleet: out of the collector's sight, a full
@@ -188,7 +186,17 @@ class Fleet:
     def reset_stats(self) -> None:
         """Forget the lateness and slips measured so far (a bench's measured interval starts)."""
         self.lateness_s.clear()
-        self.slips = 0
+        self.clock.slips = 0
+
+    @property
+    def max_lag_s(self) -> float:
+        """Wall seconds the fleet may fall behind before it gives the lost time up."""
+        return self.clock.max_lag_s
+
+    @property
+    def slips(self) -> int:
+        """Times the fleet was more than ``max_lag_s`` behind and gave the lost time up."""
+        return self.clock.slips
 
     # --- running -------------------------------------------------------------------------------------
     def start_pacing(self) -> None:
@@ -222,20 +230,13 @@ class Fleet:
         batch = self.batch
         late = self.lateness_s.append
         lag_of = clock.wall_lag
-        max_lag = self.max_lag_s
         self.start_pacing()
         done = 0
         while done != todo:
             if (done & 7) == 0 and stop is not None and stop.is_set():
                 break
             if paced and done % batch == 0:
-                lag = lag_of()
-                late(lag)
-                if lag > max_lag:
-                    self.slips += 1
-                    log.warning("fleet: %.2f s behind real time x%g; giving the lost time up", lag,
-                                clock.speedup)
-                    self.start_pacing()
+                late(lag_of())
             for step in steps:
                 step()
             clock.advance(period)

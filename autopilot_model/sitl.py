@@ -33,7 +33,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from taskflight.runtime import setup_logging, stop_on_signals
+from taskflight.runtime import freeze_startup_heap, setup_logging, stop_on_signals
 
 log = logging.getLogger(__name__)
 
@@ -197,6 +197,7 @@ def run_autopilot(args: argparse.Namespace) -> int:
     urls = ", ".join(str(t.url) for t in sitl.endpoint.transports)
     log.info("autopilot instance %d (sysid %d) on %s, speedup %s", args.instance, sitl.endpoint.sysid,
              urls, speedup or "max")
+    freeze_startup_heap(f"autopilot instance {args.instance}")
     print(f"READY sysid={sitl.endpoint.sysid} {urls}", flush=True)
     t0 = time.perf_counter()
     try:

@@ -20,7 +20,7 @@ import logging
 import os
 from typing import Any
 
-from taskflight.runtime import stop_on_signals
+from taskflight.runtime import freeze_startup_heap, stop_on_signals
 
 log = logging.getLogger(__name__)
 
@@ -153,6 +153,7 @@ def run_companion(args: argparse.Namespace) -> int:
                                    token=control_token(args), behaviors=layer, missions=missions,
                                    team=member).start()
             log.info("companion: autopilot %s, %g Hz, control %s", args.autopilot, args.rate, server.url)
+        freeze_startup_heap("companion")
         while not stop.wait(0.5):
             pass
     except (OSError, RuntimeError) as exc:

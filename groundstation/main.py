@@ -14,6 +14,8 @@ import logging
 import os
 import sys
 
+from taskflight.runtime import freeze_startup_heap
+
 log = logging.getLogger(__name__)
 
 DEFAULT_TEAM = "udp://239.255.70.1:14600"
@@ -79,7 +81,9 @@ def run_ground(args: argparse.Namespace) -> int:
           f"database {args.db}", flush=True)
     service.start()
     try:
-        uvicorn.run(create_app(service, args.snapshot_period), host=args.host, port=args.port,
+        app = create_app(service, args.snapshot_period)
+        freeze_startup_heap("ground")
+        uvicorn.run(app, host=args.host, port=args.port,
                     log_level="warning", ws="websockets-sansio")
     finally:
         service.close()

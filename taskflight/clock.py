@@ -7,14 +7,28 @@ microseconds advanced by the main loop (so 500 Hz steps never drift). It is pace
 * ``speedup=K``: K simulated seconds per wall second,
 * ``speedup=0`` (lockstep, as fast as possible): never waits.
 
+Behind its pacing (a loaded machine, a stall), the clock runs periods back to back to catch up, but
+never more than ``max_lag_s`` of wall time (0.1 s, as ArduPilot's SITL bounds its sleep debt in
+``SIM_Aircraft::sync_frame_time``): a longer stall is given up (counted in ``slips``), so a starved
+simulation runs slower than its speed-up instead of racing through seconds of simulated time in a
+burst that its companions, pacing themselves on its clock, could not follow.
+
 Other layers (the companion) follow the autopilot's reported time instead; against a real autopilot
 both are the wall clock (:class:`WallClock`).
 """
 
 from __future__ import annotations
 
+import logging
 import time
 from typing import Protocol
+
+log = logging.getLogger(__name__)
+
+#: Wall seconds a paced clock may be behind before it gives the lost time up (ArduPilot's SITL: 0.1 s).
+MAX_LAG_S = 0.1
+#: Wall seconds between two warnings about given-up time.
+SLIP_WARNING_EVERY_S = 10.0
 
 
 class Clock(Protocol):
@@ -38,11 +52,20 @@ class WallClock:
 class SimClock:
     """Simulated time in microseconds, advanced by the owner of the main loop and paced on the wall."""
 
-    def __init__(self, speedup: float = 1.0, spin_s: float = 0.001) -> None:
+    def __init__(self, speedup: float = 1.0, spin_s: float = 0.001, max_lag_s: float = MAX_LAG_S) -> None:
         if speedup < 0:
             raise ValueError(f"speedup must be >= 0 (0 = as fast as possible), got {speedup}")
         if not 0.0 <= spin_s <= 0.01:
             raise ValueError(f"spin_s must be within 0..0.01 s, got {spin_s}")
+        if not max_lag_s > 0.0:
+            raise ValueError(f"max_lag_s must be > 0 s, got {max_lag_s}")
+        self.max_lag_s = float(max_lag_s)
+        """Wall seconds the clock may fall behind its pacing before it gives the lost time up."""
+        self.slips = 0
+        """Times :meth:`pace` found the clock more than ``max_lag_s`` behind and gave time up."""
+        self.given_up_s = 0.0
+        """Wall seconds given up so far (each slip keeps ``max_lag_s`` to catch up)."""
+        self._warned_wall = -SLIP_WARNING_EVERY_S
         self.speedup = float(speedup)
         self.spin_s = float(spin_s)
         """Wall seconds :meth:`pace` spins (busy-waits) before a deadline instead of sleeping: 1 ms by
@@ -82,8 +105,22 @@ class SimClock:
         target_wall = (self.now_us - self._sim0_us) * 1e-6 / self.speedup
         return (time.perf_counter() - self._wall0) - target_wall
 
+    def _slip(self, behind: float) -> None:
+        lost = behind - self.max_lag_s
+        self._wall0 += lost
+        self.slips += 1
+        self.given_up_s += lost
+        now = time.monotonic()
+        if now - self._warned_wall >= SLIP_WARNING_EVERY_S:
+            self._warned_wall = now
+            log.warning("simulation %.2f s behind real time x%g: giving the lost time up (%d slips, %.1f s "
+                        "in all)", behind, self.speedup, self.slips, self.given_up_s)
+
     def pace(self) -> float:
         """Wait until the wall has caught up with simulated time; returns the seconds slept.
+
+        More than ``max_lag_s`` behind, the pacing is moved so that the clock is ``max_lag_s`` behind
+        (a slip; the module docstring) and it returns at once.
 
         Sleeps in one call when ahead by more than ``spin_s`` + 0.5 ms and spins for the remainder: with
         the default ``spin_s`` (1 ms) a 500 Hz real-time loop stays within tens of microseconds of its
@@ -92,6 +129,10 @@ class SimClock:
         if self.speedup <= 0:
             return 0.0
         target_wall = self._wall0 + (self.now_us - self._sim0_us) * 1e-6 / self.speedup
+        behind = time.perf_counter() - target_wall
+        if behind > self.max_lag_s:
+            self._slip(behind)
+            return 0.0
         spin = self.spin_s
         slept = 0.0
         while True:

@@ -1,14 +1,17 @@
 """What every long-running ``taskflight`` process does the same way: stop cleanly on SIGTERM / SIGINT, log
-in one format, and (as a child of ``taskflight up``) stop when its parent dies."""
+in one format, (as a child of ``taskflight up``) stop when its parent dies, and keep its start-up objects
+out of the garbage collector's full passes."""
 
 from __future__ import annotations
 
 import ctypes
+import gc
 import logging
 import os
 import signal
 import sys
 import threading
+import time
 from typing import Any
 
 log = logging.getLogger(__name__)
@@ -59,3 +62,24 @@ def setup_logging(verbose: int, quiet_level: int = logging.WARNING) -> None:
     """``-v`` INFO, ``-vv`` DEBUG, else ``quiet_level``; one format for every process."""
     level = logging.DEBUG if verbose > 1 else logging.INFO if verbose else quiet_level
     logging.basicConfig(level=level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+
+
+def freeze_startup_heap(what: str) -> int:
+    """Move every object alive now (the imported modules, the process's long-lived parts) out of the
+    garbage collector's sight (:func:`gc.freeze`) and return how many.
+
+    A full collection walks every tracked object; measured on a 2-core test machine, a process holding the
+    companion's modules (~150 000 objects: pymavlink's dialects, FastAPI, pydantic, scipy) paused all of its
+    threads for 250-330 ms per full collection, 0.5-0.7 s with the other core busy: at a 20 Hz setpoint
+    stream that is 5-14 missed ticks, a take-off handed over seconds late at a 5x simulation speed-up.
+    Frozen, a full collection walks only what was allocated since (a few ms). Call once, after start-up,
+    from a process's main function: the frozen objects are never freed, so nothing transient should be
+    alive then."""
+    t0 = time.perf_counter()
+    gc.collect()
+    n = gc.get_freeze_count()
+    gc.freeze()
+    frozen = gc.get_freeze_count() - n
+    log.info("%s: %d start-up objects out of the collector's sight (%.0f ms)", what, frozen,
+             (time.perf_counter() - t0) * 1e3)
+    return frozen

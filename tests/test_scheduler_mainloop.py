@@ -208,6 +208,32 @@ def test_real_time_pacing() -> None:
     assert time.perf_counter() - t0 >= 0.085
 
 
+def test_a_stall_is_caught_up_for_at_most_max_lag_then_given_up() -> None:
+    """A paced loop that stalled runs back to back for ``max_lag_s`` of wall time at most (ArduPilot's
+    SITL bounds its sleep debt the same way), then paces again: no burst of simulated seconds."""
+    cfg = parse_modules({"main_loop_hz": 100, "select": ["a"], "modules": [
+        {"name": "a", "task_group": "core", "periodic": [{"function": "f", "freq": 100}]}]})
+    ran: list[tuple[float, float]] = []
+    clock = SimClock(speedup=1, max_lag_s=0.05)
+
+    def f() -> None:
+        ran.append((clock.now(), time.perf_counter()))
+        if len(ran) == 5:
+            time.sleep(0.4)  # a 0.4 s stall (a starved process)
+
+    loop = MainLoop(build_schedule(cfg, {"f": f}), clock)
+    loop.run(duration_s=0.3)
+    assert clock.slips >= 1 and clock.given_up_s >= 0.3
+    after = [(sim, wall) for sim, wall in ran[5:]]
+    # periods run within 5 ms of wall time after the stall: only the 50 ms of debt is caught up
+    burst = [sim for sim, wall in after if wall - after[0][1] < 0.005]
+    assert len(burst) <= 7, f"{len(burst)} periods raced through after the stall"
+    # the unbounded clock would have caught up all 0.4 s; this one ran 0.3 s of simulation in >= 0.6 s
+    assert ran[-1][1] - ran[0][1] >= 0.55
+    with pytest.raises(ValueError, match="max_lag_s"):
+        SimClock(1.0, max_lag_s=0.0)
+
+
 def test_stop_event_and_exception_note() -> None:
     cfg = parse_modules({"main_loop_hz": 100, "select": ["a"], "modules": [
         {"name": "a", "task_group": "core", "periodic": [{"function": "f", "freq": 100}]}]})
