@@ -65,15 +65,19 @@ def wall(sim_s: float, speedup: float = SPEEDUP, base_s: float = 5.0) -> float:
     return base_s + 3.0 * sim_s / speedup
 
 
-def wait_for(pred: Callable[[], Any], timeout_s: float, what: str, poll_s: float = 0.005) -> Any:
-    """Test ``pred`` until truthy or the wall deadline passes (then AssertionError naming ``what``)."""
+def wait_for(pred: Callable[[], Any], timeout_s: float, what: str | Callable[[], str],
+             poll_s: float = 0.005) -> Any:
+    """Test ``pred`` until truthy or the wall deadline passes (then AssertionError naming ``what``; a
+    callable ``what`` is asked at the deadline, so the message shows the state that failed, not the
+    state when the wait began)."""
     end = time.monotonic() + timeout_s
     while True:
         r = pred()
         if r:
             return r
         if time.monotonic() > end:
-            raise AssertionError(f"timed out after {timeout_s:.1f} s waiting for {what}")
+            raise AssertionError(f"timed out after {timeout_s:.1f} s waiting for "
+                                 f"{what() if callable(what) else what}")
         time.sleep(poll_s)
 
 

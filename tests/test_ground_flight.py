@@ -80,7 +80,8 @@ def test_team_tasks_of_every_type_added_flown_and_cancelled(rig: GroundRig) -> N
     ids = [visit, *area["ids"]]
     wait_for(lambda: all(rig.tasks()[t]["holder"] is not None or state(rig, t) == "done" for t in ids),
              rig.wall(60), "the visit and the area parts allocated")
-    wait_for(lambda: all(state(rig, t) == "done" for t in ids), rig.wall(300), f"flown: {rig.tasks()}")
+    wait_for(lambda: all(state(rig, t) == "done" for t in ids), rig.wall(300),
+             lambda: f"flown: {rig.report()}")
     assert visited(rig, Point(local(geo(20, -10))), 2.5, t0), "nobody flew to the visit point (MAVLink)"
     assert visited(rig, Polygon([local(p) for p in area_pts]), 0.5, t0), "nobody scanned the area"
     t1 = time.monotonic()
@@ -89,7 +90,8 @@ def test_team_tasks_of_every_type_added_flown_and_cancelled(rig: GroundRig) -> N
     border_pts = [geo(40, -20, 6), geo(40, 0, 6), geo(40, 20, 6)]
     border = add(rig, {"type": "border_patrol", "points": [list(p) for p in border_pts], "vehicles": 2})
     live = [patrol, *border["ids"]]
-    wait_for(lambda: all(state(rig, t) == "active" for t in live), rig.wall(120), f"patrols: {rig.tasks()}")
+    wait_for(lambda: all(state(rig, t) == "active" for t in live), rig.wall(120),
+             lambda: f"patrols: {rig.report()}")
     holder = rig.tasks()[patrol]["holder"]
     wait_for(lambda: holder - 1 in visited(rig, LineString([local(p) for p in line]), 1.5, t1), rig.wall(60),
              "the patrol's holder on its line (MAVLink)")
@@ -121,7 +123,8 @@ def _break_in_on_a_team_task(rig: GroundRig, vid: int, task: int) -> None:
     r = post(rig, f"/api/vehicles/{vid}/pause")
     assert r.status_code == 200, r.text
     wait_for(lambda: rig.vehicles()[vid]["mission"]["state"] == "paused", 10, "the team task's tree paused")
-    assert rig.vehicles()[vid]["confirmation_required"]  # a real wait: the break-in ends on resume
+    # a real wait (the break-in ends on resume): the service reads it from the companion's next /status
+    wait_for(lambda: rig.vehicles()[vid]["confirmation_required"], 10, "the break-in shown as a wait")
     alt0 = rig.position(i)[2]
     errors = _stick(rig, vid, [0.0, 0.0, -1.0, 0.0], rig.wall(12.0),  # up at 1 m/s
                     until=lambda: rig.position(i)[2] - alt0 > 3.0)
@@ -220,8 +223,9 @@ def test_break_in_with_the_joystick_then_resume_and_enough(rig: GroundRig) -> No
     r = post(rig, f"/api/vehicles/{vid}/enough")
     assert r.status_code == 200, r.text
     wait_for(lambda: mission()["node"] in ("fly-to", "land") or mission()["state"] == "succeeded",
-             rig.wall(60), f"the mission goes on after enough: {mission()}")
-    wait_for(lambda: mission()["state"] == "succeeded", rig.wall(120), f"the mission's end: {mission()}")
+             rig.wall(60), lambda: f"the mission goes on after enough: {mission()}")
+    wait_for(lambda: mission()["state"] == "succeeded", rig.wall(120),
+             lambda: f"the mission's end: {mission()}")
     with rig.ground.http() as c:
         actions = [e["action"] for e in c.get("/api/audit").json()["entries"]]
         assert c.get("/api/missions", params={"vehicle": vid}).json()["missions"][-1]["status"] == 200

@@ -246,3 +246,35 @@ def test_characteristic_points() -> None:
     assert (x, y) == pytest.approx((50, 0), abs=0.05)
     x, y, _ = FRAME.to_local(entry_point(part, geo(50, 50)))  # inside: here
     assert (x, y) == pytest.approx((50, 50), abs=0.05)
+
+
+@pytest.mark.parametrize(("kind", "points", "n"), [
+    ("patrol_line", ((0, 0), (20, 10)), 1),
+    ("patrol_line", ((0, 0), (20, 10), (40, 0)), 1),          # a three-point line drawn on the map
+    ("patrol_line", ((0, 0), (20, 10), (40, 0), (40, 30)), 1),
+    ("border_patrol", ((0, 0), (20, 10), (40, 0)), 1),         # the offer of one vehicle: the whole border
+    ("border_patrol", ((0, 0), (20, 10), (40, 0)), 2),
+    ("border_patrol", ((0, 0), (20, 10), (40, 0), (40, 30), (10, 30)), 3),
+])
+def test_every_patrol_line_and_border_piece_is_a_tree_the_platform_accepts(kind: str, points: tuple,
+                                                                           n: int) -> None:
+    """Whatever its number of points, a line's tree flies its waypoints in the order drawn: all of them
+    (CI once saw a one-vehicle border of three points refused by every vehicle's delegation: the tree
+    asked for scan segments, which need pairs)."""
+    from companion.team.task_tst import mission_for
+    from companion.tst.delegation import delegate
+    from companion.tst.platform import bundled_platform
+
+    platform = bundled_platform("outdoor")
+    pts = tuple(geo(x, y, 6.0) for x, y in points)
+    defn = TaskDef(kind, pts, n=n) if kind == "border_patrol" else TaskDef(kind, pts)
+    tasks = divide(defn, iter(range(1, 100)), group=50 if kind == "border_patrol" else 0)
+    assert len(tasks) == n
+    for task in tasks:
+        result = delegate(mission_for(task, False, 6.0), platform)
+        assert result.accepted, result.reasons
+        (plan,) = [p for p in result.plans.values() if p.task == "scan-ground"]
+        flown = [FRAME.to_local(FRAME.to_geo(p[1], p[0], p[2]))[:2] for p in plan.waypoints_neu]
+        drawn = [FRAME.to_local(p)[:2] for p in task.points]
+        assert len(flown) == len(drawn)
+        assert all(math.dist(a, b) < 0.05 for a, b in zip(flown, drawn, strict=True)), (flown, drawn)

@@ -192,6 +192,23 @@ class UpRig(GroundRig):
             self.close()
             raise
 
+    def report(self, log_lines: int = 15) -> str:
+        """What a failed wait needs to say: the board, each vehicle as the service sees it, and the end of
+        every child's log (``taskflight up`` writes them to ``<state-dir>/logs``)."""
+        parts = []
+        try:
+            parts.append("tasks: " + "; ".join(f"{t['id']} {t['kind']} {t['state']} holder {t['holder']}"
+                                              for t in self.tasks().values()))
+            keys = ("member_status", "team_state", "task", "claims", "mission", "health", "mode", "age_s")
+            parts.append("vehicles: " + "; ".join(f"{v['id']} " + " ".join(f"{k}={v.get(k)}" for k in keys)
+                                                  for v in self.vehicles().values()))
+        except Exception as exc:  # the service itself may be what failed
+            parts.append(f"ground service not answering: {exc!r}")
+        for log in sorted((self.tmp / "state" / "logs").glob("*.log")):
+            tail = log.read_text(errors="replace").splitlines()[-log_lines:]
+            parts.append(f"--- end of {log.name}:\n" + "\n".join(tail))
+        return "\n".join(parts)
+
     def close(self) -> None:
         if hasattr(self, "_stop"):
             self._stop.set()

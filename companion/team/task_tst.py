@@ -7,8 +7,9 @@ flown by the vehicle's own mission layer:
 
 ==================  ==================================================================================
 visit               ``fly-to`` the point (straight line), at the task's speed
-patrol line         ``scan-ground`` along the line's waypoints with ``repeat_flag`` (back and forth until
-                    the task is cancelled), ``segment_flag`` so the legs are flown in order
+patrol line         ``scan-ground`` along the line's waypoints in the order drawn, every leg scanned, with
+                    ``repeat_flag`` (back and forth until the task is cancelled); not ``segment_flag``,
+                    which reads the waypoints as separate pairs and refuses an odd count
 border piece        the same patrol over that piece of the border
 area part           ``scan-ground`` of the part's polygon (a lawnmower pattern, seed 000 Fig. 14)
 tst                 the tree the operator gave (one child of a C node when it was divided)
@@ -53,7 +54,7 @@ def task_node(task: TeamTask, standard_altitude: float) -> dict[str, Any]:
     if task.kind in (TaskKind.PATROL_LINE, TaskKind.BORDER_PIECE):
         wps = [[p[0], p[1], _altitude(task, p, standard_altitude)] for p in task.points]
         return {"type": "scan-ground", "id": tid,
-                "params": {"waypoints_scan_flag": True, "waypoints": wps, "segment_flag": True,
+                "params": {"waypoints_scan_flag": True, "waypoints": wps, "segment_flag": False,
                            "repeat_flag": True, "loiter_mode": "pass",
                            "speed": "standard",
                            "data_uuid": f"team-task-{task.id}"}}
