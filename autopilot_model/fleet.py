@@ -187,6 +187,7 @@ class Fleet:
         """Forget the lateness and slips measured so far (a bench's measured interval starts)."""
         self.lateness_s.clear()
         self.clock.slips = 0
+        self.clock.given_up_s = 0.0
 
     @property
     def max_lag_s(self) -> float:

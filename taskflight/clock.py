@@ -110,7 +110,7 @@ class SimClock:
         self._wall0 += lost
         self.slips += 1
         self.given_up_s += lost
-        now = time.monotonic()
+        now = time.perf_counter()
         if now - self._warned_wall >= SLIP_WARNING_EVERY_S:
             self._warned_wall = now
             log.warning("simulation %.2f s behind real time x%g: giving the lost time up (%d slips, %.1f s "
@@ -129,18 +129,19 @@ class SimClock:
         if self.speedup <= 0:
             return 0.0
         target_wall = self._wall0 + (self.now_us - self._sim0_us) * 1e-6 / self.speedup
-        behind = time.perf_counter() - target_wall
-        if behind > self.max_lag_s:
-            self._slip(behind)
+        remaining = target_wall - time.perf_counter()
+        if remaining < -self.max_lag_s:
+            self._slip(-remaining)
             return 0.0
         spin = self.spin_s
         slept = 0.0
         while True:
-            remaining = target_wall - time.perf_counter()
             if remaining <= 0:
                 return slept
             if spin == 0.0:
                 time.sleep(remaining)
             elif remaining > spin + 0.0005:
                 time.sleep(remaining - spin)
-            slept += max(0.0, remaining - max(0.0, target_wall - time.perf_counter()))
+            after = target_wall - time.perf_counter()
+            slept += max(0.0, remaining - max(0.0, after))
+            remaining = after

@@ -81,7 +81,7 @@ def test_flight_by_activation_requests(f: FlightSession, tmp_path: Path) -> None
     ensure_flying(f)
     assert active(f)["KEEP_HOVERING"] == "default"
     # the take-off's goal is its reference's arrival (seed 000 Fig. 8): the vehicle follows it
-    wait_for(lambda: abs(f.alt() - 5.0) < 0.5, f.wall(5), f"the vehicle at 5 m (at {f.alt():.2f} m)")
+    wait_for(lambda: abs(f.alt() - 5.0) < 0.5, f.wall(5), lambda: f"the vehicle at 5 m (at {f.alt():.2f} m)")
     end = run_behavior(f, "GO_TO_POINT coordinate: (10, 0, 6)", 40)
     assert end["cause"] == "goal_achieved", end
     near(f, (10, 0, 6), 1.0, 10)
