@@ -1,6 +1,6 @@
 """Airframe description (seed 002 Sec. 3.2: 'the airframe ... provide[s] a list of modules'; here in YAML).
 
-:func:`load_airframe` validates every field and raises :class:`~taskflight.yamlio.ConfigError` naming
+:func:`load_airframe` validates every field and raises :class:`~taskflight_common.yamlio.ConfigError` naming
 the file, the line and the field when something is wrong.
 """
 
@@ -9,7 +9,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from taskflight.yamlio import ConfigError, Fields, load_yaml
+from taskflight_common.yamlio import ConfigError, Fields, load_yaml
 
 CONFIG_DIR = Path(__file__).parent / "config"
 DEFAULT_AIRFRAME = CONFIG_DIR / "quad_x.yaml"

@@ -37,7 +37,7 @@ def add_demo_arguments(p: argparse.ArgumentParser) -> None:
 def run_demo(args: argparse.Namespace) -> int:
     from autopilot_model.flights import FlightError, fly_square
     from autopilot_model.vehicle import Vehicle
-    from taskflight.yamlio import ConfigError
+    from taskflight_common.yamlio import ConfigError
 
     try:
         v = Vehicle.from_files(args.airframe, args.modules, sensors=args.sensors, use_truth=args.truth,

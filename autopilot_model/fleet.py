@@ -1,7 +1,8 @@
 """Many simulated vehicles in one process on one clock (issue 12 item 8, ``taskflight up``'s models).
 
 A real-time :class:`~autopilot_model.sitl.Sitl` paces its 500 Hz main loop on the wall by sleeping and then
-spinning through the last millisecond of every 2 ms period (:meth:`taskflight.clock.SimClock.pace`): tens
+spinning through the last millisecond of every 2 ms period (:meth:`taskflight_common.clock.SimClock.pace`):
+tens
 of microseconds of jitter, but half a core per idle vehicle, so ten vehicles in ten processes saturate a
 2-core machine. :class:`Fleet` runs N unchanged :class:`Sitl` vehicles (the same classes, every vehicle's
 MAVLink exactly as a single one's) in one thread of one process: each main-loop period runs every
@@ -15,7 +16,7 @@ work only (13-28 us of CPU per 2 ms period with a ground station streaming at 10
 
 When behind (a loaded machine), periods run back to back until the fleet has caught up; more than
 ``max_lag_s`` behind, the fleet gives up the lost time (its clock's pacing moves, counted in
-``slips``: :meth:`taskflight.clock.SimClock.pace`) instead of racing through it. ``speedup=0`` is
+``slips``: :meth:`taskflight_common.clock.SimClock.pace`) instead of racing through it. ``speedup=0`` is
 lockstep: never waits. Two things a single vehicle's sleep hides are spread out: the vehicles'
 statistics flushes (staggered) and the collector's full passes over the vehicles' long-lived objects
 (``gc.freeze`` once they are built).
@@ -43,9 +44,9 @@ from pathlib import Path
 from types import TracebackType
 from typing import Any
 
-from taskflight.clock import SimClock
-from taskflight.geo import ned_to_geodetic
-from taskflight.runtime import die_with_parent, setup_logging
+from taskflight_common.clock import SimClock
+from taskflight_common.geo import ned_to_geodetic
+from taskflight_common.runtime import die_with_parent, setup_logging
 
 log = logging.getLogger(__name__)
 
@@ -58,7 +59,7 @@ LATENESS_KEPT = 60_000
 def fleet_homes(n: int, home: Sequence[float] | None = None, spacing_m: float = 5.0
                 ) -> list[tuple[float, ...]]:
     """Homes of ``n`` vehicles: ``home`` (LAT, LON, ALT[, HDG]; default CMAC) and then every
-    ``spacing_m`` metres east of it (ArduPilot's flat-earth conversion, :mod:`taskflight.geo`)."""
+    ``spacing_m`` metres east of it (ArduPilot's flat-earth conversion, :mod:`taskflight_common.geo`)."""
     from autopilot_model.vehicle import DEFAULT_HOME
 
     base = tuple(float(x) for x in (home if home is not None else DEFAULT_HOME))
@@ -296,8 +297,8 @@ def add_fleet_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run_fleet(args: argparse.Namespace) -> int:
     """Run the fleet until interrupted (or ``--duration``); returns the exit status."""
-    from taskflight.runtime import stop_on_signals
-    from taskflight.yamlio import ConfigError
+    from taskflight_common.runtime import stop_on_signals
+    from taskflight_common.yamlio import ConfigError
 
     speedup = args.speedup if args.speedup is not None else 1.0
     try:

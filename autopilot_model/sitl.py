@@ -33,7 +33,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from taskflight.runtime import freeze_startup_heap, setup_logging, stop_on_signals
+from taskflight_common.runtime import freeze_startup_heap, setup_logging, stop_on_signals
 
 log = logging.getLogger(__name__)
 
@@ -181,7 +181,7 @@ def add_autopilot_arguments(parser: argparse.ArgumentParser) -> None:
 def run_autopilot(args: argparse.Namespace) -> int:
     """Run one vehicle until interrupted (or ``--duration``); returns the exit status."""
     from autopilot_model.mavlink.signing import parse_key
-    from taskflight.yamlio import ConfigError
+    from taskflight_common.yamlio import ConfigError
 
     key = parse_key(args.signing_key) if getattr(args, "signing_key", None) else None
     speedup = args.speedup if getattr(args, "speedup", None) is not None else 1.0

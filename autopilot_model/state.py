@@ -40,7 +40,8 @@ Performance (the estimator writes at 500 Hz and the controller reads at 500 Hz i
 many times faster than real time): a publish is a few attribute stores; the control chain's read is a
 flag test and the cached view; the tuple formats (navigation, flight modes, telemetry at 10-50 Hz) are
 built from the array only when somebody reads them, once per update; the geodetic conversion
-(ArduPilot's flat-earth convention, :mod:`taskflight.geo`) only runs when somebody actually reads the other
+(ArduPilot's flat-earth convention, :mod:`taskflight_common.geo`) only runs when somebody actually reads
+the other
 position format (``bench/bench_lockstep.py`` and ``bench/bench_hotpath.py`` measure it).
 """
 
@@ -64,8 +65,8 @@ from autopilot_model.state_formats import (  # the attitude conversions, re-expo
     quat_to_euler,
     quat_to_matrix,
 )
-from taskflight.geo import geodetic_to_ned, ned_to_geodetic
-from taskflight.validate import finite3 as _vec3
+from taskflight_common.geo import geodetic_to_ned, ned_to_geodetic
+from taskflight_common.validate import finite3 as _vec3
 
 __all__ = [
     "SV_ACC",

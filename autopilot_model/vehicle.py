@@ -3,7 +3,8 @@
 Assembly: airframe YAML -> parameters, physics (world), sensors, estimator, state interface, setpoint
 generator (guidance), cascaded PID (control), mixer (actuators), navigator, battery monitor; the module
 library YAML -> a static schedule (two-pass topological sort, task groups, prescalers and offsets) run by
-the main loop at ``main_loop_hz`` (500 Hz by default) on one :class:`~taskflight.clock.SimClock`. The world
+the main loop at ``main_loop_hz`` (500 Hz by default) on one :class:`~taskflight_common.clock.SimClock`.
+The world
 steps once per iteration after the autopilot's functions, so the autopilot sees the world one period late,
 as a real one does.
 
@@ -52,7 +53,7 @@ from autopilot_model.scheduler.mainloop import MainLoop
 from autopilot_model.scheduler.schedule import Schedule, build_schedule
 from autopilot_model.scheduler.spec import load_modules
 from autopilot_model.state import StateInterface
-from taskflight.clock import SimClock
+from taskflight_common.clock import SimClock
 
 log = logging.getLogger(__name__)
 

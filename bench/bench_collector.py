@@ -1,5 +1,5 @@
 """The garbage collector's full pass in each long-running process, before and after its start-up objects
-are frozen (:func:`taskflight.runtime.freeze_startup_heap`).
+are frozen (:func:`taskflight_common.runtime.freeze_startup_heap`).
 
 Each process kind is built in a fresh interpreter as its main function builds it (the model: a Sitl; the
 companion: a QuadNode with its executive layer, mission service and control server; the ground service:
@@ -48,7 +48,7 @@ else:
     from groundstation.service import GroundService
     service = GroundService(str(tmp / "g.sqlite"), Tokens.generate(), team_url="udp://127.0.0.1:47999")
     keep += [service, create_app(service, 0.1)]
-from taskflight.runtime import freeze_startup_heap
+from taskflight_common.runtime import freeze_startup_heap
 def full_ms():
     ts = []
     for _ in range(7):

@@ -7,7 +7,7 @@ named by ``TASKFLIGHT_ARDUCOPTER``; both paced at ``--speedup``) behind a UDP wi
 * the streamed setpoint rate and interval jitter (p50 / p99 of |interval - period|) at 20 and 50 Hz,
   from the tap's arrival times converted to autopilot time (wall x the autopilot clock's measured rate);
 * the latency from user_confirm to the first setpoint of the next command (autopilot time);
-* the tracking figure of :mod:`taskflight.tracking` on a three-waypoint flight: each streamed setpoint
+* the tracking figure of :mod:`companion.tracking` on a three-waypoint flight: each streamed setpoint
   against LOCAL_POSITION_NED interpolated to its autopilot time (horizontal and vertical RMS and max).
 """
 
@@ -33,7 +33,7 @@ from mavlink_support import wait_for  # noqa: E402
 
 from bench.common import add_autopilot_argument, chosen_autopilots, machine, pct, table  # noqa: E402
 from companion.node import QuadNode  # noqa: E402
-from taskflight.tracking import StreamRecorder  # noqa: E402
+from companion.tracking import StreamRecorder  # noqa: E402
 
 
 def sim_wait(node: QuadNode, seconds: float, speedup: float) -> None:
@@ -88,7 +88,7 @@ def fly(kind: str, rate: float, speedup: float, state: Path, sample_s: float) ->
             lat.append((first - t0) * 1000)
             node.queue.events.wait_for(next_id, timeout_s=w)
         out["latency"] = lat
-        # tracking on the waypoint flight (the figure of the demo's report, taskflight.tracking)
+        # tracking on the waypoint flight (the figure of the demo's report, companion.tracking)
         recorder = StreamRecorder(node)
         for n, e, alt in ((15.0, 0.0, 6.0), (15.0, 15.0, 8.0), (0.0, 0.0, 5.0)):
             node.add_command(

@@ -36,7 +36,7 @@ from typing import Any
 os.environ.setdefault("MAVLINK20", "1")
 
 from bench.common import machine, pct, table
-from taskflight.ports import free_base
+from taskflight_common.ports import free_base
 
 ROOT = Path(__file__).resolve().parents[1]
 #: (vehicles, speedup) measured by default; speedup 0 = lockstep

@@ -14,7 +14,7 @@ from autopilot_model.modules.guidance import Envelope, SetpointGenerator
 from autopilot_model.scheduler import TASK_GROUPS, MainLoop, build_schedule, parse_modules
 from autopilot_model.state import StateInterface, euler_to_quat
 from bench.common import machine, table
-from taskflight.clock import SimClock
+from taskflight_common.clock import SimClock
 
 
 def per_call_us(fn: Callable[[], object], n: int = 50000) -> float:

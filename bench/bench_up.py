@@ -32,9 +32,9 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from bench.common import machine, table  # noqa: E402
-from taskflight.ports import free_base  # noqa: E402
 from taskflight.team_tasking import http_json  # noqa: E402
 from taskflight.up import Up, UpError, UpOptions, ground_available  # noqa: E402
+from taskflight_common.ports import free_base  # noqa: E402
 
 TICK = os.sysconf("SC_CLK_TCK")
 PAGE = os.sysconf("SC_PAGE_SIZE")

@@ -23,9 +23,9 @@ process-unique command ids (:mod:`companion.flight.events`).
                                            ``{"event": {...}}``, or ``{"event": null}`` at the deadline
 ``POST /run``, ``/stop``, ``/reset``,      the verbs -> ``{"ok": true, "status": {...}}``
 ``/user_confirm``
-``POST /pause_direct``,                    pause behaviours; optional body ``{"behaviour_id": "hover"}``
+``POST /pause_direct``,                    pause routines; optional body ``{"routine_id": "hover"}``
 ``/pause_after_current``
-``GET  /behaviours``                       the pause behaviours' ids
+``GET  /pause_routines``                       the pause routines' ids
 ``POST /external/{stream}``                an external-data sample ``{"values": [...], "validity_s": 0.5}``
                                            (streams: ext_pos, ext_vel, ext_heading, ext_point, rc_vel)
 ``/behaviors/...``, ``/beliefs``           the executive layer (seed 001), when served: see
@@ -41,7 +41,7 @@ Errors
     Every refused request answers ``{"error": "<what and why>"}`` and changes nothing:
 
     * 400: malformed JSON, a body or parameter of the wrong shape or type (the message names the
-      field, e.g. ``commands[1].end.e_v``), an invalid command, an unknown behaviour or stream, a
+      field, e.g. ``commands[1].end.e_v``), an invalid command, an unknown routine or stream, a
       malformed sample, a retarget that does not fit the command;
     * 401: a missing or wrong bearer token (see below);
     * 404: an unknown path; 405: a method the path does not offer;
@@ -86,7 +86,6 @@ from companion.control_models import (
     UNION_TAGS,
     AcceptedResponse,
     AddedResponse,
-    BehavioursResponse,
     CommandBatch,
     CommandEntry,
     CommandListResponse,
@@ -98,6 +97,7 @@ from companion.control_models import (
     ExternalSample,
     FlightCommandModel,
     PauseRequest,
+    PauseRoutinesResponse,
     QueueStatusModel,
     RetargetRequest,
     StatusResponse,
@@ -120,7 +120,7 @@ from companion.link.params import ParamClient
 from companion.mission_service import MissionService
 from companion.node import QuadNode
 from companion.team.member import TeamMember
-from taskflight.yamlio import ConfigError
+from taskflight_common.yamlio import ConfigError
 
 log = logging.getLogger(__name__)
 
@@ -403,15 +403,15 @@ def create_app(node: QuadNode, token: str | None = None, behaviors: ExecutiveLay
 
     @app.post("/pause_direct", response_model=VerbResponse)
     def pause_direct(body: PauseRequest | None = None) -> VerbResponse:
-        return _verb(node.pause_direct, body.behaviour_id if body is not None else None)
+        return _verb(node.pause_direct, body.routine_id if body is not None else None)
 
     @app.post("/pause_after_current", response_model=VerbResponse)
     def pause_after_current(body: PauseRequest | None = None) -> VerbResponse:
-        return _verb(node.pause_after_current, body.behaviour_id if body is not None else None)
+        return _verb(node.pause_after_current, body.routine_id if body is not None else None)
 
-    @app.get("/behaviours", response_model=BehavioursResponse)
-    def behaviours() -> BehavioursResponse:
-        return BehavioursResponse(behaviours=list(node.queue.catalog.ids()))
+    @app.get("/pause_routines", response_model=PauseRoutinesResponse)
+    def pause_routines() -> PauseRoutinesResponse:
+        return PauseRoutinesResponse(pause_routines=list(node.queue.catalog.ids()))
 
     @app.post("/external/{stream}", response_model=AcceptedResponse)
     def external(stream: Annotated[str, Path(description=f"one of {', '.join(STREAMS)}")],

@@ -7,7 +7,7 @@
                                  422 ``{"error", "reasons"}`` when the platform rejects it; 400 when
                                  malformed (the message names the line and field)
 ``POST /mission/start``          optional ``{"break_in": "joystick" | "hover"}`` (what a pause does)
-``POST /mission/pause``          the operator's break-in: optional ``{"behaviour_id": "joystick" |
+``POST /mission/pause``          the operator's break-in: optional ``{"routine_id": "joystick" |
                                  "hover"}`` (default joystick: all channels from the operator's feed)
 ``POST /mission/continue``       resume where it stopped
 ``POST /mission/enough``         end the running task as done; the mission goes on with the next node
@@ -32,7 +32,7 @@ from companion.mission_service import MissionService
 from companion.tst.spec import mission_from_dict, mission_from_yaml
 from companion.tst.status import ExecutionRequestError, NodeExecutionStatus
 from companion.tst.tree import TreeError
-from taskflight.yamlio import ConfigError
+from taskflight_common.yamlio import ConfigError
 
 YAML_TYPES = ("application/yaml", "application/x-yaml", "text/yaml", "text/x-yaml")
 
@@ -47,7 +47,7 @@ class StartRequest(_Strict):
 
 
 class PauseMissionRequest(_Strict):
-    behaviour_id: str = Field("joystick", pattern="^(joystick|hover)$")
+    routine_id: str = Field("joystick", pattern="^(joystick|hover)$")
 
 
 class MissionVerbResponse(BaseModel):
@@ -114,7 +114,7 @@ def add_mission_routes(app: FastAPI, service: MissionService, refuse: type[Excep
 
     @app.post("/mission/pause", response_model=MissionVerbResponse)
     def pause(body: PauseMissionRequest | None = None) -> MissionVerbResponse:
-        return verb(service.pause, (body or PauseMissionRequest()).behaviour_id)
+        return verb(service.pause, (body or PauseMissionRequest()).routine_id)
 
     @app.post("/mission/continue", response_model=MissionVerbResponse)
     def continue_() -> MissionVerbResponse:

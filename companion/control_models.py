@@ -79,11 +79,11 @@ CommandsBody = Annotated[
 
 
 class PauseRequest(BaseModel):
-    """The pause behaviour to run (default ``hover``)."""
+    """The pause routine to run (default ``hover``)."""
 
     model_config = ConfigDict(extra="forbid")
 
-    behaviour_id: str | None = Field(None, description="an id of ``GET /behaviours``", examples=["hover"])
+    routine_id: str | None = Field(None, description="an id of ``GET /pause_routines``", examples=["hover"])
 
 
 class ExternalSample(BaseModel):
@@ -149,7 +149,7 @@ class StatusResponse(BaseModel):
 
     queue: QueueStatusModel
     commands: int = Field(description="how many commands the list holds")
-    behaviour_id: str | None = Field(description="the pause behaviour running, if any")
+    routine_id: str | None = Field(description="the pause routine running, if any")
     flight: dict[str, Any] = Field(description="the GUIDED supervisor: phase, take-off, override")
     link: dict[str, Any] = Field(description="the MAVLink link: connection, clock, statistics")
     vehicle: dict[str, Any] = Field(description="the mirrored vehicle state")
@@ -186,8 +186,8 @@ class VerbResponse(BaseModel):
     status: QueueStatusModel
 
 
-class BehavioursResponse(BaseModel):
-    behaviours: list[str]
+class PauseRoutinesResponse(BaseModel):
+    pause_routines: list[str]
 
 
 class AcceptedResponse(BaseModel):

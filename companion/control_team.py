@@ -34,7 +34,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator
 from companion.link.params import ParamClient, ParamError
 from companion.team.member import TeamMember
 from companion.team.types import TaskKind, TeamTask
-from taskflight.geo import check_point
+from taskflight_common.geo import check_point
 
 #: ids of directed tasks (outside the station's numbering)
 _directed_ids = itertools.count(1_000_000)

@@ -12,10 +12,10 @@ Record types (one JSON object per line; ``t`` is always autopilot time in second
 companion follows; positions local NED metres, angles radians)::
 
     {"type": "header", "t": 12.0, "format": "taskflight-flight-log", "version": 1, "rate_hz": 20.0}
-    {"type": "command", "t": 14.05, "key": "c17", "command_id": 17, "behaviour_id": null,
+    {"type": "command", "t": 14.05, "key": "c17", "command_id": 17, "routine_id": null,
      "h": "POS", "v": "WITH_HOR", "hd": "FLIGHT_DIR", "end": ["e_h"], "e_wait": null,
      "take_off": false, "allow_landing": false, "spec": {...}}          # once per command key
-    {"type": "setpoint", "t": 14.10, "key": "c17", "command_id": 17, "behaviour_id": null,
+    {"type": "setpoint", "t": 14.10, "key": "c17", "command_id": 17, "routine_id": null,
      "node": "n3", "kind": "POSITION", "qt": 14.1, "p": [n, e, d], "v": [vn, ve, vd], "yaw": 0.0,
      "m": [n, e, d], "mv": [vn, ve, vd], "m_age": 0.03, "mode": "GUIDED", "armed": true,
      "landed": false, "extra": {...}}                                   # one per streamed setpoint
@@ -23,7 +23,7 @@ companion follows; positions local NED metres, angles radians)::
     {"type": "event", "t": 30.5, "event": "break_in_start", "node": "n3", ...}   # mark(event, ...)
 
 * ``command`` describes the flight command producing the setpoints: ``key`` is ``c<command_id>``
-  for a queued command, ``b:<behaviour_id>`` for a pause behaviour of the queue (seed 000 Sec. V:
+  for a queued command, ``b:<routine_id>`` for a pause routine of the queue (seed 000 Sec. V:
   e.g. ``joystick``, all channels ExtVel), whose first command is described (``n_commands`` says how
   many it has). ``end`` lists the raised flags of the end condition (Fig. 8: e_h, e_v, e_hd, e_any,
   e_user), ``e_wait`` its timeout; ``spec`` is the full command
@@ -58,7 +58,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import IO, TYPE_CHECKING, Any
 
-from taskflight.jsonlines import json_lines
+from taskflight_common.jsonlines import json_lines
 
 if TYPE_CHECKING:
     from companion.flight.commands import FlightCommand
@@ -98,12 +98,12 @@ def _vec(v: Any) -> list[float | None]:
 
 
 def describe_command(key: str, command: FlightCommand, *, command_id: int | None = None,
-                     behaviour_id: str | None = None, n_commands: int = 1) -> dict[str, Any]:
+                     routine_id: str | None = None, n_commands: int = 1) -> dict[str, Any]:
     """The ``command`` record's fields for one flight command (seed 000 Fig. 7-8, Fig. 16b's columns)."""
     from companion.flight.codec import command_to_dict
 
     end = command.end
-    return {"key": key, "command_id": command_id, "behaviour_id": behaviour_id,
+    return {"key": key, "command_id": command_id, "routine_id": routine_id,
             "h": command.horizontal.mode.name, "v": command.vertical.mode.name,
             "hd": command.heading.mode.name,
             "end": [name for name in ("e_h", "e_v", "e_hd", "e_any", "e_user") if getattr(end, name)],
@@ -186,17 +186,17 @@ class FlightRecorder:
             return None
 
     def _command_key(self, sp: Setpoint) -> str | None:
-        if sp.behaviour_id is not None:
-            key = f"b:{sp.behaviour_id}"
+        if sp.routine_id is not None:
+            key = f"b:{sp.routine_id}"
             if key not in self._described:
                 try:
-                    behaviour = self.node.queue.catalog.get(sp.behaviour_id)
+                    routine = self.node.queue.catalog.get(sp.routine_id)
                 except (KeyError, ValueError):
                     return key
                 self._described.add(key)
                 self._write({"type": "command", "t": _r(sp.t_s), **describe_command(
-                    key, behaviour.commands[0], behaviour_id=sp.behaviour_id,
-                    n_commands=len(behaviour.commands))})
+                    key, routine.commands[0], routine_id=sp.routine_id,
+                    n_commands=len(routine.commands))})
             return key
         if sp.command_id is None:
             return None
@@ -216,7 +216,7 @@ class FlightRecorder:
         record: dict[str, Any] = {
             "type": "setpoint", "t": _r(t_ap), "qt": round(sp.t_s, 6), "key": key,
             "command_id": sp.command_id,
-            "behaviour_id": sp.behaviour_id, "node": self._call(self.active_node), "kind": sp.kind.name,
+            "routine_id": sp.routine_id, "node": self._call(self.active_node), "kind": sp.kind.name,
             "p": _vec(sp.p), "v": _vec(sp.v), "yaw": _r(sp.yaw), "m": None, "mv": None, "m_age": None,
             "mode": s.mode_name, "armed": s.armed, "landed": s.landed}
         if s.position is not None:

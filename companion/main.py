@@ -20,7 +20,7 @@ import logging
 import os
 from typing import Any
 
-from taskflight.runtime import freeze_startup_heap, stop_on_signals
+from taskflight_common.runtime import freeze_startup_heap, stop_on_signals
 
 log = logging.getLogger(__name__)
 
@@ -50,8 +50,8 @@ def add_companion_arguments(parser: argparse.ArgumentParser) -> None:
                         help="our MAVLink system id (default: the autopilot's own)")
     parser.add_argument("--flight-config", default=None, metavar="YAML",
                         help="limits and operational envelope (companion.flight.limits)")
-    parser.add_argument("--behaviours", default=None, metavar="YAML",
-                        help="extra pause behaviours of the queue (seed 000 Sec. V)")
+    parser.add_argument("--pause-routines", default=None, metavar="YAML",
+                        help="extra pause routines of the queue (seed 000 Sec. V)")
     parser.add_argument("--behavior-catalog", default=None, metavar="YAML",
                         help="the executive layer's behavior catalog (seed 001; default "
                              "mission_specs/behavior_catalog.yaml)")
@@ -98,11 +98,11 @@ def run_companion(args: argparse.Namespace) -> int:
     from companion.sensing.scenario import Scenario
     from companion.tst.platform import load_platform
     from companion.tst.spec import load_mission
-    from taskflight.yamlio import ConfigError
+    from taskflight_common.yamlio import ConfigError
 
     try:
         limits, envelope = load_flight_config(args.flight_config) if args.flight_config else (None, None)
-        catalog = load_catalog(args.behaviours) if args.behaviours else None
+        catalog = load_catalog(args.pause_routines) if args.pause_routines else None
         commands = load_commands(args.commands) if args.commands else []
         behavior_catalog = None if args.no_behaviors else load_behavior_catalog(
             *([args.behavior_catalog] if args.behavior_catalog else []))

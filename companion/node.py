@@ -18,7 +18,7 @@ take-off (GUIDED, arm, MAV_CMD_NAV_TAKEOFF, lift-off) the queue does not advance
 leaves the ground together with the vehicle. External-data samples are stamped on the queue's time.
 
 Threads: the receive thread writes the mirror; the tick thread ticks the queue and sends; callers
-(the HTTP surface, behaviours) use the verbs, which take the queue's own lock.
+(the HTTP surface, pause_routines) use the verbs, which take the queue's own lock.
 """
 
 from __future__ import annotations
@@ -29,11 +29,11 @@ from collections.abc import Callable, Iterable, Sequence
 from typing import Any
 
 from companion.flight import (
-    BehaviourCatalog,
     CommandQueue,
     Envelope,
     FlightCommand,
     Limits,
+    PauseRoutineCatalog,
     QueueStatus,
     Retarget,
     Setpoint,
@@ -91,7 +91,8 @@ class QuadNode:
     """One vehicle's companion: QAPI verbs and status over a MAVLink autopilot (see module docstring)."""
 
     def __init__(self, autopilot_url: str, *, rate_hz: float = 20.0, limits: Limits | None = None,
-                 envelope: Envelope | None = None, catalog: BehaviourCatalog | None = None, baud: int = 57600,
+                 envelope: Envelope | None = None, catalog: PauseRoutineCatalog | None = None,
+                 baud: int = 57600,
                  source_system: int | None = None, max_validity_s: float = DEFAULT_MAX_VALIDITY_S,
                  rc_mapping: RcMapping | None = None) -> None:
         if not MIN_RATE_HZ <= rate_hz <= MAX_RATE_HZ:
@@ -154,11 +155,11 @@ class QuadNode:
     def stop(self) -> None:
         self.queue.stop()
 
-    def pause_direct(self, behaviour_id: str | None = None) -> None:
-        self.queue.pause_direct(behaviour_id)
+    def pause_direct(self, routine_id: str | None = None) -> None:
+        self.queue.pause_direct(routine_id)
 
-    def pause_after_current(self, behaviour_id: str | None = None) -> None:
-        self.queue.pause_after_current(behaviour_id)
+    def pause_after_current(self, routine_id: str | None = None) -> None:
+        self.queue.pause_after_current(routine_id)
 
     def reset(self) -> None:
         self.queue.reset()
@@ -179,7 +180,7 @@ class QuadNode:
         return {
             "queue": self.queue.status().to_dict(),
             "commands": len(self.queue.commands),
-            "behaviour_id": self.queue.behaviour_id,
+            "routine_id": self.queue.routine_id,
             "flight": self.supervisor.status(),
             "link": self.link.status(),
             "vehicle": self.link.mirror.snapshot().to_dict(),

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import yaml
 
-from taskflight.tokens import role_tokens
+from taskflight_common.tokens import role_tokens
 
 ROLES = ("operator", "observer")
 

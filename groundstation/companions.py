@@ -22,7 +22,7 @@ VERBS: dict[str, tuple[str, str, Any]] = {
     "start": ("POST", "/mission/start", None),
     "take": ("POST", "/team/take", {"reason": "operator"}),
     "release": ("POST", "/team/release", None),
-    "pause": ("POST", "/mission/pause", {"behaviour_id": "joystick"}),
+    "pause": ("POST", "/mission/pause", {"routine_id": "joystick"}),
     "resume": ("POST", "/mission/continue", None),
     "enough": ("POST", "/mission/enough", None),
     "user_confirm": ("POST", "/user_confirm", None),

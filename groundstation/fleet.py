@@ -26,7 +26,7 @@ from urllib.parse import urlencode
 
 from companion.team.station import TeamControlStation
 from companion.team.types import MemberEntry, MemberStatus
-from taskflight.geo import ned_to_geodetic
+from taskflight_common.geo import ned_to_geodetic
 
 from .companions import ApiError, CompanionClient
 

@@ -14,7 +14,7 @@ import logging
 import os
 import sys
 
-from taskflight.runtime import freeze_startup_heap
+from taskflight_common.runtime import freeze_startup_heap
 
 log = logging.getLogger(__name__)
 

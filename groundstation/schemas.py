@@ -10,7 +10,7 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
-from taskflight.geo import check_point
+from taskflight_common.geo import check_point
 
 Point = list[float]
 TASK_TYPES = ("visit", "patrol_line", "border_patrol", "area_scan", "tst")
@@ -168,7 +168,7 @@ class MissionRequest(_Strict):
 
 
 class PauseRequest(_Strict):
-    behaviour_id: Literal["joystick", "hover"] = "joystick"
+    routine_id: Literal["joystick", "hover"] = "joystick"
 
 
 class TakeRequest(_Strict):

@@ -26,7 +26,7 @@ from shapely.geometry import Polygon
 from companion.team.station import TeamControlStation
 from companion.team.tasks import Fence, TaskDef
 from companion.team.transport import Transport, open_transport
-from taskflight.geo import check_point
+from taskflight_common.geo import check_point
 
 from .auth import Principal, Tokens
 from .companions import VERBS, ApiError, CompanionClient

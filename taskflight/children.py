@@ -7,7 +7,8 @@ output appended to a log file: a Ctrl-C at the terminal reaches ``taskflight up`
 signals its foreground process group only), which then stops the children in order
 (:func:`stop_all`: SIGTERM to all of them at once, one shared deadline, then SIGKILL to each one's whole
 process group, so nothing it started is left behind either). A ``taskflight up`` killed with SIGKILL
-cannot do that: each child then stops by itself (:func:`taskflight.runtime.die_with_parent`, the kernel's
+cannot do that: each child then stops by itself (:func:`taskflight_common.runtime.die_with_parent`, the
+kernel's
 parent-death signal). :attr:`Child.tail` reads the last lines of the log, for the message when a child dies
 during start-up.
 """
@@ -24,7 +25,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from taskflight.runtime import PARENT_ENV
+from taskflight_common.runtime import PARENT_ENV
 
 log = logging.getLogger(__name__)
 

@@ -10,7 +10,7 @@ import logging
 import sys
 from collections.abc import Callable, Sequence
 
-from taskflight.runtime import die_with_parent
+from taskflight_common.runtime import die_with_parent
 
 
 def _cmd_autopilot(args: argparse.Namespace) -> int:

@@ -11,7 +11,7 @@ companion (its mirror of the autopilot's telemetry, its estimate of the autopilo
 layer, ``mission_specs/behaviors_demo.txt``; :mod:`taskflight.demo_behaviors`), ``--timeline PNG``
 drawing its Fig. 10; ``--model-only`` flies the model's own Python API through a 50 m square.
 
-The report's tracking figure (:mod:`taskflight.tracking`) compares what the companion streamed with what
+The report's tracking figure (:mod:`companion.tracking`) compares what the companion streamed with what
 the autopilot said the vehicle did, on one clock and in one frame: each streamed position setpoint
 (SET_POSITION_TARGET_LOCAL_NED, stamped with the autopilot time of its tick) against the autopilot's
 LOCAL_POSITION_NED interpolated to that time by ``time_boot_ms``. Only streamed setpoints count: the
@@ -37,7 +37,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from taskflight.tracking import StreamRecorder
+from companion.tracking import StreamRecorder
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Iterator
@@ -121,7 +121,7 @@ def _run_stack_demo(args: argparse.Namespace) -> int:
     from companion.node import QuadNode
     from taskflight.demo_behaviors import BEHAVIORS_DEMO, fly_behaviors, load_activations
     from taskflight.sitlproc import ModelProcess
-    from taskflight.yamlio import ConfigError
+    from taskflight_common.yamlio import ConfigError
 
     speedup = args.speedup if args.speedup is not None else 5.0
     if speedup <= 0:

@@ -36,9 +36,9 @@ from typing import Any
 
 import yaml
 
-from taskflight.geo import ned_to_geodetic
 from taskflight.team_tasking import GroundTasking, StationTasking, Tasking, TaskRow, http_json
 from taskflight.up import ROOT, Up, UpError, UpOptions, ground_available, sleep_or_stop
+from taskflight_common.geo import ned_to_geodetic
 
 MISSION = ROOT / "mission_specs" / "scan_and_search_outdoor.yaml"
 #: the fleet's home (the bundled model's default, CMAC); vehicle i stands 5 i m east of it
@@ -91,7 +91,7 @@ class Progress:
 
 
 def run_demo_team(args: argparse.Namespace) -> int:
-    from taskflight.runtime import stop_on_signals
+    from taskflight_common.runtime import stop_on_signals
 
     if args.vehicles < 3:
         print("taskflight demo-team: error: --vehicles must be at least 3", file=sys.stderr)
@@ -230,7 +230,7 @@ def flight_figures(path: Path) -> FlightFigures | None:
     """Flight time (airborne above 0.5 m, autopilot time), horizontal distance and the tracking figure
     of a companion's flight log (None if it has none)."""
     from companion.flightlog import FlightLogError, read_flight_log
-    from taskflight.tracking import tracking_error
+    from companion.tracking import tracking_error
 
     try:
         records = read_flight_log(path)

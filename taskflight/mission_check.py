@@ -33,7 +33,7 @@ def run_mission_check(args: argparse.Namespace) -> int:
     from companion.tst.delegation import delegate
     from companion.tst.platform import bundled_platform, load_platform
     from companion.tst.spec import load_mission
-    from taskflight.yamlio import ConfigError
+    from taskflight_common.yamlio import ConfigError
 
     try:
         mission = load_mission(args.file)

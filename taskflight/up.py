@@ -46,9 +46,9 @@ from typing import Any
 import yaml
 
 from taskflight.children import Child, first_dead, stop_all
-from taskflight.geo import ned_to_geodetic
-from taskflight.ports import free_ports, model_ports, port_free
-from taskflight.tokens import new_token, role_tokens
+from taskflight_common.geo import ned_to_geodetic
+from taskflight_common.ports import free_ports, model_ports, port_free
+from taskflight_common.tokens import new_token, role_tokens
 
 log = logging.getLogger(__name__)
 
@@ -498,7 +498,7 @@ def options_from_args(args: argparse.Namespace) -> UpOptions:
 
 def run_up(args: argparse.Namespace) -> int:
     """Start the fleet, print READY and the summary, run until SIGINT/SIGTERM, stop everything."""
-    from taskflight.runtime import stop_on_signals
+    from taskflight_common.runtime import stop_on_signals
 
     stop = stop_on_signals()
     up = Up(options_from_args(args))

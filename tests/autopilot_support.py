@@ -23,8 +23,8 @@ import pytest
 from companion_support import WireTap
 from mavlink_support import ROOT, Gcs, SitlProcess, free_port, free_ports, wait_for
 
-from taskflight.ports import port_free
 from taskflight.sitlproc import stop_child
+from taskflight_common.ports import port_free
 
 #: the ArduCopter SITL binary, or None
 ARDUCOPTER = os.environ.get("TASKFLIGHT_ARDUCOPTER") or None

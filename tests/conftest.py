@@ -5,7 +5,7 @@ five times: a pause of the whole process costs five times as much simulated time
 walks every tracked object; with the suite's modules imported (~130 000 objects) it took 250-330 ms
 here (0.5-0.7 s with the other core busy), enough to hand a take-off over seconds late (a CI failure:
 the vehicle 1.5 m below its take-off altitude when the take-off ended). So, as the product's processes
-do (:func:`taskflight.runtime.freeze_startup_heap`):
+do (:func:`taskflight_common.runtime.freeze_startup_heap`):
 
 * once every test module is imported, the objects alive then are frozen out of the collector's sight;
 * after each test, FastAPI's callable-classification caches (bounded at 4096 entries, keyed by the

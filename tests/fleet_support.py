@@ -6,8 +6,8 @@ import os
 import random
 from pathlib import Path
 
-from taskflight.ports import base_free, model_ports
 from taskflight.sitlproc import ModelProcess
+from taskflight_common.ports import base_free, model_ports
 
 SPEEDUP = 5.0
 N = 3

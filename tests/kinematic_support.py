@@ -11,7 +11,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from autopilot_model.params import ParamStore
 from autopilot_model.physics.battery import Battery
-from taskflight.geo import ned_to_geodetic
+from taskflight_common.geo import ned_to_geodetic
 
 HOME = (-35.363261, 149.165230, 584.0)
 ON_GROUND, IN_AIR, TAKEOFF, LANDING = 1, 2, 3, 4

@@ -22,7 +22,7 @@ from autopilot_support import Autopilot
 from mavlink_support import GUIDED, M, wait_for
 from pilot_support import Sticks
 
-from taskflight.geo import ned_to_geodetic
+from taskflight_common.geo import ned_to_geodetic
 
 AUTO, LOITER, RTL, CIRCLE, SMART_RTL, STABILIZE = 3, 5, 6, 7, 21, 0
 ACCEPTED = M.MAV_RESULT_ACCEPTED

@@ -32,8 +32,8 @@ from companion.flightlog import log_violations, read_flight_log
 from companion.team.station import TeamControlStation
 from companion.team.tasks import TaskDef
 from companion.team.transport import open_transport
-from taskflight.geo import ned_to_geodetic
 from taskflight.sitlproc import stop_child
+from taskflight_common.geo import ned_to_geodetic
 
 ROOT = Path(__file__).resolve().parents[1]
 PLATFORM = ROOT / "mission_specs" / "platform_outdoor.yaml"

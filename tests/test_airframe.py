@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from autopilot_model.airframe import DEFAULT_AIRFRAME, load_airframe
-from taskflight.yamlio import ConfigError
+from taskflight_common.yamlio import ConfigError
 
 
 def _write(tmp_path: Path, text: str) -> Path:

@@ -14,7 +14,7 @@ from companion.behaviors.activation import (
 )
 from companion.behaviors.catalog import catalog_from_yaml, load_catalog
 from companion.behaviors.processes import ExecutionProcess, ProcessError, ProcessManager
-from taskflight.yamlio import ConfigError
+from taskflight_common.yamlio import ConfigError
 
 GOOD = """\
 behavior_descriptors:

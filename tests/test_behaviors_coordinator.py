@@ -280,14 +280,14 @@ def test_operator_break_in_with_the_joystick() -> None:
     assert w.activate("FOLLOW_PATH path: ((20, 0, 5), (20, 20, 5))").accepted
     w.run(3.0)
     r = w.activate("REQUEST_OPERATOR_ASSISTANCE control: joystick", "operator")
-    assert r.accepted and w.queue.behaviour_id == "joystick"
+    assert r.accepted and w.queue.routine_id == "joystick"
     for _ in range(40):  # it was flying north at speed: braking and turning are acceleration-limited
         w.queue.push_external("ext_vel", (0.0, -2.0, 0.0, 0.0), 0.5)
         w.run(0.1)
     assert w.sim.state().v[1] < -1.5  # the operator flies west
     where = w.pos_neu
     assert w.coordinator.inhibit("REQUEST_OPERATOR_ASSISTANCE", "operator").accepted  # continue
-    assert w.queue.behaviour_id is None
+    assert w.queue.routine_id is None
     assert w.wait_ended("FOLLOW_PATH", 60).cause.value == "goal_achieved"
     assert where[1] < -1.0 and abs(w.pos_neu[0] - 20) < 0.1 and abs(w.pos_neu[1] - 20) < 0.1
     assert step_violations(w.sim.setpoints, w.queue.limits) == []

@@ -12,8 +12,8 @@ from companion.behaviors.processes import ProcessManager
 from companion.flight.setpoint import VehicleState
 from companion.sensing.camera import DownwardCamera
 from companion.sensing.scenario import Scenario, SceneObject
-from taskflight.geo import ned_to_geodetic
-from taskflight.yamlio import ConfigError
+from taskflight_common.geo import ned_to_geodetic
+from taskflight_common.yamlio import ConfigError
 
 HOME = (58.3950, 15.5720, 0.0)
 

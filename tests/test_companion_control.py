@@ -51,9 +51,9 @@ REFUSALS: list[tuple[str, str, dict[str, Any], int, str]] = [
     ("POST", "/external/ext_vel", {"json": {"values": [1.0, 0.0, 0.0, 0.0], "validity_s": 99}}, 400,
      "exceeds the maximum"),
     ("POST", "/external/no_such", {"json": {"values": [1.0]}}, 400, "unknown stream"),
-    ("POST", "/pause_direct", {"json": {"behaviour_id": "nope"}}, 400, "unknown behaviour"),
-    ("POST", "/pause_direct", {"json": {"behaviour_id": 5}}, 400, "behaviour_id"),
-    ("POST", "/pause_after_current", {"json": {"behaviour": "hover"}}, 400, "behaviour"),
+    ("POST", "/pause_direct", {"json": {"routine_id": "nope"}}, 400, "unknown routine"),
+    ("POST", "/pause_direct", {"json": {"routine_id": 5}}, 400, "routine_id"),
+    ("POST", "/pause_after_current", {"json": {"routine": "hover"}}, 400, "routine"),
     ("POST", "/commands/1/retarget", {"json": {"north": "far"}}, 400, "north"),
     ("POST", "/commands/x/retarget", {"json": {"north": 1.0}}, 400, "command_id"),
     ("GET", "/events", {"params": {"since": "x"}}, 400, "since"),
@@ -113,7 +113,7 @@ def http(node: QuadNode) -> Iterator[httpx.Client]:
 
 def snapshot(node: QuadNode) -> tuple[Any, ...]:
     q = node.queue
-    return (q.status(), q.entries, q.events.last_seq, q.behaviour_id, q.external_sample("ext_vel"))
+    return (q.status(), q.entries, q.events.last_seq, q.routine_id, q.external_sample("ext_vel"))
 
 
 # --- the error shape ---------------------------------------------------------------------------------
@@ -188,7 +188,8 @@ def test_openapi_documents_request_and_response_schemas(http: httpx.Client) -> N
     assert set(schemas["ExternalSample"]["properties"]) == {"values", "validity_s"}
     expected = {("get", "/status"): "StatusResponse", ("get", "/commands"): "CommandListResponse",
                 ("post", "/commands"): "AddedResponse", ("get", "/events"): "EventsResponse",
-                ("get", "/events/wait"): "EventWaitResponse", ("get", "/behaviours"): "BehavioursResponse",
+                ("get", "/events/wait"): "EventWaitResponse",
+                ("get", "/pause_routines"): "PauseRoutinesResponse",
                 ("post", "/external/{stream}"): "AcceptedResponse", ("post", "/run"): "VerbResponse",
                 ("post", "/commands/{command_id}/retarget"): "FlightCommandModel",
                 ("get", "/params/{name}"): "ParamAnswer", ("put", "/params/{name}"): "ParamAnswer"}
@@ -323,21 +324,21 @@ def test_retarget(node: QuadNode, http: httpx.Client) -> None:
 def test_verbs_and_lists(node: QuadNode, http: httpx.Client) -> None:
     status = http.get("/status")
     assert status.status_code == 200
-    assert {"queue", "commands", "behaviour_id", "flight", "link", "vehicle", "node"} <= set(status.json())
+    assert {"queue", "commands", "routine_id", "flight", "link", "vehicle", "node"} <= set(status.json())
     assert status.json()["queue"]["queue_status"] == "STOPPED"
-    assert set(http.get("/behaviours").json()["behaviours"]) >= {"hover", "joystick"}
+    assert set(http.get("/pause_routines").json()["pause_routines"]) >= {"hover", "joystick"}
     r = http.post("/run")
     assert r.status_code == 200 and r.json()["ok"] is True
     assert r.json()["status"]["queue_status"] == "RUNNING"
-    r = http.post("/pause_direct", json={"behaviour_id": "hover"})
+    r = http.post("/pause_direct", json={"routine_id": "hover"})
     assert r.status_code == 200, r.text
-    assert node.queue.behaviour_id == "hover"
-    assert_error(http.post("/pause_direct"), 409, "already in pause behaviour")
-    assert_error(http.post("/pause_after_current", json={}), 409, "already in pause behaviour")
+    assert node.queue.routine_id == "hover"
+    assert_error(http.post("/pause_direct"), 409, "already in pause routine")
+    assert_error(http.post("/pause_after_current", json={}), 409, "already in pause routine")
     assert http.post("/stop").json()["status"]["queue_status"] == "STOPPED"
-    assert node.queue.behaviour_id is None
+    assert node.queue.routine_id is None
     assert http.post("/pause_after_current").status_code == 200  # nothing executing: pauses at once
-    assert node.queue.behaviour_id == "hover"
+    assert node.queue.routine_id == "hover"
     assert http.post("/reset").json()["status"]["generation"] == 1
     r = http.post("/external/ext_vel", json={"values": [1, 0.0, 0.0, 0.0], "validity_s": 0.5})
     assert r.status_code == 200 and r.json() == {"accepted": True}

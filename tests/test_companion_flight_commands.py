@@ -28,8 +28,8 @@ from companion.flight import (
     commands_to_yaml,
     load_commands,
 )
-from companion.flight.behaviours import catalog_from_yaml
-from taskflight.yamlio import ConfigError
+from companion.flight.pause_routines import catalog_from_yaml
+from taskflight_common.yamlio import ConfigError
 
 
 def _refused(field: str, **parts) -> CommandError:
@@ -316,14 +316,15 @@ def test_json_syntax_error_has_a_line() -> None:
     assert info.value.line == 3 and "JSON syntax error" in str(info.value)
 
 
-def test_behaviour_catalog_from_yaml() -> None:
+def test_routine_catalog_from_yaml() -> None:
     cat = catalog_from_yaml(
-        "behaviours:\n"
+        "pause_routines:\n"
         "  - id: spin\n"
         "    commands:\n"
         "      - {heading: {mode: POS, heading: 180, frame: relative}, end: {e_hd: true}}\n"
     )
     assert set(cat.ids()) == {"hover", "joystick", "spin"}
     with pytest.raises(ConfigError) as info:
-        catalog_from_yaml("behaviours:\n  - id: bad\n    commands:\n      - {end: {e_h: true}}\n", "cat.yaml")
-    assert info.value.line == 4 and info.value.field == "behaviours[0].commands[0].end.e_h"
+        catalog_from_yaml("pause_routines:\n  - id: bad\n    commands:\n      - {end: {e_h: true}}\n",
+                          "cat.yaml")
+    assert info.value.line == 4 and info.value.field == "pause_routines[0].commands[0].end.e_h"

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from companion.flight import Envelope, Limits, load_flight_config
-from taskflight.yamlio import ConfigError
+from taskflight_common.yamlio import ConfigError
 
 
 def test_limits_and_polygon_envelope_load(tmp_path) -> None:

@@ -186,10 +186,10 @@ def test_pause_direct_then_run_again_resumes_the_command() -> None:
     assert st.queue_status is QueueState.WAITING_FOR_BEHAVIOR_AND_CONTINUING
     assert st.current_command_status is CommandStatus.PAUSED and st.current_command_index == 1
     assert st.confirmation_required_status  # hover waits for user_confirm
-    assert sim.queue.behaviour_id == "hover"
+    assert sim.queue.routine_id == "hover"
     sim.run_for(6.0)
     assert sim.last.v == (0.0, 0.0, 0.0) and 5.0 < sim.last.p[0] < 40.0
-    assert sim.last.behaviour_id == "hover" and sim.last.command_index is None
+    assert sim.last.routine_id == "hover" and sim.last.command_index is None
     sim.queue.run()
     st = sim.queue.status()
     assert (st.queue_status, st.current_command_status) == (QueueState.RUNNING, CommandStatus.RUNNING)
@@ -208,12 +208,12 @@ def test_pause_direct_with_joystick_resumes_after_user_confirm() -> None:
     assert sim.last.v[1] == pytest.approx(2.0) and sim.last.kind is SetpointKind.VELOCITY
     feed.velocity = None
     sim.queue.user_confirm()
-    assert sim.queue.status().queue_status is QueueState.RUNNING and sim.queue.behaviour_id is None
+    assert sim.queue.status().queue_status is QueueState.RUNNING and sim.queue.routine_id is None
     sim.run_until(index_is(2), 40)
     assert sim.last.p == (30.0, 0.0, -5.0)
 
 
-def test_pause_after_current_runs_the_behaviour_between_commands() -> None:
+def test_pause_after_current_runs_the_routine_between_commands() -> None:
     sim = make_sim(takeoff(), waypoint(10.0, 0.0, 5.0), waypoint(10.0, 10.0, 5.0))
     airborne(sim)
     sim.queue.pause_after_current()
@@ -422,7 +422,7 @@ def test_invalid_commands_and_arguments_are_refused_without_change() -> None:
     assert info.value.field == "vertical.altitude"
     with pytest.raises(QueueError):
         q.add_command({"vertical": {"mode": "POS"}})  # type: ignore[arg-type]
-    with pytest.raises(QueueError, match="unknown behaviour"):
+    with pytest.raises(QueueError, match="unknown routine"):
         q.pause_direct("dance")
     assert (q.status(), q.commands) == before
 
@@ -536,7 +536,7 @@ def test_verbs_from_another_thread_while_ticking() -> None:
     assert step_violations(sim.setpoints, LIMITS) == []
 
 
-def test_pause_while_stopped_waits_for_the_behaviour_and_stays_stopped() -> None:
+def test_pause_while_stopped_waits_for_the_routine_and_stays_stopped() -> None:
     sim = make_sim(takeoff(), waypoint(20.0, 0.0, 5.0))
     airborne(sim)
     sim.run_for(2.0)

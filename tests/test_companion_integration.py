@@ -105,7 +105,7 @@ def test_joystick_ext_vel_until_user_confirm(f: FlightSession) -> None:
     t_end = f.sim_time() + 8.0  # 3 m at 1.5 m/s take 2 s plus the ramp; a loaded machine ticks late
     while f.sim_time() < t_end and f.pos()[0] - start[0] <= 3.0:
         # a joystick pushing north at 1.5 m/s, 10 Hz of simulated time; validity 2 s: a late HTTP round
-        # trip on a busy machine must not let the sample go stale (the stale -> zero-velocity behaviour
+        # trip on a busy machine must not let the sample go stale (the stale -> zero-velocity behavior
         # is the flight layer's unit tests' business)
         r = f.post("/external/ext_vel", {"values": [1.5, 0.0, 0.0, 0.0], "validity_s": 2.0})
         assert r.status_code == 200, r.text
@@ -131,7 +131,7 @@ def test_pause_direct_then_run(f: FlightSession) -> None:
     st = f.status()
     assert st["queue_status"] == "WAITING_FOR_BEHAVIOR_AND_CONTINUING"
     assert st["current_command_status"] == "PAUSED" and st["current_command_id"] == cid
-    assert st["confirmation_required_status"]  # the hover behaviour ends on user_confirm
+    assert st["confirmation_required_status"]  # the hover routine ends on user_confirm
     f.wait_still(8)
     paused_at = f.pos()
     assert math.dist(paused_at, target) > 5.0
@@ -151,7 +151,7 @@ def test_pause_after_current(f: FlightSession) -> None:
                         "vertical": {"mode": "POS", "altitude": -d}, "end": {"e_h": True, "e_v": True}}
                        for n, e, d in (a, b)))
     wait_for(lambda: f.speed() > 1.0, f.wall(5), "flying to A")
-    assert f.post("/pause_after_current", {"behaviour_id": "hover"}).status_code == 200
+    assert f.post("/pause_after_current", {"routine_id": "hover"}).status_code == 200
     assert f.status()["queue_status"] == "RUNNING"  # still flying the current command
     f.wait_finished(ida, 15)
     wait_for(lambda: f.status()["queue_status"] == "WAITING_FOR_BEHAVIOR_AND_CONTINUING", f.wall(2), "pause")
@@ -163,7 +163,7 @@ def test_pause_after_current(f: FlightSession) -> None:
     f.sim_wait(2.0)
     # held on the (GPS-grade) estimate: decimetres of jitter, no drift
     assert math.dist(f.pos(), held) < 0.8 and f.status()["current_command_id"] == idb
-    assert f.post("/user_confirm").status_code == 200  # ends the hover behaviour: on to B
+    assert f.post("/user_confirm").status_code == 200  # ends the hover routine: on to B
     f.wait_finished(idb, 20)
     f.wait_near(b, 1.0, 5)
 
@@ -240,7 +240,7 @@ def test_bad_input_changes_nothing(f: FlightSession) -> None:
         ("/external/ext_vel", {"values": [1.0, 0.0, 0.0, 0.0], "validity_s": -1}, 400, "validity"),
         ("/external/ext_vel", {"values": [1.0, 0.0, 0.0, 0.0], "validity_s": 1e9}, 400, "maximum"),
         ("/external/no_such", {"values": [1.0]}, 400, "unknown stream"),
-        ("/pause_direct", {"behaviour_id": "nope"}, 400, "unknown behaviour"),
+        ("/pause_direct", {"routine_id": "nope"}, 400, "unknown routine"),
     ]
     for path, body, code, text in cases:
         r = f.post(path, body)

@@ -1,6 +1,6 @@
 """The companion's MAVLink link against a scripted fake ArduCopter (tests/fake_autopilot_support.py).
 
-Behaviour the model cannot easily be made to show: no SET_MESSAGE_INTERVAL support (the link falls back
+Behavior the model cannot easily be made to show: no SET_MESSAGE_INTERVAL support (the link falls back
 to REQUEST_DATA_STREAM) and a command that is never ACKed (retries, then an error). Real MAVLink 2 over
 loopback UDP; the link only sends from ``periodic()``, which these tests call every ~20 ms.
 """

@@ -16,9 +16,9 @@ import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from companion.link.setpoints import MASK_POSITION, MASK_VELOCITY, TargetFields
+from companion.tracking import StreamRecorder, tracking_error
 from taskflight.cli import main
 from taskflight.sitlproc import ModelProcess
-from taskflight.tracking import StreamRecorder, tracking_error
 
 TRACKING = re.compile(r"tracking: (\d+) streamed position setpoints.*?"
                       r"horizontal RMS (\S+) m, max (\S+) m; vertical RMS (\S+) m, max (\S+) m", re.S)

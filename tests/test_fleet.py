@@ -17,8 +17,8 @@ from mavlink_support import GUIDED, Gcs, M, wait_for
 from pymavlink import mavutil
 
 from autopilot_model.fleet import Fleet, fleet_homes, template_urls
-from taskflight.geo import geodetic_to_ned
 from taskflight.sitlproc import ModelProcess
+from taskflight_common.geo import geodetic_to_ned
 
 SPEEDUP = 5.0
 N = 3
@@ -181,7 +181,7 @@ def test_sim_clock_without_spinning_sleeps_to_the_deadline() -> None:
     """``SimClock(spin_s=0)`` (the fleet's pacing) sleeps out each period, never spins; bad spins refused."""
     import time
 
-    from taskflight.clock import SimClock
+    from taskflight_common.clock import SimClock
 
     clock = SimClock(1.0, spin_s=0.0)
     c0 = time.process_time()

@@ -49,7 +49,7 @@ def _mission_log() -> list[dict[str, Any]]:
     t = 1.0
     for node, cid, cfg, break_in in spans:
         kind = "VELOCITY" if cfg is JOYSTICK else "POSITION"
-        records.append({"type": "command", "t": t, "key": f"c{cid}", "command_id": cid, "behaviour_id": None,
+        records.append({"type": "command", "t": t, "key": f"c{cid}", "command_id": cid, "routine_id": None,
                         "e_wait": None, "take_off": False, "allow_landing": False, **cfg})
         if break_in:
             records.append({"type": "event", "t": round(t, 3), "event": "break_in_start", "node": node})
@@ -58,7 +58,7 @@ def _mission_log() -> list[dict[str, Any]]:
         for _ in range(20):
             x = t * 0.2
             records.append({"type": "setpoint", "t": round(t, 3), "key": f"c{cid}", "command_id": cid,
-                            "behaviour_id": None, "node": node, "kind": kind, "p": [x, x, -2.0],
+                            "routine_id": None, "node": node, "kind": kind, "p": [x, x, -2.0],
                             "v": [0.2, 0.2, 0.0], "yaw": 0.0, "m": [x - 0.1, x, -2.05], "mv": [0, 0, 0],
                             "m_age": 0.0, "mode": "GUIDED", "armed": True, "landed": False})
             records.append({"type": "position", "t": round(t, 3), "p": [x - 0.1, x, -2.05], "v": [0, 0, 0]})
@@ -177,17 +177,17 @@ def _fake_node(commands: dict[int, Any]) -> SimpleNamespace:
         position=(1.0, 2.0, -3.0), velocity=(0.5, 0.0, 0.0), position_time_ms=9950, mode_name="GUIDED",
         armed=True, landed=False))
     entries = tuple(QueuedCommand(cid, cmd) for cid, cmd in commands.items())
-    from companion.flight.behaviours import default_catalog
+    from companion.flight.pause_routines import default_catalog
 
     return SimpleNamespace(clock=SimpleNamespace(now=lambda: 10.0), rate_hz=20.0, setpoint_listeners=[],
                            link=SimpleNamespace(listeners=[], mirror=mirror),
                            queue=SimpleNamespace(entries=entries, catalog=default_catalog()))
 
 
-def _sp(t: float, command_id: int | None, behaviour_id: str | None = None) -> Setpoint:
-    kind = SetpointKind.VELOCITY if behaviour_id else SetpointKind.POSITION
+def _sp(t: float, command_id: int | None, routine_id: str | None = None) -> Setpoint:
+    kind = SetpointKind.VELOCITY if routine_id else SetpointKind.POSITION
     return Setpoint(t, (1.1, 2.0, -3.0), (0.5, 0.0, 0.0), (0.0, 0.0, 0.0), 0.25, 0.0, kind,
-                    command_id=command_id, behaviour_id=behaviour_id)
+                    command_id=command_id, routine_id=routine_id)
 
 
 def test_recorder_writes_commands_once_setpoints_positions_and_events(tmp_path: Path) -> None:
@@ -214,7 +214,7 @@ def test_recorder_writes_commands_once_setpoints_positions_and_events(tmp_path: 
                                             "setpoint", "position", "event"]
     c7, jst = records[1], records[4]
     assert (c7["key"], c7["h"], c7["v"], c7["end"], c7["take_off"]) == ("c7", "DNU", "POS", ["e_v"], True)
-    assert (jst["key"], jst["h"], jst["end"], jst["behaviour_id"]) == ("b:joystick", "EXT_VEL", ["e_user"],
+    assert (jst["key"], jst["h"], jst["end"], jst["routine_id"]) == ("b:joystick", "EXT_VEL", ["e_user"],
                                                                        "joystick")
     sp = records[2]
     assert sp["node"] == "n1" and sp["p"] == [1.1, 2.0, -3.0] and sp["m"] == [1.0, 2.0, -3.0]

@@ -1,4 +1,4 @@
-"""ArduPilot-compatible NED <-> geodetic conversion (taskflight/geo.py) against WGS84 (pymap3d)."""
+"""ArduPilot-compatible NED <-> geodetic conversion (taskflight_common/geo.py) against WGS84 (pymap3d)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import random
 import pymap3d
 import pytest
 
-from taskflight.geo import LOCATION_SCALING_FACTOR, geodetic_to_ned, ned_to_geodetic
+from taskflight_common.geo import LOCATION_SCALING_FACTOR, geodetic_to_ned, ned_to_geodetic
 
 ORIGINS = [(-35.363261, 149.165230, 584.0), (58.39, 15.57, 80.0), (0.0, 179.999, 0.0), (70.0, -20.0, 10.0)]
 

@@ -80,7 +80,7 @@ def test_database_round_trips(tmp_path: Path) -> None:
     db.save_ledger(led.export(), {101: 12.5})
     db.add_assignment(101, "assigned", 2, 103.0)
     db.add_mission(1, {"mission": "m", "tree": {"type": "S"}}, 422, {"error": "rejected", "reasons": ["x"]})
-    db.audit("operator:abcd", "operator", "pause", "vehicle 1", {"behaviour_id": "joystick"}, 200,
+    db.audit("operator:abcd", "operator", "pause", "vehicle 1", {"routine_id": "joystick"}, 200,
              {"ok": True})
     db.add_event("failsafe", "vehicle 1 switched to RTL", severity="warning", vehicle=1, data={"mode": "RTL"})
     db.put_vehicle(1, "alpha", "http://127.0.0.1:8765")
@@ -95,7 +95,7 @@ def test_database_round_trips(tmp_path: Path) -> None:
     assert m["status"] == 422 and m["answer"]["reasons"] == ["x"] and m["mission"]["tree"] == {"type": "S"}
     a = db.audit_log()[0]
     assert (a["who"], a["action"], a["body"], a["status"]) == ("operator:abcd", "pause",
-                                                               {"behaviour_id": "joystick"}, 200)
+                                                               {"routine_id": "joystick"}, 200)
     e = db.events(kind="failsafe")[0]
     assert e["vehicle"] == 1 and e["data"] == {"mode": "RTL"} and e["severity"] == "warning"
     assert db.vehicles() == [{"id": 1, "name": "alpha2", "control_url": "http://127.0.0.1:8766"}]

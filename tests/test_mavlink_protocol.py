@@ -22,7 +22,7 @@ from autopilot_model.mavlink.endpoint import MavlinkEndpoint
 from autopilot_model.mavlink.framing import FrameParser
 from autopilot_model.mavlink.signing import key_from_passphrase
 from autopilot_model.params import ParamStore
-from taskflight.clock import SimClock
+from taskflight_common.clock import SimClock
 
 
 class StandIn:

@@ -15,7 +15,7 @@ from typing import Any
 import pytest
 from mavlink_support import AUTO, GUIDED, SPEEDUP, Gcs, M, sitl_and_gcs, wall
 
-from taskflight.geo import ned_to_geodetic
+from taskflight_common.geo import ned_to_geodetic
 
 REL = M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT
 

@@ -4,7 +4,7 @@ response, the RC failsafe and its options, RC_CHANNELS / SERVO_OUTPUT_RAW and th
 
 The messages are built with pymavlink and given to ``endpoint.handle_message`` as if received from the
 ground station (system 255); the vehicle runs on its Python API (same seed: deterministic). The same
-behaviour against ArduCopter SITL is in ``test_differential_pilot.py``.
+behavior against ArduCopter SITL is in ``test_differential_pilot.py``.
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""taskflight.runtime.die_with_parent: a child of ``taskflight up`` stops when its parent is gone."""
+"""taskflight_common.runtime.die_with_parent: a child of ``taskflight up`` stops when its parent is gone."""
 
 from __future__ import annotations
 
@@ -8,10 +8,10 @@ import subprocess
 import sys
 from pathlib import Path
 
-from taskflight.runtime import PARENT_ENV
+from taskflight_common.runtime import PARENT_ENV
 
 ROOT = Path(__file__).resolve().parents[1]
-CHILD = ("import os, time; from taskflight.runtime import PARENT_ENV, die_with_parent; "
+CHILD = ("import os, time; from taskflight_common.runtime import PARENT_ENV, die_with_parent; "
          "armed = die_with_parent(); print(armed, PARENT_ENV in os.environ, flush=True); time.sleep(20)")
 
 

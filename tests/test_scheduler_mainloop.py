@@ -18,7 +18,7 @@ from autopilot_model.scheduler import (
     load_modules,
     parse_modules,
 )
-from taskflight.clock import SimClock
+from taskflight_common.clock import SimClock
 
 FIXTURES = Path(__file__).parent / "fixtures"
 

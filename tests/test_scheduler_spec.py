@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from autopilot_model.scheduler import load_modules, parse_modules
-from taskflight.yamlio import ConfigError
+from taskflight_common.yamlio import ConfigError
 
 FIXTURES = Path(__file__).parent / "fixtures"
 

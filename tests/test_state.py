@@ -106,7 +106,7 @@ def ned_of(lla: tuple, origin: tuple) -> np.ndarray:
 
 
 def test_ned_geodetic_known_values() -> None:
-    """ArduPilot's flat-earth convention (taskflight.geo): 1e-7 deg of latitude = 0.011131884502 m."""
+    """ArduPilot's flat-earth convention (taskflight_common.geo): 1e-7 deg of latitude = 0.011131884502 m."""
     s = StateInterface(origin=(0.0, 0.0, 100.0))
     s.set_position_ned((1000.0, 0.0, -50.0))
     lat, lon, alt = s.position_geodetic

@@ -12,7 +12,7 @@ from companion.team.sim import TeamSim
 from companion.team.taskfile import load_task_file, task_script_from_yaml
 from companion.team.types import TaskState
 from taskflight.cli import main
-from taskflight.yamlio import ConfigError
+from taskflight_common.yamlio import ConfigError
 
 ROOT = Path(__file__).resolve().parents[1]
 DEMO = ROOT / "mission_specs" / "team_tasks.yaml"

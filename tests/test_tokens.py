@@ -7,8 +7,8 @@ from __future__ import annotations
 from pathlib import Path
 
 from taskflight.cli import build_parser
-from taskflight.tokens import new_token, role_tokens
 from taskflight.up import VehicleInfo, ground_arguments
+from taskflight_common.tokens import new_token, role_tokens
 
 
 def test_new_tokens_never_start_with_a_dash() -> None:

@@ -72,7 +72,7 @@ def test_scan_and_search_with_break_in_resume_and_enough() -> None:
     m.w.run_until(lambda: m.ts.active_node() == "scan", 30, "the scan")
     m.w.run_until(lambda: m.node("scan")["progress"]["waypoint"] == 3, 30, "waypoint 3")
     m.ts.pause()  # break-in: the operator's joystick
-    assert m.node("scan")["status"]["paused"] and m.w.queue.behaviour_id == "joystick"
+    assert m.node("scan")["status"]["paused"] and m.w.queue.routine_id == "joystick"
     before = m.w.pos_neu
     for _ in range(30):
         m.w.queue.push_external("ext_vel", (0.0, -1.5, 0.0, 0.0), 0.5)

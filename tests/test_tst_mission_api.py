@@ -84,7 +84,7 @@ def test_fly_the_mission_with_break_in_resume_and_enough(f: FlightSession) -> No
     scan = node(mission(f)["tree"], "scan")
     assert scan["info"] == {"can_be_aborted": True, "can_be_paused": True, "can_be_enoughed": True}
     assert scan["progress"]["text"].startswith("waypoint ")
-    r = f.post("/mission/pause", {"behaviour_id": "hover"})
+    r = f.post("/mission/pause", {"routine_id": "hover"})
     assert r.status_code == 200 and r.json()["status"]["paused"]
     assert node(mission(f)["tree"], "scan")["status"]["paused"]
     f.sim_wait(2.0)

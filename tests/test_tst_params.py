@@ -20,7 +20,7 @@ from companion.tst.params import (
     is_free,
     parse_constraint,
 )
-from taskflight.geo import ned_to_geodetic
+from taskflight_common.geo import ned_to_geodetic
 
 HOME = (58.3950, 15.5730)
 
@@ -147,7 +147,7 @@ def test_area_polygon_checks() -> None:
 
 
 def test_geopoint_to_local_inverts_ardupilot_geodesy() -> None:
-    """A point placed n, e metres from home with taskflight.geo comes back as (n, e, alt)."""
+    """A point placed n, e metres from home with taskflight_common.geo comes back as (n, e, alt)."""
     lat, lon, _ = ned_to_geodetic((HOME[0], HOME[1], 0.0), 30.0, -12.0, 0.0)
     n, e, up = geopoint_to_local((lat, lon, 4.5), HOME)
     assert n == pytest.approx(30.0, abs=1e-6)

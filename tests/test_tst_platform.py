@@ -9,7 +9,7 @@ import pytest
 
 from companion.tst.platform import bundled_platform, load_platform, platform_from_dict
 from companion.tst.task_types import TASK_TYPES
-from taskflight.yamlio import ConfigError, load_yaml_text
+from taskflight_common.yamlio import ConfigError, load_yaml_text
 
 HOME = [-35.363261, 149.165230]
 

@@ -9,7 +9,7 @@ import pytest
 
 from companion.tst.params import Interval, LinearRelation
 from companion.tst.spec import load_mission, mission_from_dict, mission_from_yaml, mission_to_dict
-from taskflight.yamlio import ConfigError
+from taskflight_common.yamlio import ConfigError
 
 SPECS = Path(__file__).resolve().parents[1] / "mission_specs"
 

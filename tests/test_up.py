@@ -178,7 +178,7 @@ def test_a_companion_dying_at_start_up_is_reported_and_everything_stops(tmp_path
 
 def test_sigkill_of_up_stops_every_child_by_itself(tmp_path: Path) -> None:
     """``taskflight up`` killed with SIGKILL cannot stop its children: each stops by itself on the kernel's
-    parent-death signal (taskflight.runtime.die_with_parent), as on Ctrl-C; nothing is left running."""
+    parent-death signal (taskflight_common.runtime.die_with_parent), as on Ctrl-C; nothing is left running."""
     up = UpProcess(["--vehicles", "1", "--base-instance", str(free_base(1)), "--no-persist", *ground_args()],
                    tmp_path)
     try:
@@ -191,5 +191,5 @@ def test_sigkill_of_up_stops_every_child_by_itself(tmp_path: Path) -> None:
         wait_for(lambda: processes_mentioning(str(tmp_path)) == [], 10, "no process of its state dir left")
     finally:
         up.close()
-        for pid in processes_mentioning(str(tmp_path)):  # the old behaviour: clean up what it left
+        for pid in processes_mentioning(str(tmp_path)):  # the old behavior: clean up what it left
             os.kill(pid, signal.SIGKILL)

@@ -24,7 +24,7 @@ from fleet_support import ports
 from ground_support import OBSERVER, OPERATOR, GroundRig, _Api
 from mavlink_support import Gcs, free_ports, wait_for
 
-from taskflight.ports import free_base
+from taskflight_common.ports import free_base
 
 ROOT = Path(__file__).resolve().parents[1]
 

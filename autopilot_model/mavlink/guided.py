@@ -33,7 +33,7 @@ from typing import TYPE_CHECKING, Any
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from autopilot_model.modules.flight_modes import GUIDED, FlightModes, GuidedTarget
-from taskflight.geo import geodetic_to_ned
+from taskflight_common.geo import geodetic_to_ned
 
 from .endpoint import InvalidFieldError, require_finite
 

@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING, Any
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from autopilot_model.modules import flight_modes as fm
-from taskflight.geo import ned_to_geodetic
+from taskflight_common.geo import ned_to_geodetic
 
 if TYPE_CHECKING:
     from .endpoint import MavlinkEndpoint

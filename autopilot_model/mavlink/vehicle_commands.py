@@ -23,7 +23,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from autopilot_model.modules import flight_modes as fm
 from autopilot_model.modules.navigation import LANDED_ON_GROUND
-from taskflight.geo import geodetic_to_ned
+from taskflight_common.geo import geodetic_to_ned
 
 from .commands import ACCEPTED, DENIED, FAILED, UNSUPPORTED, Command, CommandResult
 

@@ -17,7 +17,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from taskflight.geo import geodetic_to_ned
+from taskflight_common.geo import geodetic_to_ned
 
 #: ArduCopter's ``reached_fixed_yaw_target``: within 2 degrees
 REACHED_RAD = math.radians(2.0)

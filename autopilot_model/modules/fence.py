@@ -39,7 +39,7 @@ from autopilot_model.modules.mission import (
     MissionStore,
     vehicle_frames,
 )
-from taskflight.geo import geodetic_to_ned
+from taskflight_common.geo import geodetic_to_ned
 
 ALT_MAX = 1
 CIRCLE = 2

@@ -55,7 +55,7 @@ from autopilot_model.modules.guided_targets import (  # noqa: F401 - re-exported
 )
 from autopilot_model.modules.shared_params import define_rtl_alt
 from autopilot_model.modules.smart_rtl import SmartRtl
-from taskflight.geo import geodetic_to_ned
+from taskflight_common.geo import geodetic_to_ned
 
 if TYPE_CHECKING:
     from autopilot_model.vehicle import Vehicle

@@ -45,8 +45,8 @@ import math
 from collections.abc import Sequence
 from typing import Any
 
-from taskflight.validate import finite as _finite
-from taskflight.validate import finite3 as _finite3
+from taskflight_common.validate import finite as _finite
+from taskflight_common.validate import finite3 as _finite3
 
 from .guidance_envelope import Envelope, Vec3
 from .guidance_math import stop_bound, toward, wall_bound

@@ -13,8 +13,8 @@ from shapely.geometry import box as shapely_box
 from shapely.geometry.polygon import orient
 from shapely.ops import nearest_points
 
-from taskflight.validate import finite as _finite
-from taskflight.validate import finite3 as _finite3
+from taskflight_common.validate import finite as _finite
+from taskflight_common.validate import finite3 as _finite3
 
 __all__ = ["Envelope", "Vec3"]
 

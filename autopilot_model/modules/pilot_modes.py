@@ -22,7 +22,7 @@ MANUAL_CONTROL); each mode follows its ArduCopter counterpart (``mode_stabilize.
 * a land detector for the pilot's descent (thrust far below hover, descent rate under 1 m/s, 1 s):
   landed, motors at ground idle, disarmed after DISARM_DELAY.
 
-Until RC has been seen these modes keep the model's behaviour without a pilot (level, holding still:
+Until RC has been seen these modes keep the model's behavior without a pilot (level, holding still:
 what centred sticks and mid throttle give in LOITER), so the companion's flights are unchanged.
 
 The RC failsafe's action (``Copter::failsafe_radio_on_event``) is :meth:`PilotModes.radio_failsafe`.

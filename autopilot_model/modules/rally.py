@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from taskflight.geo import geodetic_to_ned
+from taskflight_common.geo import geodetic_to_ned
 
 from .mission_items import RALLY, RALLY_POINT, RELATIVE_FRAMES
 

@@ -1,6 +1,6 @@
 """Errors of the static scheduler.
 
-Configuration syntax problems are :class:`taskflight.yamlio.ConfigError` (file, line, field, reason);
+Configuration syntax problems are :class:`taskflight_common.yamlio.ConfigError` (file, line, field, reason);
 problems found while resolving the dependency graph (seed 002 Sec. 4.1, Algorithms 1-2) or binding
 function names are :class:`SchedulerError`.
 """

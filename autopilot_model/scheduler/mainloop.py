@@ -38,7 +38,7 @@ _FLUSH_EVERY = 1000   # iterations between two statistics flushes
 
 
 class LoopClock(Protocol):
-    """What the main loop needs of its clock (:class:`taskflight.clock.SimClock`)."""
+    """What the main loop needs of its clock (:class:`taskflight_common.clock.SimClock`)."""
 
     speedup: float
     now_us: int

@@ -19,7 +19,7 @@ This module parses that information from the YAML format of ``docs/design.md``::
         event: [imu.poll]
     select: [imu]
 
-Every problem is a :class:`taskflight.yamlio.ConfigError` naming file, line and field. The same parser
+Every problem is a :class:`taskflight_common.yamlio.ConfigError` naming file, line and field. The same parser
 accepts plain Python dicts (file ``<dict>``, no line numbers) so tests can build libraries inline.
 """
 
@@ -32,7 +32,7 @@ from fractions import Fraction
 from pathlib import Path
 from typing import Any
 
-from taskflight.yamlio import ConfigError, Fields, load_yaml
+from taskflight_common.yamlio import ConfigError, Fields, load_yaml
 
 #: Task groups in their fixed execution order (seed 002 Sec. 4.2, Fig. 4; docs/design.md).
 TASK_GROUPS: tuple[str, ...] = (

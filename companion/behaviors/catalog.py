@@ -25,7 +25,8 @@ The catalog is a YAML file written by a developer (the bundled one is
     - active: [SELF_LOCALIZE]
       before: [GO_TO_POINT, ROTATE, KEEP_HOVERING]
 
-Validation on load (every error names the file, line and field, :class:`~taskflight.yamlio.ConfigError`):
+Validation on load (every error names the file, line and field,
+:class:`~taskflight_common.yamlio.ConfigError`):
 unknown keys, a missing or unknown ``type``, a bad range or default, a behavior described twice, a
 condition naming an unknown behavior, and a loop in the precedence relation (Definition 2: "The
 precedence conditions set must not present loops").
@@ -40,7 +41,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from taskflight.yamlio import ConfigError, Fields, load_yaml, load_yaml_text
+from taskflight_common.yamlio import ConfigError, Fields, load_yaml, load_yaml_text
 
 CATEGORIES = ("goal_based", "recurrent")
 PARAMETER_TYPES = ("number", "integer", "symbol", "text", "boolean")

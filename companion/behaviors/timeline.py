@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from taskflight.jsonlines import json_lines
+from taskflight_common.jsonlines import json_lines
 
 log = logging.getLogger(__name__)
 

@@ -3,7 +3,6 @@ external data and the command queue with the QAPI verbs. Pure logic: the MAVLink
 (``companion/link/``) ticks the queue and streams its setpoints.
 """
 
-from .behaviours import BehaviourCatalog, PauseBehaviour, default_catalog, load_catalog
 from .codec import (
     command_from_dict,
     command_from_json,
@@ -32,6 +31,7 @@ from .commands import (
 from .events import EventKind, EventLog, QueueEvent
 from .external import STREAMS, ExternalData, ExternalDataError
 from .limits import Envelope, Limits, load_flight_config
+from .pause_routines import PauseRoutine, PauseRoutineCatalog, default_catalog, load_catalog
 from .qapi import QueuedCommand
 from .queue import (
     CommandQueue,
@@ -48,7 +48,6 @@ from .setpoint import Setpoint, SetpointKind, VehicleState
 
 __all__ = [
     "STREAMS",
-    "BehaviourCatalog",
     "CommandError",
     "CommandQueue",
     "CommandStatus",
@@ -65,7 +64,8 @@ __all__ = [
     "HorizontalChannel",
     "HorizontalMode",
     "Limits",
-    "PauseBehaviour",
+    "PauseRoutine",
+    "PauseRoutineCatalog",
     "QueueError",
     "QueueEvent",
     "QueueState",

@@ -9,7 +9,7 @@ use are omitted, enums are written by name (frames and modifiers by value)::
     end:        {e_h: true, e_v: true}
 
 ``end`` is required; a missing channel means DNU. Every error is a
-:class:`taskflight.yamlio.ConfigError` whose message is ``file:line: field: reason`` (for JSON and
+:class:`taskflight_common.yamlio.ConfigError` whose message is ``file:line: field: reason`` (for JSON and
 dicts the file is ``<json>`` / ``<input>`` and the line is the JSON syntax error's line, if any);
 validation errors of :class:`~companion.flight.commands.CommandError` are reported the same way
 with the line of the offending field when the input came from YAML.
@@ -24,7 +24,7 @@ from typing import Any
 
 import yaml
 
-from taskflight.yamlio import ConfigError, Fields, load_yaml, load_yaml_text
+from taskflight_common.yamlio import ConfigError, Fields, load_yaml, load_yaml_text
 
 from .commands import (
     CommandError,

@@ -44,7 +44,7 @@ class EventKind(Enum):
     ADDED = "ADDED"
     STARTED = "STARTED"  # its execution began (first start)
     FINISHED = "FINISHED"  # its end condition held; the queue moved on
-    PAUSED = "PAUSED"  # a pause behaviour interrupted it
+    PAUSED = "PAUSED"  # a pause routine interrupted it
     RESUMED = "RESUMED"  # it continues after a pause or a stop
     STOPPED = "STOPPED"  # stop(): it rests where it is
     RETARGETED = "RETARGETED"  # its target, speed or heading changed in flight

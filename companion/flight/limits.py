@@ -4,7 +4,7 @@ Seed 000 Sec. IV-D / Fig. 9: the setpoint generation takes the target parameters
 flight command and produces P_d within the allowed maxima P_env = [p_env, v_env, a_env]. Here
 :class:`Limits` holds v_env / a_env (and jerk, since the generator is jerk-limited) and
 :class:`Envelope` holds p_env: a horizontal box or polygon (shapely) plus an altitude floor and
-ceiling. Both load from YAML through :mod:`taskflight.yamlio` (errors name file, line and field)::
+ceiling. Both load from YAML through :mod:`taskflight_common.yamlio` (errors name file, line and field)::
 
     limits:   {horizontal_speed: 5, horizontal_acceleration: 2.5, vertical_speed: 2, yaw_rate: 90}
     envelope:
@@ -25,7 +25,7 @@ import shapely
 from shapely.geometry import LineString, Point, Polygon
 from shapely.ops import nearest_points
 
-from taskflight.yamlio import ConfigError, Fields, load_yaml
+from taskflight_common.yamlio import ConfigError, Fields, load_yaml
 
 from .commands import CommandError, FlightCommand, Frame, HorizontalMode, VerticalMode
 

@@ -11,28 +11,28 @@ Verbs (Sec. V) and the decisions where the paper is silent
         (no tick in between): the behaviors' way to switch maneuvers (seed 001); deferred like
         ``reset`` during a take-off that may not be stopped yet.
     ``run()``  start or continue; also before anything is queued (execution starts with the first
-        command added). A stopped command is resumed (see below). Called during a pause behaviour,
-        it abandons the behaviour and continues at once ("pause_direct, then run again").
+        command added). A stopped command is resumed (see below). Called during a pause routine,
+        it abandons the routine and continues at once ("pause_direct, then run again").
         Idempotent when already running. Clears a failure (the failed command is tried again).
-    ``stop()``  do not advance; the current command (or pause behaviour) stops at once **if
+    ``stop()``  do not advance; the current command (or pause routine) stops at once **if
         allowed** and the reference comes to rest where it is, smoothly. ``run()`` resumes it.
-    ``pause_direct(behaviour_id=None)``  interrupt now and run a pause behaviour (default
+    ``pause_direct(routine_id=None)``  interrupt now and run a pause routine (default
         ``hover``). When it finishes the interrupted command is **resumed** from the current
         reference: resolved targets kept (a relative waypoint stays where it was), time already
-        waited and a given confirmation kept, trajectory replanned. Refused while a behaviour is
-        running. Cancels a pending ``pause_after_current``. Allowed while stopped: the behaviour
+        waited and a given confirmation kept, trajectory replanned. Refused while a routine is
+        running. Cancels a pending ``pause_after_current``. Allowed while stopped: the routine
         runs and the queue stays stopped afterwards (WAITING_FOR_BEHAVIOR_AND_STOPPING).
-    ``pause_after_current(behaviour_id=None)``  when the current command ends, run the behaviour,
+    ``pause_after_current(routine_id=None)``  when the current command ends, run the routine,
         then continue with the next command. With nothing executing it acts as ``pause_direct``.
-        Refused while a behaviour runs or another pause is pending.
-    ``reset()``  clear the list, drop any behaviour, hold where the reference is; the queue is
+        Refused while a routine runs or another pause is pending.
+    ``reset()``  clear the list, drop any routine, hold where the reference is; the queue is
         STOPPED afterwards (commands added later wait for ``run()``), the index restarts at 0 and
         the ``generation`` goes up by one. Unfinished commands get a CANCELLED event.
-    ``user_confirm()``  the E_User confirmation of the executing command (or behaviour command);
+    ``user_confirm()``  the E_User confirmation of the executing command (or routine command);
         :class:`QueueStateError` when nothing is waiting for one (nothing changes).
     ``retarget(id, north=, east=, altitude=, speed=, heading=)``  change the running command's
         target in flight (Sec. IV-D, :mod:`.retarget`); the stream stays continuous.
-    A verb in the wrong state raises :class:`QueueStateError`, an unknown behaviour
+    A verb in the wrong state raises :class:`QueueStateError`, an unknown routine
     :class:`QueueError`, and changes nothing. While OVERRIDDEN only ``add_command``, ``stop``,
     ``reset`` are accepted.
 
@@ -41,10 +41,10 @@ Status (Sec. V, :class:`QueueStatus`)
     called by the link on a mode change or disarm; the queue then stops and ``tick`` returns None;
     when given back, the reference restarts from the measured state and the queue waits for run()).
     ``queue_status`` STOPPED / RUNNING / WAITING_FOR_BEHAVIOR_AND_STOPPING /
-    WAITING_FOR_BEHAVIOR_AND_CONTINUING (what the queue does once the behaviour finishes).
+    WAITING_FOR_BEHAVIOR_AND_CONTINUING (what the queue does once the routine finishes).
     ``current_command_index`` the command executing, or the one that starts on run(); equals the
     number of commands when all are done. ``current_command_status`` UNKNOWN (no command at the
-    index) / STOPPED / RUNNING / PAUSED (a pause behaviour runs before it resumes or starts) /
+    index) / STOPPED / RUNNING / PAUSED (a pause routine runs before it resumes or starts) /
     FAILED (the link gave it up, e.g. a refused take-off; ``failure`` says why).
     ``confirmation_required_status``, ``limit_reached``, ``target_position_unreachable`` (of the
     last tick), ``is_synced`` (set by the link from the autopilot's POSITION_TARGET_LOCAL_NED echo).
@@ -60,7 +60,7 @@ from .commands import FlightCommand
 
 
 class QueueError(ValueError):
-    """A verb's argument is wrong (unknown behaviour, not a flight command); nothing changed."""
+    """A verb's argument is wrong (unknown routine, not a flight command); nothing changed."""
 
 
 class QueueStateError(QueueError):

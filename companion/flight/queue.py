@@ -3,7 +3,7 @@
 :class:`CommandQueue` holds the list of flight commands and executes them in sequence; its owner (the
 MAVLink link) calls :meth:`CommandQueue.tick` at the streaming rate with the time and the measured
 vehicle state and streams the returned :class:`~companion.flight.setpoint.Setpoint`. Other threads
-(the HTTP control surface, behaviours) call the verbs. One lock guards all state; only the queue's
+(the HTTP control surface, pause_routines) call the verbs. One lock guards all state; only the queue's
 own methods change it (one writer). Every change of a command's life is published as a
 :class:`~companion.flight.events.QueueEvent` on :attr:`CommandQueue.events` (wait on it or subscribe).
 
@@ -34,14 +34,14 @@ from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, replace
 
-from taskflight.clock import Clock
+from taskflight_common.clock import Clock
 
-from .behaviours import DEFAULT_BEHAVIOUR, BehaviourCatalog, PauseBehaviour, default_catalog
 from .commands import CommandError, FlightCommand
 from .events import EventKind, EventLog, QueueEvent, new_command_id
 from .execution import CommandExecution
 from .external import DEFAULT_MAX_VALIDITY_S, ExternalData, Sample
 from .limits import Envelope, Limits
+from .pause_routines import DEFAULT_ROUTINE, PauseRoutine, PauseRoutineCatalog, default_catalog
 from .qapi import (
     CommandStatus,
     QueuedCommand,
@@ -61,8 +61,8 @@ log = logging.getLogger(__name__)
 
 
 @dataclass
-class _ActiveBehaviour:
-    behaviour: PauseBehaviour
+class _ActiveRoutine:
+    routine: PauseRoutine
     index: int
     execution: CommandExecution | None
     continuing: bool  # what the queue does afterwards: continue (True) or stay stopped
@@ -72,7 +72,7 @@ class CommandQueue(TakeoffStopRule):
     """The QAPI command queue (see module docstring)."""
 
     def __init__(self, limits: Limits | None = None, envelope: Envelope | None = None,
-                 catalog: BehaviourCatalog | None = None, clock: Clock | None = None,
+                 catalog: PauseRoutineCatalog | None = None, clock: Clock | None = None,
                  max_step_s: float = 1.0, max_validity_s: float = DEFAULT_MAX_VALIDITY_S,
                  takeoff_min_hold_m: float = TAKEOFF_MIN_HOLD_M) -> None:
         self.limits = limits or Limits()
@@ -92,9 +92,9 @@ class CommandQueue(TakeoffStopRule):
         self._index = 0
         self._exec: CommandExecution | None = None
         self._state = QueueState.STOPPED
-        self._behaviour: _ActiveBehaviour | None = None
-        self._pending_pause: PauseBehaviour | None = None
-        self._deferred: tuple[str, PauseBehaviour | None] | None = None
+        self._routine: _ActiveRoutine | None = None
+        self._pending_pause: PauseRoutine | None = None
+        self._deferred: tuple[str, PauseRoutine | None] | None = None
         self._deferred_entries: list[QueuedCommand] = []  # a deferred replace_commands' new list
         self._failure: str | None = None
         self._overridden = False
@@ -204,13 +204,13 @@ class CommandQueue(TakeoffStopRule):
     def run(self) -> None:
         with self._locked():
             self._refuse_if_overridden("run")
-            was_running = self._state is QueueState.RUNNING and self._behaviour is None
+            was_running = self._state is QueueState.RUNNING and self._routine is None
             if self._deferred is not None and self._deferred[0] in ("stop", "pause_direct"):
                 log.info("run(): deferred %s cancelled", self._deferred[0])
                 self._deferred = None
-            if self._behaviour is not None:
-                log.info("run(): abandoning pause behaviour %s", self._behaviour.behaviour.id)
-                self._behaviour = None
+            if self._routine is not None:
+                log.info("run(): abandoning pause routine %s", self._routine.routine.id)
+                self._routine = None
                 was_running = False
             self._state = QueueState.RUNNING
             self._failure = None
@@ -225,32 +225,32 @@ class CommandQueue(TakeoffStopRule):
                 return
             self._do_stop()
 
-    def pause_direct(self, behaviour_id: str | None = None) -> None:
+    def pause_direct(self, routine_id: str | None = None) -> None:
         with self._locked():
             self._refuse_if_overridden("pause_direct")
-            behaviour = self._behaviour_of(behaviour_id)
-            if self._behaviour is not None:
-                raise QueueStateError(f"pause_direct: already in pause behaviour "
-                                      f"{self._behaviour.behaviour.id!r} (user_confirm or run() ends it)")
-            if self._defer_if_taking_off("pause_direct", behaviour):
+            routine = self._routine_of(routine_id)
+            if self._routine is not None:
+                raise QueueStateError(f"pause_direct: already in pause routine "
+                                      f"{self._routine.routine.id!r} (user_confirm or run() ends it)")
+            if self._defer_if_taking_off("pause_direct", routine):
                 return
-            self._start_behaviour(behaviour, continuing=self._state is QueueState.RUNNING)
+            self._start_routine(routine, continuing=self._state is QueueState.RUNNING)
 
-    def pause_after_current(self, behaviour_id: str | None = None) -> None:
+    def pause_after_current(self, routine_id: str | None = None) -> None:
         with self._locked():
             self._refuse_if_overridden("pause_after_current")
-            behaviour = self._behaviour_of(behaviour_id)
-            if self._behaviour is not None:
-                raise QueueStateError(f"pause_after_current: already in pause behaviour "
-                                      f"{self._behaviour.behaviour.id!r}")
+            routine = self._routine_of(routine_id)
+            if self._routine is not None:
+                raise QueueStateError(f"pause_after_current: already in pause routine "
+                                      f"{self._routine.routine.id!r}")
             if self._pending_pause is not None:
                 raise QueueStateError(f"pause_after_current: pause {self._pending_pause.id!r} "
                                       "already pending")
             if self._state is QueueState.RUNNING and self._index < len(self._commands):
-                self._pending_pause = behaviour
-                log.info("pause %s after command %d", behaviour.id, self._index)
+                self._pending_pause = routine
+                log.info("pause %s after command %d", routine.id, self._index)
             else:
-                self._start_behaviour(behaviour, continuing=self._state is QueueState.RUNNING)
+                self._start_routine(routine, continuing=self._state is QueueState.RUNNING)
 
     def reset(self) -> None:
         with self._locked():
@@ -299,7 +299,7 @@ class CommandQueue(TakeoffStopRule):
             if overridden and not self._overridden:
                 log.warning("queue overridden: stopping, no more setpoints")
                 self._state = QueueState.STOPPED
-                self._behaviour = None
+                self._routine = None
                 self._pending_pause = None
                 self._drop_deferred("the vehicle was taken over")
                 self._ref = None
@@ -322,7 +322,7 @@ class CommandQueue(TakeoffStopRule):
             entry = self._current_entry()
             self._failure = reason
             self._state = QueueState.STOPPED
-            self._behaviour = None
+            self._routine = None
             self._pending_pause = None
             self._drop_deferred(f"the take-off failed: {reason}")
             self._exec = None  # tried again, it starts afresh from wherever the vehicle is then
@@ -387,10 +387,10 @@ class CommandQueue(TakeoffStopRule):
             return tuple(QueuedCommand(e.id, e.command) for e in self._commands)
 
     @property
-    def behaviour_id(self) -> str | None:
-        """The pause behaviour running, if any."""
+    def routine_id(self) -> str | None:
+        """The pause routine running, if any."""
         with self._lock:
-            return self._behaviour.behaviour.id if self._behaviour else None
+            return self._routine.routine.id if self._routine else None
 
     @property
     def reference(self) -> Reference | None:
@@ -463,17 +463,17 @@ class CommandQueue(TakeoffStopRule):
         if self._overridden:
             raise QueueStateError(f"{verb}: the queue is OVERRIDDEN (the vehicle is controlled elsewhere)")
 
-    def _behaviour_of(self, behaviour_id: str | None) -> PauseBehaviour:
-        bid = DEFAULT_BEHAVIOUR if behaviour_id is None else behaviour_id
+    def _routine_of(self, routine_id: str | None) -> PauseRoutine:
+        bid = DEFAULT_ROUTINE if routine_id is None else routine_id
         try:
             return self.catalog.get(bid)
         except KeyError as exc:
             raise QueueError(str(exc.args[0])) from None
 
     def _do_stop(self) -> None:
-        running = self._state is QueueState.RUNNING or self._behaviour is not None
+        running = self._state is QueueState.RUNNING or self._routine is not None
         self._state = QueueState.STOPPED
-        self._behaviour = None
+        self._routine = None
         self._pending_pause = None
         if running and self._exec is not None:
             self._emit(EventKind.STOPPED, self._current_entry(), self._index)
@@ -485,7 +485,7 @@ class CommandQueue(TakeoffStopRule):
         self._commands.clear()
         self._index = 0
         self._exec = None
-        self._behaviour = None
+        self._routine = None
         self._pending_pause = None
         self._deferred = None
         self._failure = None
@@ -495,8 +495,8 @@ class CommandQueue(TakeoffStopRule):
         log.info("queue reset (generation %d)", self._generation)
 
     def _active_execution(self) -> CommandExecution | None:
-        if self._behaviour is not None:
-            return self._behaviour.execution
+        if self._routine is not None:
+            return self._routine.execution
         if self._state is QueueState.RUNNING:
             return self._exec
         return None
@@ -505,10 +505,10 @@ class CommandQueue(TakeoffStopRule):
         """Create the execution of whatever should run now, from the current reference (none yet: later)."""
         if self._ref is None:
             return
-        if self._behaviour is not None:
-            if self._behaviour.execution is None:
-                cmd = self._behaviour.behaviour.commands[self._behaviour.index]
-                self._behaviour.execution = CommandExecution(cmd, self._ref, self.limits)
+        if self._routine is not None:
+            if self._routine.execution is None:
+                cmd = self._routine.routine.commands[self._routine.index]
+                self._routine.execution = CommandExecution(cmd, self._ref, self.limits)
             return
         if self._state is QueueState.RUNNING and self._exec is None and self._index < len(self._commands):
             entry = self._commands[self._index]
@@ -516,32 +516,32 @@ class CommandQueue(TakeoffStopRule):
             self._emit(EventKind.STARTED, entry, self._index)  # an execution is created once per start
             log.info("command %d (id %d) started", self._index, entry.id)
 
-    def _start_behaviour(self, behaviour: PauseBehaviour, *, continuing: bool) -> None:
+    def _start_routine(self, routine: PauseRoutine, *, continuing: bool) -> None:
         self._pending_pause = None
-        self._behaviour = _ActiveBehaviour(behaviour, 0, None, continuing)
+        self._routine = _ActiveRoutine(routine, 0, None, continuing)
         entry = self._current_entry()
         if entry is not None:
-            self._emit(EventKind.PAUSED, entry, self._index, behaviour.id)
+            self._emit(EventKind.PAUSED, entry, self._index, routine.id)
         self._maybe_start()
-        log.info("pause behaviour %s started (%s afterwards)", behaviour.id,
+        log.info("pause routine %s started (%s afterwards)", routine.id,
                  "continue" if continuing else "stop")
 
     def _finish_active(self) -> None:
         """The active execution's end condition holds: advance (Sec. IV-B sequencing)."""
-        b = self._behaviour
+        b = self._routine
         if b is not None:
             b.index += 1
             b.execution = None
-            if b.index < len(b.behaviour.commands):
+            if b.index < len(b.routine.commands):
                 self._maybe_start()
                 return
-            log.info("pause behaviour %s finished", b.behaviour.id)
-            self._behaviour = None
+            log.info("pause routine %s finished", b.routine.id)
+            self._routine = None
             self._state = QueueState.RUNNING if b.continuing else QueueState.STOPPED
             if b.continuing and self._current_entry() is not None:
                 if self._exec is not None and self._ref is not None:
                     self._exec.resume(self._ref)
-                self._emit(EventKind.RESUMED, self._current_entry(), self._index, b.behaviour.id)
+                self._emit(EventKind.RESUMED, self._current_entry(), self._index, b.routine.id)
             self._maybe_start()
             return
         entry = self._current_entry()
@@ -551,20 +551,20 @@ class CommandQueue(TakeoffStopRule):
         self._exec = None
         self._index += 1
         if self._pending_pause is not None:
-            self._start_behaviour(self._pending_pause, continuing=True)
+            self._start_routine(self._pending_pause, continuing=True)
         else:
             self._maybe_start()
 
     def _queue_state(self) -> QueueState:
-        if self._behaviour is not None:
-            return (QueueState.WAITING_FOR_BEHAVIOR_AND_CONTINUING if self._behaviour.continuing
+        if self._routine is not None:
+            return (QueueState.WAITING_FOR_BEHAVIOR_AND_CONTINUING if self._routine.continuing
                     else QueueState.WAITING_FOR_BEHAVIOR_AND_STOPPING)
         return self._state
 
     def _command_status(self) -> CommandStatus:
         if self._index >= len(self._commands):
             return CommandStatus.UNKNOWN
-        if self._behaviour is not None:
+        if self._routine is not None:
             return CommandStatus.PAUSED
         if self._failure is not None:
             return CommandStatus.FAILED
@@ -578,7 +578,7 @@ class CommandQueue(TakeoffStopRule):
         takeoff_alt = None
         index: int | None = None
         command_id: int | None = None
-        behaviour_id = self._behaviour.behaviour.id if self._behaviour is not None else None
+        routine_id = self._routine.routine.id if self._routine is not None else None
         if execution is not None:
             cmd = execution.command
             if cmd.velocity_only:
@@ -587,9 +587,9 @@ class CommandQueue(TakeoffStopRule):
             allow_landing = cmd.vertical.allow_landing
             if take_off and execution.v_target_down is not None:
                 takeoff_alt = -execution.v_target_down
-            if behaviour_id is None:
+            if routine_id is None:
                 index = self._index
                 entry = self._current_entry()
                 command_id = entry.id if entry else None
         return Setpoint(ref.t_s, ref.p, ref.v, ref.a, wrap_pi(ref.yaw), ref.yaw_rate, kind, take_off,
-                        takeoff_alt, allow_landing, land_now, index, behaviour_id, command_id)
+                        takeoff_alt, allow_landing, land_now, index, routine_id, command_id)

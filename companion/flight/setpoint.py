@@ -35,7 +35,7 @@ class Setpoint:
     may touch down. ``land_now``: that landing command's reference has reached its altitude or the
     vehicle reports it is on the ground; the link sends LAND. ``command_index`` is the queue index
     of the producing command and ``command_id`` its id (None while holding or inside a pause
-    behaviour, then ``behaviour_id`` names the behaviour).
+    routine, then ``routine_id`` names the routine).
     """
 
     t_s: float
@@ -50,7 +50,7 @@ class Setpoint:
     allow_landing: bool = False
     land_now: bool = False
     command_index: int | None = None
-    behaviour_id: str | None = None
+    routine_id: str | None = None
     command_id: int | None = None
 
     def to_dict(self) -> dict[str, object]:
@@ -58,7 +58,7 @@ class Setpoint:
                 "yaw_rate": self.yaw_rate, "kind": self.kind.name, "take_off": self.take_off,
                 "takeoff_altitude": self.takeoff_altitude, "allow_landing": self.allow_landing,
                 "land_now": self.land_now, "command_index": self.command_index,
-                "behaviour_id": self.behaviour_id, "command_id": self.command_id}
+                "routine_id": self.routine_id, "command_id": self.command_id}
 
 
 @dataclass(frozen=True)

@@ -24,7 +24,7 @@ from .events import EventKind
 from .qapi import QueueState, QueueStateError
 
 if TYPE_CHECKING:
-    from .behaviours import PauseBehaviour
+    from .pause_routines import PauseRoutine
     from .setpoint import VehicleState
 
 log = logging.getLogger(__name__)
@@ -44,7 +44,7 @@ class TakeoffStopRule:
         Climbing: the link said it lifted off (:meth:`mark_takeoff_airborne`), or, with no link (a
         simulation), its reference has left the start altitude."""
         ex = self._exec
-        if ex is None or self._behaviour is not None or self._state is not QueueState.RUNNING \
+        if ex is None or self._routine is not None or self._state is not QueueState.RUNNING \
                 or not ex.command.vertical.take_off or ex.ended or self._ref is None:
             return False
         climbing = ex.airborne or self._ref.altitude - ex.start_altitude >= TAKEOFF_CLIMBING_M
@@ -60,7 +60,7 @@ class TakeoffStopRule:
         the climb where the vehicle is, instead of pulling it back to the ground it left."""
         with self._lock:
             ex = self._active_execution()
-            if ex is None or self._behaviour is not None or not ex.command.vertical.take_off or ex.ended:
+            if ex is None or self._routine is not None or not ex.command.vertical.take_off or ex.ended:
                 return False
             ex.airborne = True
             if vehicle is not None and self._ref is not None:
@@ -69,7 +69,7 @@ class TakeoffStopRule:
                 self._last_setpoint = None
             return True
 
-    def _defer_if_taking_off(self, verb: str, behaviour: PauseBehaviour | None) -> bool:
+    def _defer_if_taking_off(self, verb: str, routine: PauseRoutine | None) -> bool:
         if not self._takeoff_unstoppable():
             return False
         pending = self._deferred[0] if self._deferred is not None else None
@@ -79,7 +79,7 @@ class TakeoffStopRule:
             for e in self._deferred_entries:
                 self._emit(EventKind.CANCELLED, e, None, f"superseded by a later {verb}")
             self._deferred_entries = []
-        self._deferred = (verb, behaviour)
+        self._deferred = (verb, routine)
         text = f"{verb} deferred until the take-off is {self.takeoff_min_hold_m:g} m up"
         log.info("%s", text)
         self._emit(EventKind.DEFERRED, self._current_entry(), self._index, text)
@@ -94,7 +94,7 @@ class TakeoffStopRule:
     def _apply_deferred(self) -> None:
         if self._deferred is None or self._takeoff_unstoppable():
             return
-        verb, behaviour = self._deferred
+        verb, routine = self._deferred
         self._deferred = None
         log.info("carrying out the deferred %s", verb)
         if verb == "stop":
@@ -104,6 +104,6 @@ class TakeoffStopRule:
         elif verb == "replace":
             entries, self._deferred_entries = self._deferred_entries, []
             self._do_replace(entries)
-        elif verb == "pause_direct" and behaviour is not None and self._behaviour is None:
-            self._start_behaviour(behaviour, continuing=self._state is QueueState.RUNNING)
+        elif verb == "pause_direct" and routine is not None and self._routine is None:
+            self._start_routine(routine, continuing=self._state is QueueState.RUNNING)
 

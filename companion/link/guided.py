@@ -3,7 +3,7 @@
 Issue 4 item 5, issue 7 and seed 000 Sec. V (queue_system_status Overridden: "the backup pilot can
 override the commands being executed"). :class:`GuidedSupervisor` decides, tick by tick, whether the
 queue's setpoint is streamed, and asks the autopilot for the modes it needs. It relies only on
-documented ArduCopter behaviour:
+documented ArduCopter behavior:
 
 * GUIDED accepts SET_POSITION_TARGET_LOCAL_NED only in the air; on the ground a take-off needs
   GUIDED, arming, then MAV_CMD_NAV_TAKEOFF whose param7 is metres **above home**. Home is not the
@@ -182,7 +182,7 @@ class GuidedSupervisor:
         self.link.sync.clear()
 
     def _executing(self, sp: Setpoint) -> bool:
-        return sp.command_index is not None or sp.behaviour_id is not None
+        return sp.command_index is not None or sp.routine_id is not None
 
     def _engage(self, sp: Setpoint, s: MirrorState, now_s: float) -> bool:
         if not self._executing(sp):

@@ -16,11 +16,11 @@ Decisions (documented once here)
       event and the command change straddle each other) is merged into its neighbour.
     * A break-in is the time between ``break_in_start`` (or ``node_paused``) and ``break_in_end`` (or
       ``node_continued`` / ``node_enoughed`` / ``node_aborted`` / ``node_finished``), and any setpoint
-      of a queue pause behaviour (``behaviour_id``). It was *enoughed* when its end says
+      of a queue pause routine (``routine_id``). It was *enoughed* when its end says
       ``outcome: enoughed`` or a ``node_enoughed`` follows within :data:`ENOUGH_WINDOW_S`.
     * Tracking (Sec. VII: "maximum absolute control error ... horizontal ... vertical (excluding
       takeoff)"): each streamed *position* setpoint against the autopilot's LOCAL_POSITION_NED at the
-      setpoint's time (:func:`taskflight.tracking.tracking_error`); velocity-only setpoints (ExtVel
+      setpoint's time (:func:`companion.tracking.tracking_error`); velocity-only setpoints (ExtVel
       joystick) are not position references and never count; with ``skip_takeoff`` the setpoints of
       take-off and allow-landing commands are left out of both figures (the autopilot's own take-off
       and LAND are never streamed anyway).
@@ -32,7 +32,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
-from taskflight.tracking import tracking_error
+from companion.tracking import tracking_error
 
 #: a node_enoughed this soon after a break-in ends makes it "(paused/enoughed)"
 ENOUGH_WINDOW_S = 1.0
@@ -176,7 +176,7 @@ def segments(records: list[dict[str, Any]], min_setpoints: int = 3) -> list[Segm
     for i, sp in enumerate(sps):
         key = sp.get("key")
         t = float(sp["t"])
-        in_break = sp.get("behaviour_id") is not None or any(b.t0 <= t <= b.t1 for b in bis)
+        in_break = sp.get("routine_id") is not None or any(b.t0 <= t <= b.t1 for b in bis)
         if key is None and segs:  # holding between commands: part of the segment before
             _extend(segs[-1], i, t, None)
             continue

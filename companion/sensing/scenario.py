@@ -11,8 +11,8 @@ simulation the salient points are declared in a YAML file and the simulated came
 
 ``id`` is an integer or a symbol (it becomes the object of the beliefs ``object(7, person)``,
 ``position(7, (n, e, d))``, ``visible(7)``), unique in the file; ``class`` is a symbol. Every problem
-is a :class:`~taskflight.yamlio.ConfigError` naming file, line and field. Geopoints are converted to
-local NED with the project's geodesy (:mod:`taskflight.geo`, ArduPilot's conversion).
+is a :class:`~taskflight_common.yamlio.ConfigError` naming file, line and field. Geopoints are converted to
+local NED with the project's geodesy (:mod:`taskflight_common.geo`, ArduPilot's conversion).
 """
 
 from __future__ import annotations
@@ -24,8 +24,8 @@ from pathlib import Path
 from typing import Any
 
 from companion.behaviors.belief_syntax import Belief, BeliefError
-from taskflight.geo import geodetic_to_ned
-from taskflight.yamlio import ConfigError, Fields, load_yaml, load_yaml_text
+from taskflight_common.geo import geodetic_to_ned
+from taskflight_common.yamlio import ConfigError, Fields, load_yaml, load_yaml_text
 
 ObjectId = int | str
 

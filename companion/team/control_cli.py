@@ -32,8 +32,8 @@ def run_control(args: argparse.Namespace) -> int:
     from companion.team.station import TeamControlStation
     from companion.team.taskfile import load_task_file
     from companion.team.transport import open_transport
-    from taskflight.runtime import stop_on_signals
-    from taskflight.yamlio import ConfigError
+    from taskflight_common.runtime import stop_on_signals
+    from taskflight_common.yamlio import ConfigError
 
     try:
         script = load_task_file(args.tasks) if args.tasks else None

@@ -1,7 +1,7 @@
 """Local metric geometry for team tasks (seed 003 Sec. II: border patrol and area division).
 
 Task points are WGS84 (lat, lon, alt above the team datum); lengths, areas and cuts are computed in a
-local frame of metres around a datum with ArduPilot's flat-earth conversion (:mod:`taskflight.geo`, the
+local frame of metres around a datum with ArduPilot's flat-earth conversion (:mod:`taskflight_common.geo`, the
 one the whole project uses), x = east, y = north. Shapely does the planar work: polyline lengths,
 ``substring`` pieces of a border, polygon areas and the equal-area cut of a scan area.
 """
@@ -17,7 +17,7 @@ from shapely.geometry import LineString, Polygon, box
 from shapely.ops import substring
 
 from companion.team.types import GeoPoint
-from taskflight.geo import geodetic_to_ned, ned_to_geodetic
+from taskflight_common.geo import geodetic_to_ned, ned_to_geodetic
 
 #: relative tolerance of the bisection on area (the parts' areas agree to far better than 1 %)
 AREA_TOL = 1e-6

@@ -26,7 +26,7 @@ def add_sim_arguments(p: argparse.ArgumentParser) -> None:
 def run_sim(args: argparse.Namespace) -> int:
     from companion.team.sim import TeamSim
     from companion.team.taskfile import load_task_file
-    from taskflight.yamlio import ConfigError
+    from taskflight_common.yamlio import ConfigError
 
     try:
         script = load_task_file(args.tasks)

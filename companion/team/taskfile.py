@@ -16,7 +16,8 @@
         at: 0                                # s after the start when the operator adds it
         cancel_at: 120                       # s after the start when the operator cancels it (optional)
 
-Read through :mod:`taskflight.yamlio`: every problem is a :class:`~taskflight.yamlio.ConfigError`
+Read through :mod:`taskflight_common.yamlio`: every problem is a
+:class:`~taskflight_common.yamlio.ConfigError`
 ``file:line: field: reason`` (the task's checks of :func:`companion.team.tasks.divide` included: a task
 outside the fence, N = 0, a polygon that is not simple ...).
 """
@@ -31,7 +32,7 @@ from typing import Any
 from shapely.geometry import Polygon
 
 from companion.team.tasks import DEF_KINDS, Fence, TaskDef, divide
-from taskflight.yamlio import ConfigError, Fields, load_yaml, load_yaml_text
+from taskflight_common.yamlio import ConfigError, Fields, load_yaml, load_yaml_text
 
 TOP_KEYS = ("team", "home", "fence", "tasks")
 TASK_KEYS = ("name", "kind", "points", "altitude", "speed", "n", "tree", "at", "cancel_at")

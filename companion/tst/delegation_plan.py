@@ -26,7 +26,7 @@ from companion.tst.params import area_to_local, geopoint_to_local
 from companion.tst.plan import NodePlan
 from companion.tst.platform import Platform
 from companion.tst.tree import TstNode
-from taskflight.geo import ned_to_geodetic
+from taskflight_common.geo import ned_to_geodetic
 
 __all__ = ["NodePlan", "expand", "leg_time", "local_to_geopoint", "plan_leaf"]
 
@@ -34,7 +34,7 @@ NEU = tuple[float, float, float]
 
 
 def local_to_geopoint(neu: NEU, platform: Platform) -> tuple[float, float, float]:
-    """``[lat, lon, alt above home]`` of a local (north, east, up) point (:mod:`taskflight.geo`)."""
+    """``[lat, lon, alt above home]`` of a local (north, east, up) point (:mod:`taskflight_common.geo`)."""
     lat, lon, alt = ned_to_geodetic((platform.home[0], platform.home[1], 0.0), neu[0], neu[1], -neu[2])
     return (round(lat, 9), round(lon, 9), round(alt, 4))
 

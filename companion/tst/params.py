@@ -16,7 +16,7 @@ Constraints:
 
 Geopoints are ``[lat, lon, alt]`` (degrees, degrees, metres above home: MAVLink's GLOBAL_RELATIVE_ALT);
 areas are polygons ``[[lat, lon], ...]``. They convert to the local (north, east, up) frame of home with
-the project's flat-earth geodesy (:mod:`taskflight.geo`, ArduPilot's ``Location`` convention).
+the project's flat-earth geodesy (:mod:`taskflight_common.geo`, ArduPilot's ``Location`` convention).
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from taskflight.geo import geodetic_to_ned
+from taskflight_common.geo import geodetic_to_ned
 
 #: Comparison operators of a linear relation.
 RELATION_OPERATORS = ("<=", ">=", "==")
@@ -336,7 +336,7 @@ def geopoint_to_local(point: Sequence[float], home: Sequence[float]) -> tuple[fl
     """(north, east, up) metres of ``[lat, lon, alt-above-home]`` from ``home`` (lat, lon[, ...]).
 
     ``[lat, lon]`` gives up = 0. Uses ArduPilot's flat-earth conversion
-    (:func:`taskflight.geo.geodetic_to_ned`).
+    (:func:`taskflight_common.geo.geodetic_to_ned`).
     """
     alt = float(point[2]) if len(point) > 2 else 0.0
     n, e, d = geodetic_to_ned((float(home[0]), float(home[1]), 0.0), float(point[0]), float(point[1]), alt)

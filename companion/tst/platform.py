@@ -38,7 +38,7 @@ from typing import Any
 from companion.executors.coverage import Sensor
 from companion.flight.limits import Envelope, Limits
 from companion.tst.task_types import TASK_TYPES
-from taskflight.yamlio import Fields, load_yaml
+from taskflight_common.yamlio import Fields, load_yaml
 
 log = logging.getLogger(__name__)
 
@@ -192,7 +192,7 @@ class Platform:
 
 
 def load_platform(path: str | Path) -> Platform:
-    """Read a platform YAML file; raises :class:`~taskflight.yamlio.ConfigError` (file:line: field)."""
+    """Read a platform YAML file; raises :class:`~taskflight_common.yamlio.ConfigError` (file:line: field)."""
     platform = platform_from_dict(load_yaml(path), str(path))
     log.info("platform %s from %s: endurance %.0f s, ceiling %g m", platform.name, path,
              platform.endurance_s, platform.ceiling[0])

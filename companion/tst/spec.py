@@ -30,7 +30,8 @@ appended, as :func:`mission_to_dict` writes them, so that a dumped expanded tree
 values and constraints are those of :mod:`companion.tst.params` (``speed: "slow | standard"``,
 ``commanded_speed: {interval: [1, 3]}``, ``duration: "duration <= endurance_left"``).
 
-Every problem is a :class:`~taskflight.yamlio.ConfigError` ``file:line: field: reason``: unknown keys, an
+Every problem is a :class:`~taskflight_common.yamlio.ConfigError` ``file:line: field: reason``: unknown
+keys, an
 unknown node type, a parameter unknown to the task type, a missing required parameter, a bad geopoint, a
 control node without children, IF/WHILE without a condition or with a malformed one
 (:func:`companion.tst.conditions.parse_condition`: a belief query, or ``not`` a query), and duplicate
@@ -51,7 +52,7 @@ from companion.tst.conditions import parse_condition
 from companion.tst.params import ParamError
 from companion.tst.task_types import TASK_TYPES
 from companion.tst.tree import CONDITIONAL_TYPES, CONTROL_TYPES, TreeError, TstNode, known_types
-from taskflight.yamlio import ConfigError, Fields, LineList, load_yaml, load_yaml_text
+from taskflight_common.yamlio import ConfigError, Fields, LineList, load_yaml, load_yaml_text
 
 log = logging.getLogger(__name__)
 

@@ -6,7 +6,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from companion.flight import FlightCommand
-from companion.flight.behaviours import joystick_command
+from companion.flight.pause_routines import joystick_command
 
 from ..controller import FlightBehavior, register
 from ._common import need_flying

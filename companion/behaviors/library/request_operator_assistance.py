@@ -15,7 +15,7 @@ from ._common import need_flying
 @register
 class RequestOperatorAssistance(BehaviorExecutionController):
     """Fig. 7: the execution controller pauses the flight behaviors (the queue's ``pause_direct`` with
-    the ``control`` pause behaviour: ``hover``, the vehicle holds, or ``joystick``, the operator flies
+    the ``control`` pause routine: ``hover``, the vehicle holds, or ``joystick``, the operator flies
     it through the ``ext_vel`` stream: seed 000 Sec. VII's break-in), adds the
     belief ``waiting_for(self, operator)`` and the ``message``, and waits for the operator's
     confirmation (``user_confirm``), after which the paused command resumes and this behavior ends
@@ -31,8 +31,8 @@ class RequestOperatorAssistance(BehaviorExecutionController):
         self.control = "hover"
 
     def situation(self, params: Mapping[str, Any]) -> str | None:
-        if self.ctx.queue.behaviour_id is not None:
-            return f"the queue already runs the pause behaviour {self.ctx.queue.behaviour_id!r}"
+        if self.ctx.queue.routine_id is not None:
+            return f"the queue already runs the pause routine {self.ctx.queue.routine_id!r}"
         return need_flying(self)
 
     def on_start(self, params: Mapping[str, Any]) -> None:
@@ -55,7 +55,7 @@ class RequestOperatorAssistance(BehaviorExecutionController):
         if value is not None:
             self.ctx.beliefs.remove(f'operator_message(self, "{_quoted(str(value))}")')
         queue = self.ctx.queue
-        if queue.behaviour_id == self.control and queue.status().generation == self._generation:
+        if queue.routine_id == self.control and queue.status().generation == self._generation:
             with contextlib.suppress(QueueStateError):
                 queue.run()  # inhibited: give the flight behavior back
 
@@ -64,7 +64,7 @@ class RequestOperatorAssistance(BehaviorExecutionController):
         status = queue.status()
         if status.queue_system_status.name == "OVERRIDDEN":
             return Termination(TerminationCause.INTERRUPTED, "the vehicle was taken over")
-        if queue.behaviour_id == self.control:
+        if queue.routine_id == self.control:
             return None
         if status.generation != self._generation:
             return Termination(TerminationCause.INTERRUPTED, "a new flight behavior replaced the pause")
