@@ -38,6 +38,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from companion.tracking import StreamRecorder
+from mission_specs import bundled
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Iterator
@@ -48,7 +49,7 @@ if TYPE_CHECKING:
 
 log = logging.getLogger(__name__)
 
-DEMO_COMMANDS = Path(__file__).resolve().parents[1] / "mission_specs" / "flight_commands_demo.yaml"
+DEMO_COMMANDS = bundled("flight_commands_demo.yaml")
 def add_demo_arguments(p: argparse.ArgumentParser) -> None:
     from autopilot_model.demo import add_demo_arguments as add_model_demo_arguments
 

@@ -18,10 +18,11 @@ from pathlib import Path
 
 from companion.behaviors.activation import ActivationError, ActivationRequest, parse_activation
 from companion.behaviors.system import ExecutiveLayer
+from mission_specs import bundled
 
 log = logging.getLogger(__name__)
 
-BEHAVIORS_DEMO = Path(__file__).resolve().parents[1] / "mission_specs" / "behaviors_demo.txt"
+BEHAVIORS_DEMO = bundled("behaviors_demo.txt")
 
 
 def load_activations(path: str | Path, layer_check: Callable[[ActivationRequest], object]) -> list[str]:

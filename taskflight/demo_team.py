@@ -36,11 +36,12 @@ from typing import Any
 
 import yaml
 
+from mission_specs import bundled
 from taskflight.team_tasking import GroundTasking, StationTasking, Tasking, TaskRow, http_json
-from taskflight.up import ROOT, Up, UpError, UpOptions, ground_available, sleep_or_stop
+from taskflight.up import Up, UpError, UpOptions, ground_available, sleep_or_stop
 from taskflight_common.geo import ned_to_geodetic
 
-MISSION = ROOT / "mission_specs" / "scan_and_search_outdoor.yaml"
+MISSION = bundled("scan_and_search_outdoor.yaml")
 #: the fleet's home (the bundled model's default, CMAC); vehicle i stands 5 i m east of it
 HOME = (-35.363261, 149.165230, 584.0)
 YAML = "application/yaml"

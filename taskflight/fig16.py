@@ -20,10 +20,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from mission_specs import bundled
+
 log = logging.getLogger(__name__)
 
 ROOT = Path(__file__).resolve().parents[1]
-SCAN_AND_SEARCH = ROOT / "mission_specs" / "scan_and_search.yaml"
+SCAN_AND_SEARCH = bundled("scan_and_search.yaml")
 
 
 @dataclass

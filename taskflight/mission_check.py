@@ -13,13 +13,18 @@ import argparse
 import json
 import logging
 import sys
+from pathlib import Path
 from typing import Any
+
+from mission_specs import bundled
 
 log = logging.getLogger(__name__)
 
 
 def add_check_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("file", metavar="FILE", help="the mission YAML (mission_specs/*.yaml)")
+    parser.add_argument("file", metavar="FILE",
+                        help="the mission YAML: a path, or the name of a bundled mission "
+                             "(e.g. scan_and_search.yaml; `taskflight mission list` names them)")
     which = parser.add_mutually_exclusive_group()
     which.add_argument("--platform", metavar="YAML", help="a platform file (mission_specs/platform_*.yaml)")
     which.add_argument("--profile", choices=("indoor", "outdoor"), default=None,
@@ -36,7 +41,7 @@ def run_mission_check(args: argparse.Namespace) -> int:
     from taskflight_common.yamlio import ConfigError
 
     try:
-        mission = load_mission(args.file)
+        mission = load_mission(mission_path(args.file))
         if args.platform:
             platform = load_platform(args.platform)
         else:
@@ -52,6 +57,34 @@ def run_mission_check(args: argparse.Namespace) -> int:
     else:
         print(summary(result))
     return 0 if result.accepted else 1
+
+
+def mission_path(name: str) -> Path:
+    """``name`` as given when it is a file; else, for a bare file name, the bundled mission of that name
+    (said in the log, so the user knows which file was checked); else the path as given, whose
+    absence :func:`~companion.tst.spec.load_mission` reports."""
+    path = Path(name)
+    if path.is_file() or path.name != name:
+        return path
+    try:
+        found = bundled(name)
+    except FileNotFoundError:
+        return path
+    log.info("no file %s here: checking the bundled mission %s", name, found)
+    return found
+
+
+def bundled_missions() -> list[str]:
+    """The names of the bundled missions (the YAML files of :mod:`mission_specs` with a ``mission`` key)."""
+    import yaml
+
+    folder = bundled("behavior_catalog.yaml").parent
+    names = []
+    for path in sorted(folder.glob("*.yaml")):
+        data = yaml.safe_load(path.read_text(encoding="utf-8"))
+        if isinstance(data, dict) and "mission" in data:
+            names.append(path.name)
+    return names
 
 
 def summary(result: Any) -> str:

@@ -45,6 +45,7 @@ from typing import Any
 
 import yaml
 
+from mission_specs import bundled
 from taskflight.children import Child, first_dead, stop_all
 from taskflight_common.geo import ned_to_geodetic
 from taskflight_common.ports import free_ports, model_ports, port_free
@@ -53,7 +54,7 @@ from taskflight_common.tokens import new_token, role_tokens
 log = logging.getLogger(__name__)
 
 ROOT = Path(__file__).resolve().parents[1]
-PLATFORM = ROOT / "mission_specs" / "platform_outdoor.yaml"
+PLATFORM = bundled("platform_outdoor.yaml")
 TEAM_GROUP = "239.255.70.1"
 DEFAULT_GROUND_PORT = 8700
 TOKEN_ENV = "TASKFLIGHT_CONTROL_TOKEN"

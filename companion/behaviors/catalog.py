@@ -41,13 +41,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from mission_specs import bundled
 from taskflight_common.yamlio import ConfigError, Fields, load_yaml, load_yaml_text
 
 CATEGORIES = ("goal_based", "recurrent")
 PARAMETER_TYPES = ("number", "integer", "symbol", "text", "boolean")
 #: The requesters' priority, highest first (Sec. 6.1.2, Definition 3; "operator" is ours).
 DEFAULT_REQUESTER_PRIORITY = ("emergency", "operator", "mission", "default")
-BUNDLED_CATALOG = Path(__file__).resolve().parents[2] / "mission_specs" / "behavior_catalog.yaml"
+BUNDLED_CATALOG = bundled("behavior_catalog.yaml")
 
 
 @dataclass(frozen=True)

@@ -38,6 +38,7 @@ from typing import Any
 from companion.executors.coverage import Sensor
 from companion.flight.limits import Envelope, Limits
 from companion.tst.task_types import TASK_TYPES
+from mission_specs import bundled
 from taskflight_common.yamlio import Fields, load_yaml
 
 log = logging.getLogger(__name__)
@@ -62,7 +63,6 @@ SENSOR_TYPES = ("camera", "laser", "artva")
 _KEYS = ("platform", "description", "profile", "home", "sensor_profile", "speeds", "altitudes",
          "takeoff_altitude", "altitude_min", "altitude_max", "limits", "envelope", "sensors", "battery",
          "autopilot_params", "tasks")
-_BUNDLED = Path(__file__).resolve().parents[2] / "mission_specs"
 
 
 @dataclass(frozen=True)
@@ -203,7 +203,7 @@ def bundled_platform(profile: str = "indoor") -> Platform:
     """``mission_specs/platform_{profile}.yaml`` (indoor or outdoor)."""
     if profile not in PROFILES:
         raise ValueError(f"profile must be one of {', '.join(PROFILES)}, got {profile!r}")
-    return load_platform(_BUNDLED / f"platform_{profile}.yaml")
+    return load_platform(bundled(f"platform_{profile}.yaml"))
 
 
 def _options(f: Fields, key: str, names: tuple[str, ...], default: Mapping[str, float]) -> dict[str, float]:
