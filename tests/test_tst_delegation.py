@@ -16,14 +16,14 @@ import pytest
 from shapely.geometry import LineString, Point, Polygon
 from shapely.ops import unary_union
 
-from companion.tst.planning.coverage import line_spacing
 from companion.tst.constraints import ConstraintProblem
 from companion.tst.delegation import ENDURANCE_LABEL, check, delegate, expand, get_constraints
 from companion.tst.delegation_plan import local_to_geopoint
 from companion.tst.params import plan_point
+from companion.tst.planning.coverage import line_spacing
 from companion.tst.platform import bundled_platform
-from companion.tst.spec import load_mission, mission_from_dict, mission_from_yaml, mission_to_dict
 from companion.tst.registry import leaf_type_names
+from companion.tst.spec import load_mission, mission_from_dict, mission_from_yaml, mission_to_dict
 from companion.tst.tree import TstNode
 
 ROOT = Path(__file__).resolve().parents[1]

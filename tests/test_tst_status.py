@@ -7,6 +7,7 @@ from collections.abc import Callable
 
 import pytest
 
+from companion.tst.registry import leaf_type_names
 from companion.tst.status import (
     IDLE_CONTROL_INFO,
     ExecutionRequestError,
@@ -16,7 +17,6 @@ from companion.tst.status import (
     control_execution_info,
     execution_info,
 )
-from companion.tst.registry import leaf_type_names
 
 Action = Callable[[ExecutorLifecycle], object]
 ACTIONS: dict[str, Action] = {
