@@ -150,7 +150,8 @@ def test_a_leaf_type_defined_in_a_test_is_delegated_and_flown(circle_point: Circ
     radii = [math.dist(s[:2], CENTER[:2]) for s in flown]
     assert min(radii) > 1.5 - 0.3 and max(radii) < 1.5 + 0.3, (min(radii), max(radii))
     assert all(abs(s[2] - CENTER[2]) < 0.3 for s in flown)
-    bearings = {int((math.degrees(math.atan2(s[1] - CENTER[1], s[0] - CENTER[0])) % 360) // 30) for s in flown}
+    bearings = {int((math.degrees(math.atan2(s[1] - CENTER[1], s[0] - CENTER[0])) % 360) // 30)
+                for s in flown}
     assert len(bearings) == 12  # every 30-degree sector of the circle was flown through
 
 
