@@ -1,7 +1,8 @@
 """Delegation of a TST to a platform (seed 000 Sec. III-A, Fig. 3): check, get_constraints, expand, delegate.
 
-Each of the five rejections of issue 10 item 2 is caught with a reason that names it: a waypoint outside
-the fence, a mission longer than the endurance, an unknown task, a missing sensor, a bad altitude.
+Each of the five rejections of delegation (seed 000 Sec. III-A) is caught with a reason that names it:
+a waypoint outside the fence, a mission longer than the endurance, an unknown task, a missing sensor,
+a bad altitude.
 """
 
 from __future__ import annotations

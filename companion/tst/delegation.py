@@ -287,16 +287,16 @@ def _fastest(root: TstNode, platform: Platform, plans: dict[str, NodePlan]) -> f
         plan = plans.get(str(n.id))
         if plan is None or not n.is_leaf_task:
             continue
-        v = plan.speed_m_s
+        v0 = plan.speed_m_s
+        v = v0
         if v and "commanded_speed" not in n.params:
             allowed = n.params.get("speed")
-            opts = (allowed.options if isinstance(allowed, Qualitative)
-                    else [allowed] if allowed in platform.speeds else list(platform.speeds))
+            opts = (list(allowed.options) if isinstance(allowed, Qualitative)
+                    else [str(allowed)] if allowed in platform.speeds else list(platform.speeds))
             v = max((platform.speeds[o] for o in opts if platform.speeds[o] <= top), default=v)
-        if v and plan.length_m:
+        if v and v0 and plan.length_m:
             legs = int(plan.extra.get("legs", 0))
-            base = ((plan.expected_s or 0.0) - plan.length_m / plan.speed_m_s
-                    - legs * plan.speed_m_s / platform.max_accel)
+            base = (plan.expected_s or 0.0) - plan.length_m / v0 - legs * v0 / platform.max_accel
             leaf_s[str(n.id)] = base + plan.length_m / v + legs * v / platform.max_accel
         else:
             leaf_s[str(n.id)] = plan.expected_s or 0.0

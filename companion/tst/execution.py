@@ -86,9 +86,9 @@ class ControlRun:
         elif kind == "IF":
             holds, bindings = self._evaluate()
             self.branch = "then" if holds else "else"
-            child = self.node.then if holds else self.node.else_
-            if child is not None:
-                self._spawn(child, bindings)
+            taken = self.node.then if holds else self.node.else_
+            if taken is not None:
+                self._spawn(taken, bindings)
         elif kind == "WHILE" and not self._iterate():
             self.lifecycle.succeed()  # the condition does not hold: nothing to repeat
             return self.status

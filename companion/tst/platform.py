@@ -45,7 +45,7 @@ log = logging.getLogger(__name__)
 __all__ = ["BOUNDING_PARAMS", "PROFILES", "Platform", "bundled_platform", "load_platform",
            "platform_from_dict"]
 
-#: ``profile`` -> default take-off altitude (m), seed 000 Sec. VI-A / issue 10 item 4.
+#: ``profile`` -> default take-off altitude (m), seed 000 Sec. VI-A (2 m indoor, 5 m outdoor).
 PROFILES: dict[str, float] = {"indoor": 2.0, "outdoor": 5.0}
 #: The autopilot parameters that tighten the platform's limits (ArduCopter names and units).
 BOUNDING_PARAMS: dict[str, str] = {

@@ -37,6 +37,7 @@ from __future__ import annotations
 import logging
 from collections.abc import Callable, Iterable
 from dataclasses import asdict, dataclass, replace
+from typing import Any
 
 from companion.tst.registry import leaf_type
 
@@ -238,5 +239,5 @@ class ExecutorLifecycle:
         return status
 
 
-def _finish(s: NodeExecutionStatus, **changes: object) -> NodeExecutionStatus:
+def _finish(s: NodeExecutionStatus, **changes: Any) -> NodeExecutionStatus:
     return replace(s, waiting=False, executing=False, paused=False, finished=True, **changes)

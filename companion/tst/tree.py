@@ -168,7 +168,7 @@ class TstNode:
             if not node._auto_id and node.id in existing:
                 raise TreeError(f"duplicate node id '{node.id}'")
         numbers = [int(m.group(1)) for i in existing if i and (m := _AUTO_ID.fullmatch(i))]
-        taken = existing | {n.id for n in child.iter() if not n._auto_id}
+        taken = {i for i in existing if i} | {n.id for n in child.iter() if not n._auto_id and n.id}
         counter = itertools.count(max(numbers, default=0) + 1)
         for node in child.iter():
             if node._auto_id:

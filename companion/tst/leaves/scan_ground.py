@@ -215,7 +215,7 @@ class ScanGround(LeafType):
 
     def fix_values(self, node: TstNode, platform: Platform, solution: Solution, values: dict[str, Any]
                    ) -> None:
-        default = platform.altitudes.get(values.get("altitude"), 0.0)
+        default = platform.altitudes.get(str(values.get("altitude")), 0.0)
         values["altitude_m"] = solution.values.get(var(node, "altitude"), default)
 
     def plan(self, node: TstNode, platform: Platform, values: dict[str, Any], start: Vec3,
