@@ -81,10 +81,9 @@ class MissionService:
     def _plan_fields(result: Delegation) -> dict[str, Any]:
         area: list[list[float]] = []
         waypoints: list[list[float]] = []
-        for plan in result.plans.values():
-            if plan.task == "scan-ground":
-                area = area or [list(p) for p in plan.area_ne]
-                waypoints += [list(w) for w in plan.waypoints_neu]
+        for plan in result.plans.values():  # the scans' areas and waypoints (other plans have none)
+            area = area or [list(p) for p in plan.area_ne]
+            waypoints += [list(w) for w in plan.waypoints_neu]
         nodes = [{"id": n.id, "type": n.type} for n in result.mission.root.iter()]
         return {"area_ne": area, "waypoints_neu": waypoints, "nodes": nodes}
 

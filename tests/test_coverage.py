@@ -12,7 +12,7 @@ import shapely
 from shapely import affinity
 from shapely.geometry import LineString, Polygon
 
-from companion.executors.coverage import (
+from companion.tst.planning.coverage import (
     ScanPattern,
     Sensor,
     coverage_fraction,
@@ -23,7 +23,7 @@ from companion.executors.coverage import (
     scan_specs,
     uncovered,
 )
-from companion.executors.waypoint_order import (
+from companion.tst.planning.waypoint_order import (
     order_segments,
     order_waypoints,
     path_length,
@@ -248,7 +248,7 @@ def test_segments_pairs_the_waypoints() -> None:
 
 
 def test_order_segments_flies_each_segment_once_and_never_longer() -> None:
-    from companion.executors.waypoint_order import _segments_length
+    from companion.tst.planning.waypoint_order import _segments_length
     segs = segments([(0, 0), (10, 0), (0, 5), (10, 5), (0, 10), (10, 10)])
     given = [(i, False) for i in range(3)]
     plan = order_segments(segs, (0.0, 0.0))

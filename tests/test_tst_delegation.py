@@ -1,7 +1,8 @@
 """Delegation of a TST to a platform (seed 000 Sec. III-A, Fig. 3): check, get_constraints, expand, delegate.
 
-Each of the five rejections of issue 10 item 2 is caught with a reason that names it: a waypoint outside
-the fence, a mission longer than the endurance, an unknown task, a missing sensor, a bad altitude.
+Each of the five rejections of delegation (seed 000 Sec. III-A) is caught with a reason that names it:
+a waypoint outside the fence, a mission longer than the endurance, an unknown task, a missing sensor,
+a bad altitude.
 """
 
 from __future__ import annotations
@@ -16,14 +17,14 @@ import pytest
 from shapely.geometry import LineString, Point, Polygon
 from shapely.ops import unary_union
 
-from companion.executors.coverage import line_spacing
 from companion.tst.constraints import ConstraintProblem
 from companion.tst.delegation import ENDURANCE_LABEL, check, delegate, expand, get_constraints
 from companion.tst.delegation_plan import local_to_geopoint
-from companion.tst.params import geopoint_to_local
+from companion.tst.params import plan_point
+from companion.tst.planning.coverage import line_spacing
 from companion.tst.platform import bundled_platform
+from companion.tst.registry import leaf_type_names
 from companion.tst.spec import load_mission, mission_from_dict, mission_from_yaml, mission_to_dict
-from companion.tst.task_types import TASK_TYPES
 from companion.tst.tree import TstNode
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -93,7 +94,7 @@ def test_scan_ground_expands_into_fly_to_children_at_the_waypoints() -> None:
     for k, (child, wp) in enumerate(zip(scan_node.children, plan.waypoints_neu, strict=True), start=1):
         assert child.type == "fly-to" and child.id == f"scan.wp{k}"
         assert child.params["fly_straight_line_flag"] is True and child.params["speed"] == "standard"
-        back = geopoint_to_local(child.params["position"], INDOOR.home)
+        back = plan_point(child.params["position"], INDOOR.home)
         assert math.dist(back, wp) < 0.01
         assert d.plans[child.id].position_neu == wp and d.plans[child.id].extra["waypoint"] == k
     # the expanded tree dumps and loads again (spec's "expansion" key)
@@ -229,7 +230,7 @@ def test_rejects_a_mission_longer_than_the_endurance() -> None:
 
 
 def test_rejects_an_unknown_task_the_platform_has_no_executor_for() -> None:
-    platform = INDOOR.with_tasks(tuple(t for t in TASK_TYPES if t != "external-velocity"))
+    platform = INDOOR.with_tasks(tuple(t for t in leaf_type_names() if t != "external-velocity"))
     d = delegate(mission({"type": "external-velocity", "id": "stick"}), platform)
     assert not d.accepted
     assert d.reasons == [f"node stick (external-velocity): unknown task: platform indoor has no executor for "

@@ -1,4 +1,4 @@
-"""Seed 000 Sec. VII's scan-and-search mission over loopback UDP against the bundled model (issue 10).
+"""Seed 000 Sec. VII's scan-and-search mission over loopback UDP against the bundled model.
 
 ``taskflight.fig16.reproduce`` flies ``mission_specs/scan_and_search.yaml`` (indoor sensors, the model in
 its own process, the companion with its behaviors and mission layers) with the operator's two

@@ -1,4 +1,4 @@
-"""The mission layer on the companion's HTTP surface, flying each autopilot (issue 10 item 7).
+"""The mission layer on the companion's HTTP surface, flying each autopilot (seed 000 Sec. VII).
 
 Per autopilot (the bundled model; ArduCopter SITL with ``TASKFLIGHT_ARDUCOPTER``): ``POST /mission``
 with the scan-and-search YAML (delegated to the indoor platform completed from the vehicle's home and

@@ -16,7 +16,7 @@ from companion.tst.params import (
     check_geopoint,
     check_geopoints,
     constraint_to_json,
-    geopoint_to_local,
+    geopoint_to_ned,
     is_free,
     parse_constraint,
 )
@@ -71,20 +71,29 @@ def test_relation_names_may_be_dotted_node_parameters() -> None:
 
 
 @pytest.mark.parametrize("text, reason", [
-    ("x * y <= 1", "not linear"),
-    ("3 <= 4", "names no parameter"),
+    ("x * y <= 1", "non-linear term 'x \\* y'"),
+    ("3 <= 4", "no variables"),
     ("a < b", "use <=, >= or =="),
-    ("a <= b <= c", "exactly one"),
-    ("a + b", "exactly one"),
-    ("a <= ", "empty"),
+    ("a <= b <= c", "a second comparison"),
+    ("a + b", "no comparison operator"),
+    ("a <= ", "ends too early"),
     ("a <= b $", "column 8"),
     ("a / 0 <= 1", "division by zero"),
-    ("a / b <= 1", "not linear"),
-    ("a b <= 1", r"expected \+ or -"),
+    ("a / b <= 1", "division by a variable"),
+    ("a b <= 1", "expected an operator but found 'b'"),
 ])
 def test_relation_errors(text: str, reason: str) -> None:
     with pytest.raises(ParamError, match=reason):
         LinearRelation.parse(text)
+
+
+def test_relation_uses_the_solvers_grammar_with_parentheses() -> None:
+    """A mission may write what the constraint solver reads (one grammar: companion.tst.linear)."""
+    rel = LinearRelation.parse("altitude - 0.5 * (ceiling + floor) >= -(1 + 1)")
+    assert dict(rel.coefficients) == {"altitude": 1.0, "ceiling": -0.5, "floor": -0.5}
+    assert rel.op == ">=" and rel.constant == -2.0
+    assert rel.evaluate({"altitude": 4.0, "ceiling": 10.0, "floor": 2.0})
+    assert not rel.evaluate({"altitude": 0.9, "ceiling": 10.0, "floor": 2.0})
 
 
 def test_relation_evaluate_needs_every_name() -> None:
@@ -146,10 +155,11 @@ def test_area_polygon_checks() -> None:
         check_area([[58.0, 15.0], [58.001, 15.0], [58.002, 15.0]])
 
 
-def test_geopoint_to_local_inverts_ardupilot_geodesy() -> None:
+def test_geopoint_to_ned_inverts_ardupilot_geodesy() -> None:
     """A point placed n, e metres from home with taskflight_common.geo comes back as (n, e, alt)."""
     lat, lon, _ = ned_to_geodetic((HOME[0], HOME[1], 0.0), 30.0, -12.0, 0.0)
-    n, e, up = geopoint_to_local((lat, lon, 4.5), HOME)
+    n, e, down = geopoint_to_ned((lat, lon, 4.5), HOME)
+    up = -down
     assert n == pytest.approx(30.0, abs=1e-6)
     assert e == pytest.approx(-12.0, abs=1e-6)
     assert up == 4.5

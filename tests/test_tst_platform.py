@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from companion.tst.platform import bundled_platform, load_platform, platform_from_dict
-from companion.tst.task_types import TASK_TYPES
+from companion.tst.registry import leaf_type_names
 from taskflight_common.yamlio import ConfigError, load_yaml_text
 
 HOME = [-35.363261, 149.165230]
@@ -26,7 +26,7 @@ def test_bundled_indoor_platform_is_the_small_arena_with_2_m_take_off() -> None:
     assert p.ceiling == (10.0, "FENCE_ALT_MAX")
     assert p.envelope.contains_ne((19.0, -19.0)) and not p.envelope.contains_ne((21.0, 0.0))
     assert set(p.sensors) == {"camera"} and not p.range_sensor
-    assert set(p.tasks) == set(TASK_TYPES)
+    assert set(p.tasks) == set(leaf_type_names())
     assert p.endurance_s == pytest.approx(600 - 60)
 
 

@@ -1,4 +1,4 @@
-"""A mission with WHILE / IF over the camera's beliefs, against the bundled model (issue 10).
+"""A mission with WHILE / IF over the camera's beliefs, against the bundled model.
 
 ``mission_specs/search_and_inspect.yaml``: scan the area while no person is visible; the simulated
 downward camera (``mission_specs/scenario_person.yaml``) sees one; the WHILE enoughs the scan, the IF

@@ -7,8 +7,8 @@ from collections.abc import Callable
 
 import pytest
 
+from companion.tst.registry import leaf_type_names
 from companion.tst.status import (
-    EXECUTION_INFO,
     IDLE_CONTROL_INFO,
     ExecutionRequestError,
     ExecutorLifecycle,
@@ -17,7 +17,6 @@ from companion.tst.status import (
     control_execution_info,
     execution_info,
 )
-from companion.tst.task_types import TASK_TYPES
 
 Action = Callable[[ExecutorLifecycle], object]
 ACTIONS: dict[str, Action] = {
@@ -106,7 +105,7 @@ def explore(info: NodeExecutionInfo, depth: int = 6) -> tuple[set[str], int]:
     return reached, steps
 
 
-@pytest.mark.parametrize("task_type", sorted(EXECUTION_INFO))
+@pytest.mark.parametrize("task_type", sorted(leaf_type_names()))
 def test_every_request_sequence_up_to_six(task_type: str) -> None:
     info = execution_info(task_type)
     reached, steps = explore(info)
@@ -115,7 +114,7 @@ def test_every_request_sequence_up_to_six(task_type: str) -> None:
     assert ("paused" in reached) == info.can_be_paused
 
 
-@pytest.mark.parametrize("task_type", sorted(EXECUTION_INFO))
+@pytest.mark.parametrize("task_type", sorted(leaf_type_names()))
 def test_every_literal_request_sequence_after_start(task_type: str) -> None:
     """No memo: each of the 5**k sequences (k <= 6) of the execution system's requests and the executor's
     natural end, replayed from a started executor, keeps a consistent status and refuses exactly as Fig. 4
@@ -155,7 +154,7 @@ def test_linkquad_flags_as_the_paper_sets_them() -> None:
     assert execution_info("fly-to") == NodeExecutionInfo(True, True, False)  # VI-B
     assert execution_info("scan-ground") == NodeExecutionInfo(True, True, True)  # VI-E
     assert execution_info("external-velocity").can_be_enoughed  # VI-F: E_User, no inherent end
-    assert set(EXECUTION_INFO) == set(TASK_TYPES)
+    assert all(isinstance(execution_info(t), NodeExecutionInfo) for t in leaf_type_names())
 
 
 def test_enough_on_take_off_is_refused_with_the_reason() -> None:

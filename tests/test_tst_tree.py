@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from companion.tst.params import Interval, ParamError, Qualitative
-from companion.tst.task_types import TASK_TYPES
+from companion.tst.registry import leaf_type, leaf_type_names
 from companion.tst.tree import TreeError, TstNode, check_structure, param_to_json
 
 POS = [58.3951, 15.5733, 3.0]
@@ -22,21 +22,21 @@ def mission_tree() -> TstNode:
 
 
 def test_registry_matches_the_papers_parameter_tables() -> None:
-    assert TASK_TYPES["take-off"].param_names == ()
-    assert set(TASK_TYPES["fly-to"].param_names) == {
+    assert leaf_type("take-off").param_names == ()
+    assert set(leaf_type("fly-to").param_names) == {
         "position", "commanded_speed", "speed", "follow_ground_flag", "follow_ground_altitude",
         "fly_straight_line_flag"}
-    assert set(TASK_TYPES["land"].param_names) == {"position", "land_at_current_position_flag"}
-    assert set(TASK_TYPES["scan-ground"].param_names) == {
+    assert set(leaf_type("land").param_names) == {"position", "land_at_current_position_flag"}
+    assert set(leaf_type("scan-ground").param_names) == {
         "area", "waypoints_scan_flag", "waypoints", "loiter_mode", "segment_flag", "any_order_flag", "speed",
         "altitude", "follow_ground_flag", "follow_ground_altitude", "repeat_flag", "sensor_type", "data_uuid",
         "generate_scan_specs_flag"}
-    scan = TASK_TYPES["scan-ground"]
+    scan = leaf_type("scan-ground")
     assert scan.param("sensor_type").options == ("artva", "laser", "camera")  # type: ignore[union-attr]
     assert scan.param("altitude").options == ("high", "standard", "low", "unspecified")  # type: ignore[union-attr]
-    assert TASK_TYPES["fly-to"].param("speed").options == ("slow", "standard", "fast")  # type: ignore[union-attr]
-    assert TASK_TYPES["wait"].param("duration").unit == "s"  # type: ignore[union-attr]
-    assert {"hover", "request-operator-assistance", "external-velocity"} <= set(TASK_TYPES)
+    assert leaf_type("fly-to").param("speed").options == ("slow", "standard", "fast")  # type: ignore[union-attr]
+    assert leaf_type("wait").param("duration").unit == "s"  # type: ignore[union-attr]
+    assert {"hover", "request-operator-assistance", "external-velocity"} <= set(leaf_type_names())
 
 
 def test_auto_ids_in_preorder_and_parents() -> None:

@@ -36,8 +36,8 @@ import numpy as np
 from companion.behaviors.belief_syntax import Belief
 from companion.behaviors.beliefs import BeliefMemory
 from companion.behaviors.processes import ExecutionProcess, ProcessError
-from companion.executors.coverage import Fov, fov_pair
 from companion.flight.setpoint import VehicleState
+from companion.sensing.footprint import Fov, fov_pair
 from companion.sensing.scenario import ObjectId, Scenario
 
 log = logging.getLogger(__name__)

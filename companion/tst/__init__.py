@@ -5,8 +5,13 @@ Modules, one job each:
 
 * :mod:`companion.tst.params`: parameter values and constraints (interval, qualitative values, linear
   relation), geopoints and area polygons and their conversion to the local frame;
-* :mod:`companion.tst.task_types`: the registry ``TASK_TYPES`` of leaf task types and their parameters as
-  Fig. 11a-14a list them;
+* :mod:`companion.tst.registry`: the registry of leaf task types (``register``, ``leaf_type``), the one
+  place a task type's name is looked up;
+* :mod:`companion.tst.leaves`: one module per leaf task type (Fig. 11-14 and ours), each holding its
+  parameters (:mod:`~companion.tst.param_spec`), ``check()``, ``get_constraints()``, plan, ``expand()``,
+  Fig. 4 flags and executor (:mod:`~companion.tst.executor`); importing this package registers them;
+* :mod:`companion.tst.planning`: the scan-ground planners (coverage pattern, waypoint order, routes
+  inside a region);
 * :mod:`companion.tst.tree`: ``TstNode`` (S, C, IF, WHILE and leaves), ids, walking, ``append_child``;
 * :mod:`companion.tst.spec`: the mission YAML / JSON format, validated with errors naming file, line, field;
 * :mod:`companion.tst.status`: ``NodeExecutionInfo`` (Fig. 4), ``NodeExecutionStatus`` (Fig. 5) and the
@@ -20,5 +25,10 @@ Modules, one job each:
 * :mod:`companion.tst.delegation` (with :mod:`~companion.tst.delegation_checks` for ``check()`` and
   ``get_constraints()`` and :mod:`~companion.tst.delegation_plan` for ``NodePlan`` and ``expand()``):
   delegation of a tree to a platform (Sec. III-A, Fig. 3), accepted with a plan per node or rejected
-  with the reasons.
+  with the reasons;
+* :mod:`companion.tst.execution`: the TST execution system that runs a delegated tree (Fig. 3).
 """
+
+# The bundled leaf task types register themselves here, so that any use of the package sees them.
+from companion.tst import leaves as leaves
+

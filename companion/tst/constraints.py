@@ -187,7 +187,8 @@ class ConstraintProblem:
                     default_reason if reason is None else reason, [(one, 1.0, 1.0), (value, 0.0, 0.0)])
         out = [o for o in opts if o not in (keep or opts)]
         if out:
-            text = f"{name} = {keep[0]}" if len(keep or ()) == 1 else f"{name} in {{{', '.join(keep or ())}}}"
+            text = (f"{name} = {keep[0]}" if keep and len(keep) == 1
+                    else f"{name} in {{{', '.join(keep or ())}}}")
             self._group(f"{text} (given)", "", [({bins[o]: 1.0 for o in out}, 0.0, 0.0)])
         return name
 
@@ -288,7 +289,8 @@ class ConstraintProblem:
                 v = float(x[self._index[name]])
                 sol.values[name] = round(v, 9) + 0.0
             for name, q in self._qualitative.items():
-                sol.choices[name] = max(q.binaries, key=lambda o, q=q: x[q.binaries[o]])
+                bins = q.binaries
+                sol.choices[name] = max(bins, key=lambda o: float(x[bins[o]]))
                 sol.values[name] = q.options[sol.choices[name]]
             chosen = ", ".join(f"{k} = {v}" for k, v in sol.choices.items())
             sol.message = f"accepted: {chosen}" if chosen else "accepted"
@@ -345,8 +347,10 @@ class ConstraintProblem:
         for q in self._qualitative.values():
             own = prefer is None or (prefer not in ("max", "min") and prefer not in q.options)
             want = q.prefer if own else prefer
-            order = sorted(q.options, key=lambda o, q=q: q.options[o])
-            target = len(order) - 1 if want == "max" else 0 if want == "min" else order.index(want)
+            values = q.options
+            order = sorted(values, key=lambda o: values[o])
+            target = (len(order) - 1 if want == "max" else 0 if want == "min"
+                      else order.index(str(want)))
             for rank, opt in enumerate(order):
                 c[q.binaries[opt]] = abs(rank - target)
         return c

@@ -17,7 +17,7 @@ mission:
 4. the durations with the real path lengths and the mission-wide ``mission duration <= endurance_left``
    constraint, solved again (qualitative speeds still free, so the solver flies only as many legs
    faster as the endurance needs);
-5. ``expand()`` of every scan-ground leaf (its waypoints become ``fly-to`` children), the free parameters
+5. ``expand()`` of every leaf (a scan-ground's waypoints become ``fly-to`` children), the free parameters
    of the copy replaced by their values.
 
 It either accepts, with every node's :class:`~companion.tst.plan.NodePlan`, or rejects with the
@@ -30,12 +30,10 @@ from __future__ import annotations
 import copy
 import itertools
 import logging
-import math
 import time
 from dataclasses import dataclass, field
 from typing import Any
 
-from companion.executors.waypoint_order import path_length
 from companion.tst.constraints import ConstraintError, ConstraintProblem, Linear, Solution
 from companion.tst.delegation_checks import (
     check,
@@ -45,9 +43,10 @@ from companion.tst.delegation_checks import (
     var,
     where,
 )
-from companion.tst.delegation_plan import NEU, NodePlan, expand, leg_time, plan_leaf
+from companion.tst.delegation_plan import NEU, NodePlan, expand, expand_with_plans, plan_leaf
 from companion.tst.params import Interval, LinearRelation, Qualitative, is_free
 from companion.tst.platform import Platform
+from companion.tst.registry import leaf_type
 from companion.tst.spec import Mission
 from companion.tst.tree import TstNode
 
@@ -82,7 +81,7 @@ class Delegation:
     @property
     def waypoints(self) -> int:
         """Waypoints of all scan-ground nodes."""
-        return sum(len(p.waypoints_neu) for p in self.plans.values() if p.task == "scan-ground")
+        return sum(len(p.waypoints_neu) for p in self.plans.values())
 
     def to_dict(self) -> dict[str, Any]:
         """JSON: the verdict, the reasons, and the expanded tree with each node's ``plan``."""
@@ -173,12 +172,11 @@ def delegate(mission: Mission, platform: Platform) -> Delegation:
             _apply(n, platform, second, values[str(n.id)], plans[str(n.id)], fixed_out)
     _plan(root, platform, values, (0.0, 0.0, 0.0), plans, reasons, keep_speeds=True)
     for n in nodes:
-        if n.type == "scan-ground":
-            plan = plans[str(n.id)]
+        if n.is_leaf_task:
             word = values[str(n.id)].get("speed")
-            kids = expand(n, platform, values[str(n.id)], plan, speed_word=word)
-            for idx, child in enumerate(kids):
-                plans[str(child.id)] = _child_plan(child, idx, plan, platform)
+            kids = expand_with_plans(n, platform, values[str(n.id)], plans[str(n.id)], word)
+            for child, child_plan in kids:
+                plans[str(child.id)] = child_plan
     expected = _tree_seconds(root, {k: p.expected_s or 0.0 for k, p in plans.items()})
     seconds = time.perf_counter() - t0
     log.info("delegation of %s to %s accepted in %.1f ms: %d nodes, expected %.1f s of %.1f s endurance",
@@ -206,16 +204,15 @@ def _fixed_values(node: TstNode, platform: Platform, sol: Solution) -> dict[str,
             out[key] = sol.choices.get(var(node, "altitude"), "standard")
         elif isinstance(value, Interval | LinearRelation):
             out[key] = sol.values.get(var(node, key))
-    if node.type == "scan-ground":
-        default = platform.altitudes.get(out.get("altitude"), 0.0)
-        out["altitude_m"] = sol.values.get(var(node, "altitude"), default)
-    if node.type in ("fly-to", "scan-ground") and "commanded_speed" not in node.params:
+    leaf = leaf_type(node.type)
+    leaf.fix_values(node, platform, sol, out)
+    if leaf.has_speed and "commanded_speed" not in node.params:
         out.setdefault("speed", sol.choices.get(var(node, "speed"), "standard"))
     return out
 
 
 def _speed(node: TstNode, platform: Platform, values: dict[str, Any]) -> float | None:
-    if node.type not in ("fly-to", "scan-ground"):
+    if not leaf_type(node.type).has_speed:
         return None
     if values.get("commanded_speed") is not None:
         return float(values["commanded_speed"])
@@ -274,22 +271,6 @@ def _apply(node: TstNode, platform: Platform, sol: Solution, values: dict[str, A
         fixed_out[f"{node.id}.{key}"] = node.params[key]
 
 
-def _child_plan(child: TstNode, idx: int, scan: NodePlan, platform: Platform) -> NodePlan:
-    """The plan of the ``idx``-th fly-to child of an expanded scan (its waypoint ``idx + 1``)."""
-    wps = scan.waypoints_neu
-    target = wps[min(idx, len(wps) - 1)]
-    if idx == 0:
-        length = (scan.length_m or 0.0) - path_length([w[:2] for w in wps])
-    else:
-        length = math.dist(wps[idx - 1][:2], target[:2])
-    plan = NodePlan(str(child.id), "fly-to", speed_m_s=scan.speed_m_s, altitude_m=target[2],
-                    position_neu=target, straight_line=True, length_m=length,
-                    expected_s=leg_time(length, scan.speed_m_s or 1.0, platform.max_accel))
-    plan.extra["expanded_from"] = scan.node_id
-    plan.extra["waypoint"] = idx + 1
-    return plan
-
-
 def _tree_seconds(node: TstNode, leaf_s: dict[str, float]) -> float:
     """The duration of a subtree: S sums, C and IF take the longest child, WHILE one pass."""
     if node.is_leaf_task:
@@ -306,16 +287,16 @@ def _fastest(root: TstNode, platform: Platform, plans: dict[str, NodePlan]) -> f
         plan = plans.get(str(n.id))
         if plan is None or not n.is_leaf_task:
             continue
-        v = plan.speed_m_s
+        v0 = plan.speed_m_s
+        v = v0
         if v and "commanded_speed" not in n.params:
             allowed = n.params.get("speed")
-            opts = (allowed.options if isinstance(allowed, Qualitative)
-                    else [allowed] if allowed in platform.speeds else list(platform.speeds))
+            opts = (list(allowed.options) if isinstance(allowed, Qualitative)
+                    else [str(allowed)] if allowed in platform.speeds else list(platform.speeds))
             v = max((platform.speeds[o] for o in opts if platform.speeds[o] <= top), default=v)
-        if v and plan.length_m:
+        if v and v0 and plan.length_m:
             legs = int(plan.extra.get("legs", 0))
-            base = ((plan.expected_s or 0.0) - plan.length_m / plan.speed_m_s
-                    - legs * plan.speed_m_s / platform.max_accel)
+            base = (plan.expected_s or 0.0) - plan.length_m / v0 - legs * v0 / platform.max_accel
             leaf_s[str(n.id)] = base + plan.length_m / v + legs * v / platform.max_accel
         else:
             leaf_s[str(n.id)] = plan.expected_s or 0.0

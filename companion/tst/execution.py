@@ -1,6 +1,6 @@
 """The TST execution system (seed 000 Sec. III, Fig. 2-5): runs a delegated tree on this platform.
 
-Leaves run as the platform's executors (:mod:`companion.executors`); control nodes are run here:
+Leaves run as their task type's executor (:mod:`companion.tst.leaves`); control nodes are run here:
 
 * ``S`` starts its children one after the other; a child that fails or is aborted ends the sequence
   the same way;
@@ -30,13 +30,18 @@ from collections.abc import Callable
 from dataclasses import replace
 from typing import Any
 
-from companion.executors.base import ExecContext, TstExecutor, executor_for
-
-from .conditions import parse_condition
-from .plan import NodePlan
-from .spec import Mission
-from .status import ExecutionRequestError, ExecutorLifecycle, NodeExecutionStatus, control_execution_info
-from .tree import TstNode
+from companion.tst.conditions import parse_condition
+from companion.tst.executor import ExecContext, TstExecutor
+from companion.tst.plan import NodePlan
+from companion.tst.registry import leaf_type
+from companion.tst.spec import Mission
+from companion.tst.status import (
+    ExecutionRequestError,
+    ExecutorLifecycle,
+    NodeExecutionStatus,
+    control_execution_info,
+)
+from companion.tst.tree import TstNode
 
 log = logging.getLogger(__name__)
 
@@ -81,9 +86,9 @@ class ControlRun:
         elif kind == "IF":
             holds, bindings = self._evaluate()
             self.branch = "then" if holds else "else"
-            child = self.node.then if holds else self.node.else_
-            if child is not None:
-                self._spawn(child, bindings)
+            taken = self.node.then if holds else self.node.else_
+            if taken is not None:
+                self._spawn(taken, bindings)
         elif kind == "WHILE" and not self._iterate():
             self.lifecycle.succeed()  # the condition does not hold: nothing to repeat
             return self.status
@@ -252,11 +257,8 @@ class TstExecutionSystem:
         if node.is_control:
             run: Run = ControlRun(node, self, ctx)
         else:
-            cls = executor_for(node.type)
-            if cls is None:
-                raise ExecutionRequestError(f"{node.id}: no executor for {node.type} on this platform")
             plan = self.plans.get(node.id or "") or NodePlan(node.id or "", node.type)
-            run = cls(node, plan, ctx)
+            run = leaf_type(node.type).make_executor(node, plan, ctx)
         self.runs[node.id or ""] = run
         return run
 

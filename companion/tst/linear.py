@@ -115,6 +115,7 @@ class _Parser:
                     break
                 col = pos + len(rest) - len(rest.lstrip())
                 self.fail(col, f"unexpected character {text[col]!r}")
+            assert m is not None  # fail() raised otherwise
             kind = m.lastgroup or ""
             self.tokens.append((kind, m.group(kind), m.start(kind), m.end(kind)))
             pos = m.end()

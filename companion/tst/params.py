@@ -15,22 +15,23 @@ Constraints:
   ``"altitude >= 2 * min_altitude"``; a string with a comparison operator, or ``{relation: "..."}``).
 
 Geopoints are ``[lat, lon, alt]`` (degrees, degrees, metres above home: MAVLink's GLOBAL_RELATIVE_ALT);
-areas are polygons ``[[lat, lon], ...]``. They convert to the local (north, east, up) frame of home with
-the project's flat-earth geodesy (:mod:`taskflight_common.geo`, ArduPilot's ``Location`` convention).
+areas are polygons ``[[lat, lon], ...]``. They convert to the local north-east-down frame of home with
+the project's flat-earth geodesy (:mod:`taskflight_common.geo`, ArduPilot's ``Location`` convention);
+:func:`plan_point` gives the (north, east, altitude) form a :class:`~companion.tst.plan.NodePlan` holds.
 """
 
 from __future__ import annotations
 
 import math
-import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from taskflight_common.geo import geodetic_to_ned
+from companion.tst.linear import OPERATORS, ConstraintError, parse_linear
+from taskflight_common.geo import geodetic_to_ned, ned_to_geodetic
 
 #: Comparison operators of a linear relation.
-RELATION_OPERATORS = ("<=", ">=", "==")
+RELATION_OPERATORS = OPERATORS
 
 
 class ParamError(ValueError):
@@ -104,17 +105,14 @@ class Qualitative:
         return " | ".join(self.options)
 
 
-_TOKEN = re.compile(r"\s*(?:(?P<num>(?:\d+\.\d*|\.\d+|\d+)(?:[eE][-+]?\d+)?)"
-                    r"|(?P<name>[A-Za-z_][A-Za-z0-9_]*(?:\.[A-Za-z_][A-Za-z0-9_]*)*)"
-                    r"|(?P<op><=|>=|==|<|>|=|[-+*/]))")
-
-
 @dataclass(frozen=True)
 class LinearRelation:
     """``sum(coefficient * name) op constant``: a linear relation between parameters and platform quantities.
 
-    Parsed from text such as ``"duration <= endurance_left"`` or ``"altitude >= 2 * min_altitude + 1"``;
-    both sides may hold terms, which are moved to the left (``duration - endurance_left <= 0``). A name is
+    Parsed from text such as ``"duration <= endurance_left"`` or ``"altitude >= 0.5 * (ceiling + floor)"``
+    with the solver's one grammar (:mod:`companion.tst.linear`: sums, products by numbers, division by
+    numbers, parentheses); both sides may hold terms, which are moved to the left
+    (``duration - endurance_left <= 0``). A name is
     a parameter of the node (``altitude``), of another node (``n3.altitude``) or a platform quantity
     (``endurance_left``); the constraint solver resolves them. The original ``text`` is kept.
     """
@@ -126,25 +124,14 @@ class LinearRelation:
 
     @classmethod
     def parse(cls, text: str) -> LinearRelation:
+        """Read ``text`` with the constraint solver's grammar (:func:`companion.tst.linear.parse_linear`)."""
         if not isinstance(text, str):
             raise ParamError(f"a relation is text, got {text!r}")
-        tokens = _tokenize(text)
-        ops = [i for i, (kind, tok) in enumerate(tokens) if kind == "op" and tok in ("<=", ">=", "==", "<",
-                                                                                      ">", "=")]
-        if len(ops) != 1:
-            raise ParamError(f"relation {text!r}: expected exactly one of <=, >=, ==")
-        cmp = tokens[ops[0]][1]
-        if cmp not in RELATION_OPERATORS:
-            raise ParamError(f"relation {text!r}: use <=, >= or == (not {cmp})")
-        left = _linear(tokens[:ops[0]], text)
-        right = _linear(tokens[ops[0] + 1:], text)
-        coeffs: dict[str, float] = dict(left[0])
-        for name, c in right[0].items():
-            coeffs[name] = coeffs.get(name, 0.0) - c
-        kept = tuple(sorted((n, c) for n, c in coeffs.items() if c != 0.0))
-        if not kept:
-            raise ParamError(f"relation {text!r} names no parameter or platform quantity")
-        return cls(text.strip(), kept, cmp, right[1] - left[1])
+        try:
+            lin = parse_linear(text, "relation")
+        except ConstraintError as exc:
+            raise ParamError(str(exc)) from None
+        return cls(text.strip(), tuple(sorted(lin.terms.items())), lin.op, lin.rhs)
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -164,73 +151,6 @@ class LinearRelation:
 
     def __str__(self) -> str:
         return self.text
-
-
-def _tokenize(text: str) -> list[tuple[str, str]]:
-    out: list[tuple[str, str]] = []
-    i = 0
-    while i < len(text):
-        if text[i:].strip() == "":
-            break
-        m = _TOKEN.match(text, i)
-        if m is None or m.end() == i:
-            col = i + len(text[i:]) - len(text[i:].lstrip()) + 1
-            raise ParamError(f"relation {text!r}: column {col}: unexpected {text[col - 1]!r}")
-        kind = m.lastgroup or "op"
-        out.append((kind, m.group(kind)))
-        i = m.end()
-    return out
-
-
-def _linear(tokens: list[tuple[str, str]], text: str) -> tuple[dict[str, float], float]:
-    """Coefficients and constant of one side: ``term (+|- term)*``; ``term = [sign] factor (*|/ factor)*``."""
-    if not tokens:
-        raise ParamError(f"relation {text!r}: a side of the comparison is empty")
-    coeffs: dict[str, float] = {}
-    constant = 0.0
-    i = 0
-    while i < len(tokens):
-        sign = 1.0
-        while i < len(tokens) and tokens[i] in (("op", "+"), ("op", "-")):
-            sign = -sign if tokens[i][1] == "-" else sign
-            i += 1
-        coef, name, i = sign, None, _factor(tokens, i, text)
-        kind, tok = tokens[i - 1]
-        if kind == "num":
-            coef *= float(tok)
-        else:
-            name = tok
-        while i < len(tokens) and tokens[i] in (("op", "*"), ("op", "/")):
-            divide = tokens[i][1] == "/"
-            i = _factor(tokens, i + 1, text)
-            kind, tok = tokens[i - 1]
-            if kind == "name":
-                if divide or name is not None:
-                    raise ParamError(f"relation {text!r} is not linear ({tok} multiplies or divides a name)")
-                name = tok
-            elif divide:
-                if float(tok) == 0.0:
-                    raise ParamError(f"relation {text!r}: division by zero")
-                coef /= float(tok)
-            else:
-                coef *= float(tok)
-        if name is None:
-            constant += coef
-        else:
-            coeffs[name] = coeffs.get(name, 0.0) + coef
-        if i < len(tokens):
-            if tokens[i] not in (("op", "+"), ("op", "-")):
-                raise ParamError(f"relation {text!r}: expected + or - before {tokens[i][1]!r}")
-            if i + 1 >= len(tokens):
-                raise ParamError(f"relation {text!r}: ends with {tokens[i][1]!r}")
-    return coeffs, constant
-
-
-def _factor(tokens: list[tuple[str, str]], i: int, text: str) -> int:
-    if i >= len(tokens) or tokens[i][0] not in ("num", "name"):
-        found = repr(tokens[i][1]) if i < len(tokens) else "the end"
-        raise ParamError(f"relation {text!r}: expected a number or a name but found {found}")
-    return i + 1
 
 
 #: A constraint on a free parameter.
@@ -332,21 +252,33 @@ def check_area(value: Any) -> tuple[tuple[float, float], ...]:
     raise ParamError("area polygon crosses itself")
 
 
-def geopoint_to_local(point: Sequence[float], home: Sequence[float]) -> tuple[float, float, float]:
-    """(north, east, up) metres of ``[lat, lon, alt-above-home]`` from ``home`` (lat, lon[, ...]).
+def geopoint_to_ned(point: Sequence[float], home: Sequence[float]) -> tuple[float, float, float]:
+    """(north, east, down) metres of ``[lat, lon, alt-above-home]`` from ``home`` (lat, lon[, ...]).
 
-    ``[lat, lon]`` gives up = 0. Uses ArduPilot's flat-earth conversion
+    ``[lat, lon]`` gives down = 0. The project's local frame: ArduPilot's flat-earth conversion
     (:func:`taskflight_common.geo.geodetic_to_ned`).
     """
     alt = float(point[2]) if len(point) > 2 else 0.0
-    n, e, d = geodetic_to_ned((float(home[0]), float(home[1]), 0.0), float(point[0]), float(point[1]), alt)
+    return geodetic_to_ned((float(home[0]), float(home[1]), 0.0), float(point[0]), float(point[1]), alt)
+
+
+def plan_point(point: Sequence[float], home: Sequence[float]) -> tuple[float, float, float]:
+    """A geopoint as a plan point: (north, east, altitude above home), see
+    :class:`~companion.tst.plan.NodePlan`."""
+    n, e, d = geopoint_to_ned(point, home)
     return (n, e, -d)
+
+
+def plan_point_to_geopoint(point: Sequence[float], home: Sequence[float]) -> tuple[float, float, float]:
+    """``[lat, lon, alt above home]`` of a plan point (north, east, altitude above home)."""
+    lat, lon, alt = ned_to_geodetic((float(home[0]), float(home[1]), 0.0), point[0], point[1], -point[2])
+    return (round(lat, 9), round(lon, 9), round(alt, 4))
 
 
 def area_to_local(area: Sequence[Sequence[float]], home: Sequence[float]) -> list[tuple[float, float]]:
     """The (north, east) vertices of an area polygon ``[[lat, lon], ...]`` relative to ``home``."""
     out = []
     for p in area:
-        n, e, _ = geopoint_to_local((p[0], p[1]), home)
+        n, e, _ = geopoint_to_ned((p[0], p[1]), home)
         out.append((n, e))
     return out

@@ -2,8 +2,14 @@
 
 Delegation (:mod:`companion.tst.delegation`) checks a tree against a platform, fixes its free
 parameters and expands it; for every node it leaves a :class:`NodePlan`: the numbers the platform's
-executors fly (metres north, east, up from home; m/s; s), so that no executor converts geopoints or
-resolves qualitative values itself.
+executors fly (metres from home; m/s; s), so that no executor converts geopoints or resolves
+qualitative values itself.
+
+Points are (north, east, altitude above home), not the NED of :mod:`taskflight_common.geo` that the
+geodesy uses (:func:`companion.tst.params.geopoint_to_ned`): they are what the behaviors are asked for
+(seed 001's ``GO_TO_POINT coordinate: (north, east, altitude)``), and the flight log, the mission report
+and ``GET /mission`` show them under the names ``position_neu`` / ``waypoints_neu``. The conversion
+happens once, in :func:`companion.tst.params.plan_point`.
 """
 
 from __future__ import annotations

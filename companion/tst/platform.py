@@ -13,7 +13,7 @@ present". A :class:`Platform` holds those facts for one vehicle:
   high``, m above home) the task parameters of Fig. 12a / 14a map to;
 * ``takeoff_altitude`` (Sec. VI-A: 2 m indoor, 5 m outdoor; ``profile`` picks the default), and the
   allowed flight altitudes ``altitude_min`` / ``altitude_max``;
-* ``sensors`` (sensor type -> :class:`~companion.executors.coverage.Sensor`) and ``range_sensor`` (a
+* ``sensors`` (sensor type -> :class:`~companion.sensing.footprint.Sensor`) and ``range_sensor`` (a
   ground range finder: without one, follow-ground flight is refused, Sec. VI-B);
 * the battery: ``endurance_s`` = capacity at 100 % x remaining fraction - reserve;
 * ``autopilot_params``: autopilot parameters that bound flight (ArduCopter names, see
@@ -35,9 +35,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from companion.executors.coverage import Sensor
 from companion.flight.limits import Envelope, Limits
-from companion.tst.task_types import TASK_TYPES
+from companion.sensing.footprint import Sensor
+from companion.tst.registry import leaf_type_names
 from mission_specs import bundled
 from taskflight_common.yamlio import Fields, load_yaml
 
@@ -46,7 +46,7 @@ log = logging.getLogger(__name__)
 __all__ = ["BOUNDING_PARAMS", "PROFILES", "Platform", "bundled_platform", "load_platform",
            "platform_from_dict"]
 
-#: ``profile`` -> default take-off altitude (m), seed 000 Sec. VI-A / issue 10 item 4.
+#: ``profile`` -> default take-off altitude (m), seed 000 Sec. VI-A (2 m indoor, 5 m outdoor).
 PROFILES: dict[str, float] = {"indoor": 2.0, "outdoor": 5.0}
 #: The autopilot parameters that tighten the platform's limits (ArduCopter names and units).
 BOUNDING_PARAMS: dict[str, str] = {
@@ -86,7 +86,7 @@ class Platform:
     battery_percent: float = 100.0
     reserve_s: float = 0.0
     autopilot_params: Mapping[str, float] = field(default_factory=dict)
-    tasks: tuple[str, ...] = tuple(TASK_TYPES)
+    tasks: tuple[str, ...] = field(default_factory=leaf_type_names)
     sensor_profile: str | None = None
     description: str = ""
 
@@ -240,14 +240,14 @@ def platform_from_dict(data: Any, file: str | None = None) -> Platform:
     sensors, range_sensor = _sensors(f)
     cap, percent, reserve = _battery(f)
     params = _autopilot_params(f)
-    tasks = tuple(TASK_TYPES)
+    tasks = leaf_type_names()
     if f.has("tasks"):
         raw = f.raw("tasks")
         if not isinstance(raw, list) or not all(isinstance(t, str) for t in raw):
             raise f.error("tasks", "expected a list of task type names")
         for t in raw:
-            if t not in TASK_TYPES:
-                raise f.error("tasks", f"unknown task type '{t}' (known: {', '.join(TASK_TYPES)})")
+            if t not in leaf_type_names():
+                raise f.error("tasks", f"unknown task type '{t}' (known: {', '.join(leaf_type_names())})")
         tasks = tuple(raw)
     sensor_profile = f.string("sensor_profile", "") or None
     return Platform(

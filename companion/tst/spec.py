@@ -24,7 +24,7 @@ A mission file (``mission_specs/*.yaml``)::
         - {type: land, params: {land_at_current_position_flag: true}}
 
 Node keys: ``type`` (a control type S, C, IF, WHILE or a task type of
-:data:`~companion.tst.task_types.TASK_TYPES`), ``id``, ``params`` (leaves), ``children`` (S, C), ``condition``
+:mod:`companion.tst.registry`), ``id``, ``params`` (leaves), ``children`` (S, C), ``condition``
 (IF, WHILE), ``then`` / ``else`` (IF), ``body`` (WHILE), and ``expansion`` (leaves: the nodes ``expand()``
 appended, as :func:`mission_to_dict` writes them, so that a dumped expanded tree loads again). Parameter
 values and constraints are those of :mod:`companion.tst.params` (``speed: "slow | standard"``,
@@ -50,7 +50,7 @@ from typing import Any
 from companion.behaviors.belief_syntax import BeliefError
 from companion.tst.conditions import parse_condition
 from companion.tst.params import ParamError
-from companion.tst.task_types import TASK_TYPES
+from companion.tst.registry import is_leaf_type
 from companion.tst.tree import CONDITIONAL_TYPES, CONTROL_TYPES, TreeError, TstNode, known_types
 from taskflight_common.yamlio import ConfigError, Fields, LineList, load_yaml, load_yaml_text
 
@@ -119,13 +119,13 @@ class _Builder:
 
     def node(self, f: Fields) -> TstNode:
         node_type = f.string("type")
-        if node_type not in CONTROL_TYPES and node_type not in TASK_TYPES:
+        if node_type not in CONTROL_TYPES and not is_leaf_type(node_type):
             raise f.error("type", f"unknown task type '{node_type}' (known: {', '.join(known_types())})")
         f.unknown(NODE_KEYS.get(node_type, NODE_KEYS["leaf"]))
         node_id = self._id(f)
         condition = self._condition(f, node_type) if node_type in CONDITIONAL_TYPES else None
         children = self._children(f, node_type)
-        params = self._params(f, node_type) if node_type in TASK_TYPES else {}
+        params = self._params(f, node_type) if is_leaf_type(node_type) else {}
         try:
             return TstNode(node_type, params=params, children=children, id=node_id, condition=condition)
         except ParamError as exc:

@@ -1,28 +1,10 @@
 """Executor execution information (seed 000 Fig. 4), status (Fig. 5) and lifecycle (Fig. 3).
 
 Fig. 4, "Node execution information provided by a TST Executor in form of boolean flags":
-``can_be_aborted``, ``can_be_paused``, ``can_be_enoughed``. The LinkQuad values (Sec. VI) are in
-:data:`EXECUTION_INFO`:
-
-=============================  =======  ======  ========  ===================================================
-task type                      aborted  paused  enoughed  source
-=============================  =======  ======  ========  ===================================================
-take-off                       no       no      no        VI-A: "cannot be paused, aborted, or stopped after
-                                                          it has been initiated ... all the execution
-                                                          information flags to false"
-fly-to                         yes      yes     no        VI-B: "can be paused and aborted"
-scan-ground                    yes      yes     yes       VI-E: "has all three execution info flags ... true"
-land                           yes      no      no        ours (VI-C silent): a landing may be aborted (a
-                                                          go-around, an urgent stop); pausing a descent is
-                                                          not offered; a landing has an end of its own
-wait                           yes      no      yes       ours (VI-D silent): a wait may be cut short (enough)
-                                                          or aborted; pausing a pause means nothing
-external-velocity              yes      no      yes       ours (VI-F silent): "has no inherent end, the finish
-                                                          condition has to be provided by the user" (E_User)
-                                                          = enough; it is itself the break-in, so no pause
-hover                          yes      no      yes       ours (not in the paper): like wait
-request-operator-assistance    yes      no      yes       ours (not in the paper): the answer is an enough
-=============================  =======  ======  ========  ===================================================
+``can_be_aborted``, ``can_be_paused``, ``can_be_enoughed``. Each leaf task type holds its LinkQuad
+values (Sec. VI) and their source in its module (:mod:`companion.tst.leaves`, ``LeafType.info``):
+take-off none (VI-A), fly-to abort and pause (VI-B), scan-ground all three (VI-E); the types the paper
+is silent on say why they chose theirs.
 
 Control nodes (S, C, IF, WHILE) take theirs from the children that are running
 (:func:`control_execution_info`): a request to a control node is passed to its running children, so it is
@@ -55,6 +37,9 @@ from __future__ import annotations
 import logging
 from collections.abc import Callable, Iterable
 from dataclasses import asdict, dataclass, replace
+from typing import Any
+
+from companion.tst.registry import leaf_type
 
 log = logging.getLogger(__name__)
 
@@ -71,26 +56,13 @@ class NodeExecutionInfo:
         return asdict(self)
 
 
-#: The LinkQuad execution information per task type (Sec. VI; see the module docstring for the sources).
-EXECUTION_INFO: dict[str, NodeExecutionInfo] = {
-    "take-off": NodeExecutionInfo(False, False, False),
-    "fly-to": NodeExecutionInfo(can_be_aborted=True, can_be_paused=True, can_be_enoughed=False),
-    "scan-ground": NodeExecutionInfo(True, True, True),
-    "land": NodeExecutionInfo(can_be_aborted=True, can_be_paused=False, can_be_enoughed=False),
-    "wait": NodeExecutionInfo(can_be_aborted=True, can_be_paused=False, can_be_enoughed=True),
-    "external-velocity": NodeExecutionInfo(can_be_aborted=True, can_be_paused=False, can_be_enoughed=True),
-    "hover": NodeExecutionInfo(can_be_aborted=True, can_be_paused=False, can_be_enoughed=True),
-    "request-operator-assistance": NodeExecutionInfo(can_be_aborted=True, can_be_paused=False,
-                                                     can_be_enoughed=True),
-}
-
 #: A control node with no running child: abortable (nothing runs that forbids it), nothing else.
 IDLE_CONTROL_INFO = NodeExecutionInfo(can_be_aborted=True, can_be_paused=False, can_be_enoughed=False)
 
 
 def execution_info(task_type: str) -> NodeExecutionInfo:
     """The Fig. 4 flags of a leaf task type (KeyError for an unknown type)."""
-    return EXECUTION_INFO[task_type]
+    return leaf_type(task_type).info
 
 
 def control_execution_info(running: Iterable[NodeExecutionInfo]) -> NodeExecutionInfo:
@@ -267,5 +239,5 @@ class ExecutorLifecycle:
         return status
 
 
-def _finish(s: NodeExecutionStatus, **changes: object) -> NodeExecutionStatus:
+def _finish(s: NodeExecutionStatus, **changes: Any) -> NodeExecutionStatus:
     return replace(s, waiting=False, executing=False, paused=False, finished=True, **changes)

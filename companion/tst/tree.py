@@ -8,7 +8,7 @@ domain-specific tasks to be executed". Every node has an id, a type, parameters 
 * ``IF``: a ``condition`` (a belief query, e.g. ``visible(?x), object(?x, person)``), the *then* child and
   an optional *else* child (``children[0]``, ``children[1]``);
 * ``WHILE``: a ``condition`` and one child, the body;
-* a leaf: a task type of :data:`~companion.tst.task_types.TASK_TYPES` with its checked parameters. A leaf
+* a leaf: a registered task type (:mod:`companion.tst.registry`) with its checked parameters. A leaf
   may get children only by ``expand()`` ("These are then returned and appended to the tree", Sec. III-A),
   through :meth:`TstNode.append_child`.
 
@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from companion.tst.params import constraint_to_json, is_free
-from companion.tst.task_types import TASK_TYPES, free_params
+from companion.tst.registry import is_leaf_type, leaf_type, leaf_type_names
 
 #: The control node types and how many children each takes (min, max; None: no maximum).
 CONTROL_TYPES: dict[str, tuple[int, int | None]] = {
@@ -43,7 +43,7 @@ class TreeError(ValueError):
 
 def known_types() -> tuple[str, ...]:
     """Every node type: the control types, then the leaf task types."""
-    return (*CONTROL_TYPES, *TASK_TYPES)
+    return (*CONTROL_TYPES, *leaf_type_names())
 
 
 @dataclass(eq=False)
@@ -51,7 +51,7 @@ class TstNode:
     """One node of a TST (Sec. III): ``id``, ``type``, ``params``, ``children``, ``parent``, ``condition``.
 
     Leaf parameters are checked against the task type when the node is built
-    (:meth:`~companion.tst.task_types.TaskType.validate`, raising
+    (:meth:`~companion.tst.leaves.base.LeafType.validate`, raising
     :class:`~companion.tst.params.ParamError`), so ``params`` always holds normalized values or constraints
     with the defaults filled in.
     """
@@ -65,7 +65,7 @@ class TstNode:
     _auto_id: bool = field(default=False, repr=False)
 
     def __post_init__(self) -> None:
-        if self.type not in CONTROL_TYPES and self.type not in TASK_TYPES:
+        if self.type not in CONTROL_TYPES and not is_leaf_type(self.type):
             raise TreeError(f"unknown task type '{self.type}' (known: {', '.join(known_types())})")
         if self.is_control:
             if self.params:
@@ -75,7 +75,7 @@ class TstNode:
                 raise TreeError(f"a {self.type} node has at most {maximum} child{'ren' * (maximum > 1)}, "
                                 f"got {len(self.children)}")
         else:
-            self.params = TASK_TYPES[self.type].validate(self.params)
+            self.params = leaf_type(self.type).validate(self.params)
         if self.condition is not None and self.type not in CONDITIONAL_TYPES:
             raise TreeError(f"only IF and WHILE nodes have a condition, not {self.type}")
         if self.id is None:
@@ -97,7 +97,7 @@ class TstNode:
 
     @property
     def is_leaf_task(self) -> bool:
-        return self.type in TASK_TYPES
+        return is_leaf_type(self.type)
 
     @property
     def then(self) -> TstNode | None:
@@ -116,7 +116,7 @@ class TstNode:
 
     def free_params(self) -> dict[str, Any]:
         """The parameters holding a constraint rather than a value."""
-        return free_params(self.params)
+        return {name: value for name, value in self.params.items() if is_free(value)}
 
     # --- walking -----------------------------------------------------------------------------------------
     @property
@@ -168,7 +168,7 @@ class TstNode:
             if not node._auto_id and node.id in existing:
                 raise TreeError(f"duplicate node id '{node.id}'")
         numbers = [int(m.group(1)) for i in existing if i and (m := _AUTO_ID.fullmatch(i))]
-        taken = existing | {n.id for n in child.iter() if not n._auto_id}
+        taken = {i for i in existing if i} | {n.id for n in child.iter() if not n._auto_id and n.id}
         counter = itertools.count(max(numbers, default=0) + 1)
         for node in child.iter():
             if node._auto_id:

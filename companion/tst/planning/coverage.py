@@ -24,7 +24,7 @@ metres ``(north, east)``, angles in degrees clockwise from north.
   decomposition (a segment continues a cell when it overlaps exactly one segment of the previous
   line and that one overlaps only it), each cell is flown as its own lawn-mower, cells are visited
   greedily nearest-first, and every connection between segments and cells is routed by
-  :class:`~companion.executors.inside_route.InsideRouter` so the path stays inside the area grown by
+  :class:`~companion.tst.planning.inside_route.InsideRouter` so the path stays inside the area grown by
   the half band (``spacing / 2``, as a polygonal buffer: at most ``0.51 spacing``) and never cuts
   across a notch.
 * **Start**: the pattern begins at the end nearest ``start_ne`` (the vehicle's position).
@@ -44,7 +44,8 @@ from shapely.geometry import LineString, Polygon, box
 from shapely.geometry.base import BaseGeometry
 from shapely.ops import unary_union
 
-from companion.executors.inside_route import InsideRouter
+from companion.sensing.footprint import Fov, Sensor, footprint, footprint_size, fov_pair, line_spacing
+from companion.tst.planning.inside_route import InsideRouter
 
 __all__ = [
     "Fov", "ScanPattern", "Sensor", "as_polygon", "coverage_fraction", "covered_area", "footprint",
@@ -55,46 +56,8 @@ log = logging.getLogger(__name__)
 
 Point = tuple[float, float]
 Segment = tuple[Point, Point]
-Fov = float | tuple[float, float]
 
 _EPS = 1e-9
-
-
-# --- footprint --------------------------------------------------------------------------------------
-def fov_pair(fov_deg: Fov) -> tuple[float, float]:
-    """(h_fov, v_fov) in degrees from one angle (square field of view) or a pair; ValueError if bad."""
-    pair = (fov_deg, fov_deg) if isinstance(fov_deg, int | float) else tuple(fov_deg)
-    if len(pair) != 2:
-        raise ValueError(f"fov_deg: expected an angle or (h_fov, v_fov), got {fov_deg!r}")
-    for f in pair:
-        if not (isinstance(f, int | float) and 0.0 < f < 180.0):
-            raise ValueError(f"fov_deg: each angle must be in (0, 180) degrees, got {f!r}")
-    return float(pair[0]), float(pair[1])
-
-
-def footprint_size(altitude_m: float, fov_deg: Fov) -> tuple[float, float]:
-    """(across-track width, along-track length) in metres seen by a nadir camera at ``altitude_m``.
-
-    ``fov_deg`` is one angle (square field of view) or ``(h_fov, v_fov)``: h across the direction of
-    flight, v along it (a camera mounted with its image rows across the track).
-    """
-    if not (math.isfinite(altitude_m) and altitude_m > 0.0):
-        raise ValueError(f"altitude_m: must be > 0, got {altitude_m!r}")
-    h, v = fov_pair(fov_deg)
-    return (2.0 * altitude_m * math.tan(math.radians(h) / 2.0),
-            2.0 * altitude_m * math.tan(math.radians(v) / 2.0))
-
-
-def footprint(altitude_m: float, fov_deg: Fov) -> float:
-    """Across-track width (m) of a downward camera's footprint: ``2 h tan(h_fov / 2)``."""
-    return footprint_size(altitude_m, fov_deg)[0]
-
-
-def line_spacing(altitude_m: float, fov_deg: Fov, overlap: float = 0.2) -> float:
-    """Distance between scan lines so that neighbouring footprints overlap by ``overlap`` (0 <= o < 1)."""
-    if not (0.0 <= overlap < 1.0):
-        raise ValueError(f"overlap: must be in [0, 1), got {overlap!r}")
-    return footprint(altitude_m, fov_deg) * (1.0 - overlap)
 
 
 # --- the pattern -----------------------------------------------------------------------------------
@@ -320,15 +283,6 @@ def coverage_fraction(polygon_ne: Sequence[Sequence[float]] | Polygon, pattern: 
 
 
 # --- scan specs (generate_scan_specs_flag) ----------------------------------------------------------
-@dataclass(frozen=True)
-class Sensor:
-    """The scanning sensor (Fig. 14a ``sensor_type``: "camera", "laser", "artva") and its field of view."""
-
-    type: str = "camera"
-    fov_deg: Fov = 60.0
-    overlap: float = 0.2
-
-
 def _leg_time(length_m: float, speed: float, accel: float | None) -> float:
     """Time to fly one leg from rest to rest (trapezoidal speed profile when ``accel`` is given)."""
     if accel is None:

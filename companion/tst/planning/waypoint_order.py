@@ -84,7 +84,8 @@ def order_waypoints(points: Sequence[Sequence[float]], start: Sequence[float]) -
     nn: list[int] = []
     cur = 0
     while left:
-        cur = min(left, key=lambda k, c=cur: (dist[c, k], k))
+        here = cur
+        cur = min(left, key=lambda k: (float(dist[here, k]), k))
         nn.append(cur)
         left.remove(cur)
     candidates = [_two_opt(nn, dist), _two_opt(list(range(1, n + 1)), dist), list(range(1, n + 1))]

@@ -1,4 +1,4 @@
-"""The platform-specific TST executor (seed 000 Sec. III-A, Fig. 3-5) over the behavior coordinator.
+"""The platform-specific TST executor of a leaf (seed 000 Sec. III-A, Fig. 3-5) over the behavior coordinator.
 
 A :class:`TstExecutor` runs one leaf of a delegated tree. It never talks to the queue or the link: it is
 the *mission requester* of the behavior coordinator (seed 001), and the behaviors put the flight
@@ -29,7 +29,7 @@ import logging
 from abc import ABC, abstractmethod
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, ClassVar
+from typing import TYPE_CHECKING, Any
 
 from companion.tst.plan import NodePlan
 from companion.tst.status import (
@@ -74,32 +74,12 @@ class ExecContext:
         return self.layer.now()
 
 
-_EXECUTORS: dict[str, type[TstExecutor]] = {}
-
-
-def executor(cls: type[TstExecutor]) -> type[TstExecutor]:
-    """Class decorator: the platform's executor for ``cls.task``."""
-    _EXECUTORS[cls.task] = cls
-    return cls
-
-
-def executor_for(task: str) -> type[TstExecutor] | None:
-    from . import leaves, scan_ground  # noqa: F401  (register the bundled executors)
-
-    return _EXECUTORS.get(task)
-
-
-def supported_tasks() -> list[str]:
-    executor_for("")
-    return sorted(_EXECUTORS)
-
-
 class TstExecutor(ABC):
-    """One leaf's executor (see module docstring). Subclasses give ``task`` and :meth:`activation`."""
-
-    task: ClassVar[str] = ""
+    """One leaf's executor (see module docstring). Subclasses give :meth:`activation`; the leaf task type
+    (:class:`~companion.tst.leaves.base.LeafType`) names its executor class."""
 
     def __init__(self, node: TstNode, plan: NodePlan, ctx: ExecContext) -> None:
+        self.task = node.type
         self.node = node
         self.plan = plan
         self.ctx = ctx
