@@ -370,8 +370,10 @@ class CommandExecution:
             sample = ext.latest("ext_vel" if mode is HeadingMode.EXT_VEL else "rc_vel", now_s)
             return YawRateTarget(math.radians(sample[3]) if sample is not None else 0.0), None
         if mode in (HeadingMode.POINT, HeadingMode.EXT_POINT):
+            point: tuple[float, ...] | None
             if mode is HeadingMode.POINT:
-                point: tuple[float, ...] | None = (hd.north, hd.east)  # type: ignore[assignment]
+                assert hd.north is not None and hd.east is not None  # required by Point (commands.py)
+                point = (hd.north, hd.east)
             else:
                 point = ext.latest("ext_point", now_s)
             if point is None:

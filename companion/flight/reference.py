@@ -187,7 +187,7 @@ class ReferenceGenerator:
         L = self.limits
         vh, _ = clamp_norm(np.array(v[:2], dtype=float), L.horizontal_speed)
         vd = float(np.clip(v[2], -L.vertical_speed, L.vertical_speed))
-        return Reference(t_s, tuple(float(x) for x in p), (float(vh[0]), float(vh[1]), vd),  # type: ignore[arg-type]
+        return Reference(t_s, (float(p[0]), float(p[1]), float(p[2])), (float(vh[0]), float(vh[1]), vd),
                          (0.0, 0.0, 0.0), float(yaw), 0.0, 0.0)
 
     def step(self, ref: Reference, targets: ChannelTargets, dt: float) -> StepResult:
