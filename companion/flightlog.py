@@ -100,7 +100,7 @@ def _vec(v: Any) -> list[float | None]:
 def describe_command(key: str, command: FlightCommand, *, command_id: int | None = None,
                      routine_id: str | None = None, n_commands: int = 1) -> dict[str, Any]:
     """The ``command`` record's fields for one flight command (seed 000 Fig. 7-8, Fig. 16b's columns)."""
-    from companion.flight.codec import command_to_dict
+    from companion.flight.codec import command_to_dict  # lazy: companion.flight loads numpy, shapely, ruckig
 
     end = command.end
     return {"key": key, "command_id": command_id, "routine_id": routine_id,
@@ -160,10 +160,10 @@ class FlightRecorder:
 
     def close(self) -> None:
         """Detach from the node and close the file (idempotent)."""
-        for listeners, fn in ((self.node.setpoint_listeners, self._on_setpoint),
-                              (self.node.link.listeners, self._on_message)):
-            if fn in listeners:
-                listeners.remove(fn)
+        if self._on_setpoint in self.node.setpoint_listeners:
+            self.node.setpoint_listeners.remove(self._on_setpoint)
+        if self._on_message in self.node.link.listeners:
+            self.node.link.listeners.remove(self._on_message)
         with self._lock:
             if self._file is not None:
                 self._file.close()
@@ -291,7 +291,7 @@ def log_violations(records: list[dict[str, Any]], limits: Limits) -> list[Violat
     run of streamed setpoints of a flight log, with the log's rounding (:data:`ROUNDING_TOLERANCE`)
     allowed: the generator's guard clamps a step to exactly its bound, and a logged step may then read
     up to that much over it."""
-    from companion.flight.simulate import step_violations
+    from companion.flight.simulate import step_violations  # lazy: as in describe_command
 
     out: list[Violation] = []
     for run in streamed_segments(records):
@@ -303,7 +303,7 @@ def streamed_setpoints(records: list[dict[str, Any]]) -> list[Setpoint]:
     """The streamed setpoints of a flight log (queue time, position, velocity, yaw, kind) as
     :class:`~companion.flight.setpoint.Setpoint` s, for :func:`companion.flight.simulate.step_violations`
     (values are rounded to 0.1 mm in the log: :func:`log_violations` allows for that)."""
-    from companion.flight.setpoint import Setpoint, SetpointKind
+    from companion.flight.setpoint import Setpoint, SetpointKind  # lazy: as in describe_command
 
     out = []
     for r in records:

@@ -91,6 +91,7 @@ class StreamRecorder:
     each setpoint's stamp is ahead of the newest autopilot time received (``leads``)."""
 
     def __init__(self, node: QuadNode) -> None:
+        # lazy: companion.link loads pymavlink, which the offline report (tracking_error) does not need
         from companion.link.setpoints import IGNORE_POS
 
         self._ignore_pos = IGNORE_POS

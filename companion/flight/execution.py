@@ -49,7 +49,7 @@ from .reference import (
     YawTarget,
     wrap_pi,
 )
-from .setpoint import VehicleState
+from .setpoint import Setpoint, SetpointKind, VehicleState
 
 #: Below this horizontal speed (m/s) the flight direction is taken from where the command is going.
 _FLIGHT_DIR_MIN_SPEED = 0.5
@@ -66,6 +66,16 @@ class EndFlags:
     hd_end: bool = False
 
 
+@dataclass
+class MovingGoals:
+    """This tick's goals of the moving-target channels, for their end flags (None: no valid sample)."""
+
+    h_goal: np.ndarray | None = None  # ExtPos: where the horizontal channel is going
+    h_center: np.ndarray | None = None  # KeepDistance: the point kept at a distance
+    v_goal: float | None = None  # vertical ExtPos: the goal, metres down
+    hd_goal: float | None = None  # ExtPos, Point, ExtPoint heading: the goal yaw (rad)
+
+
 @dataclass(frozen=True)
 class TickOutcome:
     """What one tick of a command produced."""
@@ -78,6 +88,12 @@ class TickOutcome:
 
 class CommandExecution:
     """The running state of one :class:`FlightCommand` (see module docstring)."""
+
+    # the command's targets, resolved once against the reference it starts from (:meth:`_resolve`)
+    h_target: np.ndarray | None  # horizontal Pos: north, east
+    h_end_dir: np.ndarray | None
+    v_target_down: float | None  # vertical Pos / WithHor: metres down
+    hd_target_abs: float | None  # heading Pos: yaw (rad)
 
     def __init__(self, command: FlightCommand, start: Reference, limits: Limits) -> None:
         self.command = command
@@ -99,15 +115,15 @@ class CommandExecution:
     def retarget(self, command: FlightCommand, ref: Reference, changed: frozenset[str]) -> None:
         """Fly ``command`` from now on (Sec. IV-D): re-resolve the ``changed`` channels ("h", "v", "hd"),
         keep the other channels' resolved targets, the waited time and a given confirmation; replan."""
-        kept = {"h": self.h_target, "v": self.v_target_down, "hd": self.hd_target_abs}
+        h_kept, v_kept, hd_kept = self.h_target, self.v_target_down, self.hd_target_abs
         self.command = command
         self._resolve(ref)
         if "h" not in changed:
-            self.h_target = kept["h"]
+            self.h_target = h_kept
         if "v" not in changed:
-            self.v_target_down = kept["v"]
+            self.v_target_down = v_kept
         if "hd" not in changed:
-            self.hd_target_abs = kept["hd"]
+            self.hd_target_abs = hd_kept
         self.ended = False
         self.land_now = False
         self.resume(ref)
@@ -117,8 +133,8 @@ class CommandExecution:
         """Resolve relative targets once, against the reference the command first starts from."""
         c, L = self.command, self.limits
         h, v, hd = c.horizontal, c.vertical, c.heading
-        self.h_target: np.ndarray | None = None
-        self.h_end_dir: np.ndarray | None = None
+        self.h_target = None
+        self.h_end_dir = None
         self.h_speed = min(h.speed or L.horizontal_speed, L.horizontal_speed)
         self.h_end_speed = min(h.end_speed or 0.0, self.h_speed)
         if h.mode is HorizontalMode.POS:
@@ -131,7 +147,7 @@ class CommandExecution:
                 cy, sy = math.cos(ref.yaw), math.sin(ref.yaw)
                 self.h_target = np.array([ref.p[0] + h.north * cy - h.east * sy,
                                           ref.p[1] + h.north * sy + h.east * cy])
-        self.v_target_down: float | None = None
+        self.v_target_down = None
         self.v_speed = min(v.speed or L.vertical_speed, L.vertical_speed)
         self.v_end_speed = min(v.end_speed or 0.0, self.v_speed)
         if v.mode is VerticalMode.POS:
@@ -141,7 +157,7 @@ class CommandExecution:
         elif v.mode is VerticalMode.WITH_HOR:
             assert v.altitude is not None
             self.v_target_down = -float(v.altitude)
-        self.hd_target_abs: float | None = None
+        self.hd_target_abs = None
         if hd.mode is HeadingMode.POS:
             assert hd.heading is not None
             rel = hd.resolved_frame is Frame.RELATIVE
@@ -202,11 +218,11 @@ class CommandExecution:
         return TickOutcome(result, self.flags, self.ended, self.land_now)
 
     # --- targets ------------------------------------------------------------------------------------------
-    def _targets(self, ref: Reference, now_s: float, ext: ExternalData) -> tuple[ChannelTargets, dict]:
+    def _targets(self, ref: Reference, now_s: float, ext: ExternalData) -> tuple[ChannelTargets, MovingGoals]:
         """This tick's P_t; ``moving`` records the moving-target goals for the end flags."""
         c = self.command
         h, v, hd = c.horizontal, c.vertical, c.heading
-        moving: dict[str, object] = {}
+        moving = MovingGoals()
         p = np.array(ref.p)
 
         # -- horizontal (and vertical with WithHor)
@@ -220,8 +236,9 @@ class CommandExecution:
                 horizontal = VelocityTarget((float(end_v[0]), float(end_v[1])))
             else:
                 if v.mode is VerticalMode.WITH_HOR:
+                    assert self.v_target_down is not None  # WithHor has an altitude (commands.py)
                     pos: tuple[float, ...] = (float(self.h_target[0]), float(self.h_target[1]),
-                                              float(self.v_target_down))  # type: ignore[arg-type]
+                                              float(self.v_target_down))
                 else:
                     pos = (float(self.h_target[0]), float(self.h_target[1]))
                 horizontal = PathTarget(pos, speed, tuple(self._end_velocity_path(len(pos))))
@@ -232,14 +249,14 @@ class CommandExecution:
                 tgt = np.array(sample[:2])
                 if h.mode is HorizontalMode.EXT_POS:
                     goal = tgt + np.array([h.offset_north or 0.0, h.offset_east or 0.0])
-                    moving["h_goal"] = goal
+                    moving.h_goal = goal
                 else:
                     assert h.distance is not None
                     r = p[:2] - tgt
                     n = float(np.linalg.norm(r))
                     r_unit = r / n if n > 1e-6 else np.array([-1.0, 0.0])
                     goal = tgt + h.distance * r_unit
-                    moving["h_center"] = tgt
+                    moving.h_center = tgt
                 horizontal = PathTarget((float(goal[0]), float(goal[1])), speed, None)
                 intended_dir = goal - p[:2]
         elif h.mode in (HorizontalMode.EXT_VEL, HorizontalMode.RC_VEL):
@@ -266,7 +283,7 @@ class CommandExecution:
             sample = ext.latest("ext_pos", now_s)
             if sample is not None:
                 goal_down = sample[2] - (v.offset or 0.0)
-                moving["v_goal"] = goal_down
+                moving.v_goal = goal_down
                 vertical = AxisTarget(goal_down, self.v_speed, 0.0)
         elif v.mode in (VerticalMode.EXT_VEL, VerticalMode.RC_VEL):
             sample = ext.latest("ext_vel" if v.mode is VerticalMode.EXT_VEL else "rc_vel", now_s)
@@ -275,8 +292,7 @@ class CommandExecution:
 
         # -- heading
         heading, hd_goal = self._heading_target(ref, now_s, ext, intended_dir)
-        if hd_goal is not None:
-            moving["hd_goal"] = hd_goal
+        moving.hd_goal = hd_goal
 
         # -- speed modifiers (Fig. 7)
         h_mods, v_mods = h.speed_modified_by, v.speed_modified_by
@@ -354,8 +370,10 @@ class CommandExecution:
             sample = ext.latest("ext_vel" if mode is HeadingMode.EXT_VEL else "rc_vel", now_s)
             return YawRateTarget(math.radians(sample[3]) if sample is not None else 0.0), None
         if mode in (HeadingMode.POINT, HeadingMode.EXT_POINT):
+            point: tuple[float, ...] | None
             if mode is HeadingMode.POINT:
-                point: tuple[float, ...] | None = (hd.north, hd.east)  # type: ignore[assignment]
+                assert hd.north is not None and hd.east is not None  # required by Point (commands.py)
+                point = (hd.north, hd.east)
             else:
                 point = ext.latest("ext_point", now_s)
             if point is None:
@@ -368,7 +386,7 @@ class CommandExecution:
         return YawRateTarget(0.0), None  # DNU
 
     # --- end flags and end condition ------------------------------------------------------------------------
-    def _end_flags(self, result: StepResult, moving: dict, now_s: float, ext: ExternalData,
+    def _end_flags(self, result: StepResult, moving: MovingGoals, now_s: float, ext: ExternalData,
                    vehicle: VehicleState | None) -> EndFlags:
         c, L = self.command, self.limits
         ref = result.reference
@@ -379,12 +397,12 @@ class CommandExecution:
             if result.h_arrived and not result.target_unreachable:
                 self._h_latched = True
             h_end = self._h_latched
-        elif h.mode is HorizontalMode.EXT_POS and "h_goal" in moving:
-            h_end = float(np.linalg.norm(p[:2] - moving["h_goal"])) <= L.arrival_tolerance \
+        elif h.mode is HorizontalMode.EXT_POS and moving.h_goal is not None:
+            h_end = float(np.linalg.norm(p[:2] - moving.h_goal)) <= L.arrival_tolerance \
                 and not result.target_unreachable
-        elif h.mode is HorizontalMode.KEEP_DISTANCE and "h_center" in moving:
+        elif h.mode is HorizontalMode.KEEP_DISTANCE and moving.h_center is not None:
             assert h.distance is not None
-            off = abs(float(np.linalg.norm(p[:2] - moving["h_center"])) - h.distance)
+            off = abs(float(np.linalg.norm(p[:2] - moving.h_center)) - h.distance)
             h_end = off <= L.arrival_tolerance and not result.target_unreachable
         else:
             h_end = False
@@ -403,8 +421,8 @@ class CommandExecution:
                     self.land_now = True
                 # touchdown ends the landing: the vehicle's report when it has one, else the reference
                 v_end = landed is True or (landed is None and self._v_latched)
-        elif v.mode is VerticalMode.EXT_POS and "v_goal" in moving:
-            off = abs(ref.p[2] - float(moving["v_goal"]))
+        elif v.mode is VerticalMode.EXT_POS and moving.v_goal is not None:
+            off = abs(ref.p[2] - moving.v_goal)
             v_end = off <= L.arrival_tolerance and not result.target_unreachable
         else:
             v_end = False
@@ -420,8 +438,8 @@ class CommandExecution:
                 if (ref.yaw - self.hd_yaw_unwrapped) * self.hd_sign >= 0:
                     self._hd_passed = True
                 hd_end = self._hd_passed
-        elif "hd_goal" in moving:  # EXT_POS, POINT, EXT_POINT with a valid goal
-            hd_end = abs(wrap_pi(ref.yaw - float(moving["hd_goal"]))) <= tol  # type: ignore[arg-type]
+        elif moving.hd_goal is not None:  # EXT_POS, POINT, EXT_POINT with a valid goal
+            hd_end = abs(wrap_pi(ref.yaw - moving.hd_goal)) <= tol
         else:
             hd_end = False
         return EndFlags(h_end, v_end, hd_end)
@@ -441,3 +459,24 @@ class CommandExecution:
         user_ok = self.confirmed if e.e_user else True
         wait_ok = self.elapsed_s >= e.e_wait - 1e-9 if e.e_wait is not None else True
         return channel_ok and user_ok and wait_ok
+
+
+def streamed_setpoint(ref: Reference, execution: CommandExecution | None, land_now: bool, *,
+                      index: int | None, command_id: int | None, routine_id: str | None) -> Setpoint:
+    """The reference as the link streams it (P_d, Fig. 9) while ``execution`` runs (None: holding).
+
+    ``index`` and ``command_id`` name the producing command of the list, ``routine_id`` the pause
+    routine producing it (:class:`~.setpoint.Setpoint`)."""
+    kind = SetpointKind.POSITION
+    take_off = allow_landing = False
+    takeoff_alt = None
+    if execution is not None:
+        cmd = execution.command
+        if cmd.velocity_only:
+            kind = SetpointKind.VELOCITY
+        take_off = cmd.vertical.take_off
+        allow_landing = cmd.vertical.allow_landing
+        if take_off and execution.v_target_down is not None:
+            takeoff_alt = -execution.v_target_down
+    return Setpoint(ref.t_s, ref.p, ref.v, ref.a, wrap_pi(ref.yaw), ref.yaw_rate, kind, take_off,
+                    takeoff_alt, allow_landing, land_now, index, routine_id, command_id)

@@ -69,10 +69,10 @@ class ExternalData:
             raise ExternalDataError(f"unknown stream {stream!r} (known: {', '.join(sorted(STREAMS))})")
         n = STREAMS[stream]
         try:
-            vals = tuple(float(v) for v in values)  # type: ignore[union-attr]
+            vals = tuple(float(v) for v in values)
         except (TypeError, ValueError) as exc:
             raise ExternalDataError(f"{stream}: expected {n} numbers, got {values!r}") from exc
-        if any(isinstance(v, bool) for v in values):  # type: ignore[union-attr]
+        if any(isinstance(v, bool) for v in values):
             raise ExternalDataError(f"{stream}: expected {n} numbers, got booleans")
         if len(vals) != n:
             raise ExternalDataError(f"{stream}: expected {n} values, got {len(vals)}")

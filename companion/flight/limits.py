@@ -182,7 +182,7 @@ class Envelope:
         """Raise :class:`CommandError` if an absolute target of ``command`` lies outside the envelope."""
         h, v = command.horizontal, command.vertical
         if h.mode is HorizontalMode.POS and h.resolved_frame is Frame.ABSOLUTE \
-                and not self.contains_ne((h.north, h.east)):  # type: ignore[arg-type]
+                and h.north is not None and h.east is not None and not self.contains_ne((h.north, h.east)):
             raise CommandError("horizontal.north", f"target ({h.north:g}, {h.east:g}) lies outside the "
                                                    "operational envelope")
         absolute_alt = v.mode is VerticalMode.WITH_HOR or (v.mode is VerticalMode.POS

@@ -137,15 +137,15 @@ def close_to(x: Array, y: Array, tol: float) -> bool:
     return len(xs) == len(ys) and all(abs(a - b) <= tol for a, b in zip(xs, ys, strict=True))
 
 
-def plan_key(*parts: object) -> Array:
+def plan_key(*parts: float | Array | list[float] | tuple[float, ...] | None) -> Array:
     out: list[float] = []
     for part in parts:
         if part is None:
             out.append(_NONE)
         elif isinstance(part, np.ndarray | list | tuple):
-            out.extend(float(x) for x in part)  # type: ignore[union-attr]
+            out.extend(float(x) for x in part)
         else:
-            out.append(float(part))  # type: ignore[arg-type]
+            out.append(float(part))
     return np.array(out)
 
 

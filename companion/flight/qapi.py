@@ -36,6 +36,19 @@ Verbs (Sec. V) and the decisions where the paper is silent
     :class:`QueueError`, and changes nothing. While OVERRIDDEN only ``add_command``, ``stop``,
     ``reset`` are accepted.
 
+Tick contract (the link's side)
+    ``tick(now_s, vehicle_state, follow_vehicle=False) -> Setpoint | None``. ``now_s`` is the
+    companion's clock (the autopilot's time); ``vehicle_state`` is required on the first tick (the
+    reference starts at the measured state) and after an override. With ``follow_vehicle`` (the
+    link is not streaming) and nothing executing, the reference is re-anchored on the measured
+    state, so the next command starts where the vehicle is. The setpoint is the reference one tick
+    ahead. A tick with ``now_s`` not after the previous one returns the previous setpoint. Intervals
+    above ``max_step_s`` (1 s) advance the reference by ``max_step_s`` only (a stalled loop never
+    makes the reference leap); shorter ones in full, so that after a late tick the reference is
+    where the autopilot, which carries the last setpoint on with its velocity (ArduCopter's GUIDED
+    until GUID_TIMEOUT, 3 s), expects it, instead of falling behind the vehicle for the rest of the
+    flight. Returns None while OVERRIDDEN.
+
 Status (Sec. V, :class:`QueueStatus`)
     ``queue_system_status`` RUNNING / OVERRIDDEN (someone else took the vehicle: ``set_overridden``,
     called by the link on a mode change or disarm; the queue then stops and ``tick`` returns None;

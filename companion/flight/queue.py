@@ -7,23 +7,11 @@ vehicle state and streams the returned :class:`~companion.flight.setpoint.Setpoi
 own methods change it (one writer). Every change of a command's life is published as a
 :class:`~companion.flight.events.QueueEvent` on :attr:`CommandQueue.events` (wait on it or subscribe).
 
-The verbs (Sec. V), the decisions where the paper is silent, and the status fields are documented in
-:mod:`companion.flight.qapi`.
+The verbs (Sec. V), the decisions where the paper is silent, the status fields and the link's tick
+contract are documented in :mod:`companion.flight.qapi`.
 
-"Stopped if allowed" during a take-off (Sec. V): see :mod:`.takeoff_rule`.
-
-Tick contract
-    ``tick(now_s, vehicle_state, follow_vehicle=False) -> Setpoint | None``. ``now_s`` is the
-    companion's clock (the autopilot's time); ``vehicle_state`` is required on the first tick (the
-    reference starts at the measured state) and after an override. With ``follow_vehicle`` (the
-    link is not streaming) and nothing executing, the reference is re-anchored on the measured
-    state, so the next command starts where the vehicle is. The setpoint is the reference one tick
-    ahead. A tick with ``now_s`` not after the previous one returns the previous setpoint. Intervals
-    above ``max_step_s`` (1 s) advance the reference by ``max_step_s`` only (a stalled loop never
-    makes the reference leap); shorter ones in full, so that after a late tick the reference is
-    where the autopilot, which carries the last setpoint on with its velocity (ArduCopter's GUIDED
-    until GUID_TIMEOUT, 3 s), expects it, instead of falling behind the vehicle for the rest of the
-    flight. Returns None while OVERRIDDEN.
+"Stopped if allowed" during a take-off (Sec. V): see :mod:`.takeoff_rule` (the queue owns a
+:class:`~.takeoff_rule.TakeoffStopRule` and carries out the verbs it deferred).
 """
 
 from __future__ import annotations
@@ -38,7 +26,7 @@ from taskflight_common.clock import Clock
 
 from .commands import CommandError, FlightCommand
 from .events import EventKind, EventLog, QueueEvent, new_command_id
-from .execution import CommandExecution
+from .execution import CommandExecution, streamed_setpoint
 from .external import DEFAULT_MAX_VALIDITY_S, ExternalData, Sample
 from .limits import Envelope, Limits
 from .pause_routines import DEFAULT_ROUTINE, PauseRoutine, PauseRoutineCatalog, default_catalog
@@ -51,13 +39,12 @@ from .qapi import (
     QueueStatus,
     QueueSystemStatus,
 )
-from .reference import HOLD, Reference, ReferenceGenerator, wrap_pi
+from .reference import HOLD, Reference, ReferenceGenerator
 from .retarget import Retarget, RetargetError, retargeted
-from .setpoint import Setpoint, SetpointKind, VehicleState
+from .setpoint import Setpoint, VehicleState
 from .takeoff_rule import TAKEOFF_MIN_HOLD_M, TakeoffStopRule
 
 log = logging.getLogger(__name__)
-
 
 
 @dataclass
@@ -68,7 +55,7 @@ class _ActiveRoutine:
     continuing: bool  # what the queue does afterwards: continue (True) or stay stopped
 
 
-class CommandQueue(TakeoffStopRule):
+class CommandQueue:
     """The QAPI command queue (see module docstring)."""
 
     def __init__(self, limits: Limits | None = None, envelope: Envelope | None = None,
@@ -79,7 +66,6 @@ class CommandQueue(TakeoffStopRule):
         self.envelope = envelope or Envelope()
         self.catalog = catalog or default_catalog()
         self.events = EventLog()
-        self.takeoff_min_hold_m = float(takeoff_min_hold_m)
         self._clock = clock
         self._max_step_s = max_step_s
         self._lock = threading.RLock()
@@ -94,8 +80,7 @@ class CommandQueue(TakeoffStopRule):
         self._state = QueueState.STOPPED
         self._routine: _ActiveRoutine | None = None
         self._pending_pause: PauseRoutine | None = None
-        self._deferred: tuple[str, PauseRoutine | None] | None = None
-        self._deferred_entries: list[QueuedCommand] = []  # a deferred replace_commands' new list
+        self._takeoff = TakeoffStopRule(takeoff_min_hold_m)
         self._failure: str | None = None
         self._overridden = False
         self._synced = False
@@ -167,10 +152,7 @@ class CommandQueue(TakeoffStopRule):
         with self._locked():
             self._refuse_if_overridden("replace_commands")
             entries = [QueuedCommand(new_command_id(), c) for c in commands]
-            if self._takeoff_unstoppable():
-                self._defer_if_taking_off("replace", None)
-                self._deferred_entries = entries
-            else:
+            if not self._defer_if_taking_off("replace", None, entries):
                 self._do_replace(entries)
             return [e.id for e in entries]
 
@@ -205,9 +187,9 @@ class CommandQueue(TakeoffStopRule):
         with self._locked():
             self._refuse_if_overridden("run")
             was_running = self._state is QueueState.RUNNING and self._routine is None
-            if self._deferred is not None and self._deferred[0] in ("stop", "pause_direct"):
-                log.info("run(): deferred %s cancelled", self._deferred[0])
-                self._deferred = None
+            cancelled = self._takeoff.cancel_pause()
+            if cancelled is not None:
+                log.info("run(): deferred %s cancelled", cancelled)
             if self._routine is not None:
                 log.info("run(): abandoning pause routine %s", self._routine.routine.id)
                 self._routine = None
@@ -351,6 +333,30 @@ class CommandQueue(TakeoffStopRule):
             ex = self._active_execution()
             return ex is not None and ex.command.vertical.take_off and not ex.ended
 
+    def mark_takeoff_airborne(self, vehicle: VehicleState | None = None) -> bool:
+        """Called by the link when the vehicle lifted off for the executing take-off; False when the
+        take-off is no longer executing (stopped, reset or paused meanwhile). Atomic with the verbs: a
+        stop after it is deferred, a stop before it makes it answer False.
+
+        With ``vehicle``, the reference restarts at the measured state (the autopilot's own take-off
+        has already climbed by the time the lift-off is seen): the first streamed setpoint continues
+        the climb where the vehicle is, instead of pulling it back to the ground it left."""
+        with self._lock:
+            ex = self._active_execution()
+            if ex is None or self._routine is not None or not ex.command.vertical.take_off or ex.ended:
+                return False
+            ex.airborne = True
+            if vehicle is not None and self._ref is not None:
+                self._ref = self._gen.initial(self._ref.t_s, vehicle.p, vehicle.v, vehicle.yaw)
+                ex.resume(self._ref)
+                self._last_setpoint = None
+            return True
+
+    @property
+    def takeoff_min_hold_m(self) -> float:
+        """A climbing take-off may not be stopped below this height above where it started (m)."""
+        return self._takeoff.min_hold_m
+
     @property
     def max_validity_s(self) -> float:
         return self._ext.max_validity_s
@@ -373,7 +379,7 @@ class CommandQueue(TakeoffStopRule):
                 current_command_id=entry.id if entry else None,
                 generation=self._generation,
                 failure=self._failure,
-                deferred=self._deferred[0] if self._deferred else None)
+                deferred=self._takeoff.deferred.verb if self._takeoff.deferred else None)
 
     @property
     def commands(self) -> tuple[FlightCommand, ...]:
@@ -404,7 +410,7 @@ class CommandQueue(TakeoffStopRule):
     # --- the tick ----------------------------------------------------------------------------------------
     def tick(self, now_s: float, vehicle_state: VehicleState | None = None, *,
              follow_vehicle: bool = False) -> Setpoint | None:
-        """Advance to ``now_s`` and return the setpoint to stream (see module docstring)."""
+        """Advance to ``now_s`` and return the setpoint to stream (:mod:`.qapi`, tick contract)."""
         with self._locked():
             if self._overridden:
                 return None
@@ -454,7 +460,8 @@ class CommandQueue(TakeoffStopRule):
         of its target when a position command follows (a break-in resumed, a joystick confirmed)."""
         velocity_only = execution is not None and execution.command.velocity_only
         if self._velocity_only and not velocity_only and vehicle is not None and self._ref is not None:
-            self._ref = replace(self._ref, p=tuple(float(c) for c in vehicle.p))
+            north, east, down = vehicle.p
+            self._ref = replace(self._ref, p=(float(north), float(east), float(down)))
             if execution is not None:
                 execution.resume(self._ref)
         self._velocity_only = velocity_only
@@ -469,6 +476,42 @@ class CommandQueue(TakeoffStopRule):
             return self.catalog.get(bid)
         except KeyError as exc:
             raise QueueError(str(exc.args[0])) from None
+
+    def _takeoff_unstoppable(self) -> bool:
+        own = self._exec if self._routine is None and self._state is QueueState.RUNNING else None
+        return self._takeoff.unstoppable(own, self._ref)
+
+    def _defer_if_taking_off(self, verb: str, routine: PauseRoutine | None,
+                             entries: Sequence[QueuedCommand] = ()) -> bool:
+        """Defer ``verb`` if the take-off may not stop yet (True then); :mod:`.takeoff_rule`."""
+        if not self._takeoff_unstoppable():
+            return False
+        for e in self._takeoff.defer(verb, routine, entries):
+            self._emit(EventKind.CANCELLED, e, None, f"superseded by a later {verb}")
+        text = f"{verb} deferred until the take-off is {self.takeoff_min_hold_m:g} m up"
+        log.info("%s", text)
+        self._emit(EventKind.DEFERRED, self._current_entry(), self._index, text)
+        return True
+
+    def _drop_deferred(self, why: str) -> None:
+        deferred = self._takeoff.take()
+        for e in deferred.entries if deferred is not None else ():
+            self._emit(EventKind.CANCELLED, e, None, why)
+
+    def _apply_deferred(self) -> None:
+        if self._takeoff.deferred is None or self._takeoff_unstoppable():
+            return
+        deferred = self._takeoff.take()
+        assert deferred is not None
+        log.info("carrying out the deferred %s", deferred.verb)
+        if deferred.verb == "stop":
+            self._do_stop()
+        elif deferred.verb == "reset":
+            self._do_reset()
+        elif deferred.verb == "replace":
+            self._do_replace(list(deferred.entries))
+        elif deferred.verb == "pause_direct" and deferred.routine is not None and self._routine is None:
+            self._start_routine(deferred.routine, continuing=self._state is QueueState.RUNNING)
 
     def _do_stop(self) -> None:
         running = self._state is QueueState.RUNNING or self._routine is not None
@@ -487,7 +530,7 @@ class CommandQueue(TakeoffStopRule):
         self._exec = None
         self._routine = None
         self._pending_pause = None
-        self._deferred = None
+        self._takeoff.deferred = None
         self._failure = None
         self._state = QueueState.STOPPED
         self._generation += 1
@@ -571,25 +614,9 @@ class CommandQueue(TakeoffStopRule):
         return CommandStatus.RUNNING if self._state is QueueState.RUNNING else CommandStatus.STOPPED
 
     def _setpoint(self, execution: CommandExecution | None, land_now: bool) -> Setpoint:
-        ref = self._ref
-        assert ref is not None
-        kind = SetpointKind.POSITION
-        take_off = allow_landing = False
-        takeoff_alt = None
-        index: int | None = None
-        command_id: int | None = None
+        assert self._ref is not None
         routine_id = self._routine.routine.id if self._routine is not None else None
-        if execution is not None:
-            cmd = execution.command
-            if cmd.velocity_only:
-                kind = SetpointKind.VELOCITY
-            take_off = cmd.vertical.take_off
-            allow_landing = cmd.vertical.allow_landing
-            if take_off and execution.v_target_down is not None:
-                takeoff_alt = -execution.v_target_down
-            if routine_id is None:
-                index = self._index
-                entry = self._current_entry()
-                command_id = entry.id if entry else None
-        return Setpoint(ref.t_s, ref.p, ref.v, ref.a, wrap_pi(ref.yaw), ref.yaw_rate, kind, take_off,
-                        takeoff_alt, allow_landing, land_now, index, routine_id, command_id)
+        own = execution is not None and routine_id is None  # a command of the list, not of a routine
+        entry = self._current_entry() if own else None
+        return streamed_setpoint(self._ref, execution, land_now, index=self._index if own else None,
+                                 command_id=entry.id if entry else None, routine_id=routine_id)

@@ -187,7 +187,7 @@ class ReferenceGenerator:
         L = self.limits
         vh, _ = clamp_norm(np.array(v[:2], dtype=float), L.horizontal_speed)
         vd = float(np.clip(v[2], -L.vertical_speed, L.vertical_speed))
-        return Reference(t_s, tuple(float(x) for x in p), (float(vh[0]), float(vh[1]), vd),  # type: ignore[arg-type]
+        return Reference(t_s, (float(p[0]), float(p[1]), float(p[2])), (float(vh[0]), float(vh[1]), vd),
                          (0.0, 0.0, 0.0), float(yaw), 0.0, 0.0)
 
     def step(self, ref: Reference, targets: ChannelTargets, dt: float) -> StepResult:
@@ -332,9 +332,9 @@ class ReferenceGenerator:
                 y, r, acc = pl.advance(dt)
                 return float(y[0]), float(r[0]), float(acc[0]), 0.0, False
         pl.invalidate()
-        r = ref.yaw_rate
-        dr = -math.copysign(min(abs(r), L.yaw_acceleration_rad * dt), r)
-        return ref.yaw + (r + 0.5 * dr) * dt, r + dr, dr / dt, 0.0, False
+        rate0 = ref.yaw_rate  # no plan: brake the yaw rate
+        dr = -math.copysign(min(abs(rate0), L.yaw_acceleration_rad * dt), rate0)
+        return ref.yaw + (rate0 + 0.5 * dr) * dt, rate0 + dr, dr / dt, 0.0, False
 
     def _step_vertical(self, p: float, v: float, a: float, t: AxisTarget | VelocityTarget, dt: float,
                        goal: float) -> tuple[float, float, float, float, bool]:
@@ -399,7 +399,7 @@ class ReferenceGenerator:
                  and along.reusable(key, *frame.along_state(p, v, a),
                                   goal=max(goal, cross.remaining if frame.cross_active else 0.0))
                  and (not frame.cross_active or cross.on_track(*frame.cross_state(p, v, a))))
-        if not reuse:
+        if frame is None or not reuse:
             frame = self._plan_path(p, v, a, target, end_v, speed, goal, key)
             if frame is None:
                 self._frame = None

@@ -1,6 +1,6 @@
 """The companion's one clock: the autopilot's time, estimated between telemetry samples.
 
-ARCHITECTURE "Time" and issue 4 item 6: the companion paces itself on the autopilot's clock so that a
+ARCHITECTURE.md "Time": the companion paces itself on the autopilot's clock so that a
 model running ``--speedup K`` still sees setpoints at 20 Hz of *its* time. Every message carrying
 ``time_boot_ms`` (LOCAL_POSITION_NED, ATTITUDE, SYSTEM_TIME ...) is fed to :meth:`AutopilotClock.observe`
 by the link's receive thread; :meth:`AutopilotClock.now` extrapolates between samples:

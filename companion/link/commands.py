@@ -1,4 +1,4 @@
-"""MAVLink commands (COMMAND_LONG) with ACK tracking and retries (issue 4 item 5).
+"""MAVLink commands (COMMAND_LONG) with ACK tracking and retries (the MAVLink command protocol).
 
 The MAVLink command protocol: send, wait for COMMAND_ACK; with no ACK within ``timeout_s`` of
 autopilot time, send again with ``confirmation`` incremented, up to ``attempts`` sends; then the

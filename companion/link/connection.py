@@ -1,4 +1,4 @@
-"""The MAVLink link to the autopilot (issue 4 item 5; seed 000 Fig. 10, the QuadNode-firmware link).
+"""The MAVLink link to the autopilot (seed 000 Fig. 10, the QuadNode-firmware link).
 
 :class:`MavlinkLink` opens one pymavlink connection (ardupilotmega dialect, MAVLink 2) on
 
@@ -248,7 +248,7 @@ class MavlinkLink:
         if refused and not self._interval_accepted:
             self._fallback_streams()  # the autopilot does not know SET_MESSAGE_INTERVAL at all
             return
-        if refused or (req is not None and not req.accepted):
+        if req is not None and (refused or not req.accepted):
             # it knows the command but not this message (the model has no RC_CHANNELS): skip it only
             log.info("stream %s refused (%s); the other streams stay", req.params[0], req.describe())
         if not self._stream_queue:

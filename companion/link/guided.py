@@ -1,9 +1,9 @@
 """Who flies the vehicle: GUIDED engagement, take-off, landing and override detection.
 
-Issue 4 item 5, issue 7 and seed 000 Sec. V (queue_system_status Overridden: "the backup pilot can
-override the commands being executed"). :class:`GuidedSupervisor` decides, tick by tick, whether the
-queue's setpoint is streamed, and asks the autopilot for the modes it needs. It relies only on
-documented ArduCopter behavior:
+Seed 000 Sec. V (queue_system_status Overridden: "the backup pilot can override the commands being
+executed"). :class:`GuidedSupervisor` decides, tick by tick, whether the queue's setpoint is
+streamed, and asks the autopilot for the modes it needs. It relies only on documented ArduCopter
+behavior:
 
 * GUIDED accepts SET_POSITION_TARGET_LOCAL_NED only in the air; on the ground a take-off needs
   GUIDED, arming, then MAV_CMD_NAV_TAKEOFF whose param7 is metres **above home**. Home is not the

@@ -1,7 +1,8 @@
 """``taskflight mission plot LOG --out PNG [--table MD]``: Fig. 16a and 16b of seed 000 from a flight log.
 
 Prints the Fig. 16b table (Markdown) and the tracking figures of Sec. VII; writes the PNG (and the table
-to ``--table``). Imports matplotlib only when run, so ``taskflight --help`` stays instant.
+to ``--table``). matplotlib is imported only when drawing (:func:`~.figure.plot_fig16a`) and the flight
+layer only when a log is checked (:mod:`companion.flightlog`), so ``taskflight --help`` stays instant.
 """
 
 from __future__ import annotations
@@ -10,6 +11,11 @@ import argparse
 import sys
 from pathlib import Path
 from typing import Any
+
+from companion.flightlog import FlightLogError, read_flight_log
+
+from .figure import plot_fig16a
+from .segments import fig16b_table, segments, table_markdown, tracking
 
 
 def add_mission_plot_arguments(subparsers: Any) -> argparse.ArgumentParser:
@@ -30,11 +36,6 @@ def add_mission_plot_arguments(subparsers: Any) -> argparse.ArgumentParser:
 
 def run_mission_plot(args: argparse.Namespace) -> int:
     """The command: 0 when drawn, 2 for an unreadable or malformed log (the error names file:line)."""
-    from companion.flightlog import FlightLogError, read_flight_log
-
-    from .figure import plot_fig16a
-    from .segments import fig16b_table, segments, table_markdown, tracking
-
     try:
         records = read_flight_log(args.log)
     except (OSError, FlightLogError) as exc:

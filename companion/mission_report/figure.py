@@ -58,7 +58,7 @@ def _extent(ax: Any) -> float:
 def plot_fig16a(records: list[dict[str, Any]], out_png: str | Path, title: str | None = None,
                 segs: list[Segment] | None = None) -> Path:
     """Draw Fig. 16a into ``out_png`` (PNG); returns its path."""
-    import matplotlib
+    import matplotlib  # lazy: heavy, and only drawing needs it (``taskflight --help`` stays instant)
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt

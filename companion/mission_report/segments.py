@@ -313,8 +313,8 @@ def tracking(records: list[dict[str, Any]], skip_takeoff: bool = True,
         if sp.get("kind") != "POSITION" or (skip_takeoff and phase):
             excluded += 1
         else:
-            compared.append((float(sp["t"]), tuple(sp["p"])))  # type: ignore[arg-type]
+            compared.append((float(sp["t"]), tuple(sp["p"])))
     positions = [(float(r["t"]), *r["p"]) for r in of_type(records, "position")] or samples
-    tr = tracking_error(compared, positions)  # type: ignore[arg-type]
+    tr = tracking_error(compared, positions)
     return MissionTracking(tr.compared, tr.skipped, excluded, tr.h_max * 100, tr.h_rms * 100, tr.v_max * 100,
                            tr.v_rms * 100)
