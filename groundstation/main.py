@@ -15,11 +15,11 @@ import os
 import sys
 
 from taskflight_common.runtime import freeze_startup_heap
+from taskflight_common.tokens import TOKEN_ENV
 
 log = logging.getLogger(__name__)
 
 DEFAULT_TEAM = "udp://239.255.70.1:14600"
-TOKEN_ENV = "TASKFLIGHT_CONTROL_TOKEN"
 
 
 def add_ground_arguments(parser: argparse.ArgumentParser) -> None:

@@ -64,10 +64,7 @@ def reproduce(out_dir: str | Path | None = None, speedup: float = 5.0, mission: 
     """Fly the reproduction; ``node_hook(node)`` is called before the node starts (tests attach taps)."""
     from argparse import Namespace
 
-    from companion.behaviors.system import ExecutiveLayer
-    from companion.flightlog import FlightRecorder
-    from companion.mission_service import MissionService
-    from companion.node import QuadNode
+    from companion.builder import CompanionConfig, build_companion
     from companion.tst.platform import bundled_platform
     from companion.tst.spec import load_mission
     from taskflight.demo import _free_udp_port, _model_arguments, _ready
@@ -83,15 +80,15 @@ def reproduce(out_dir: str | Path | None = None, speedup: float = 5.0, mission: 
     with tempfile.TemporaryDirectory(prefix="taskflight-fig16-model-") as state:
         model = ModelProcess(_model_arguments(args, state, port, speedup))
         model.start()
-        node = QuadNode(f"udpout:127.0.0.1:{port}", rate_hz=20.0)
+        companion = build_companion(CompanionConfig(
+            f"udpout:127.0.0.1:{port}", rate_hz=20.0, behavior_log=out / "behaviors.jsonl",
+            platform=bundled_platform("indoor"), flight_log=result.log_path, control_port=None))
+        node, layer, missions = companion.node, companion.layer, companion.missions
+        assert layer is not None and missions is not None
         if node_hook is not None:
             node_hook(node)
-        recorder = FlightRecorder(node, result.log_path)
-        layer = missions = None
         try:
-            node.start()
-            layer = ExecutiveLayer.for_node(node, log_path=out / "behaviors.jsonl").start()
-            missions = MissionService(node, layer, bundled_platform("indoor"), recorder=recorder)
+            companion.start()
             wall = _WallDeadline(timeout_s / speedup + 60.0, model)
             wall.wait(lambda: _ready(node.link.mirror.snapshot()) and node.clock.synced
                       and node.link.mirror.snapshot().home is not None
@@ -115,12 +112,7 @@ def reproduce(out_dir: str | Path | None = None, speedup: float = 5.0, mission: 
         except (TimeoutError, RuntimeError) as exc:
             result.problems.append(str(exc))
         finally:
-            if missions is not None:
-                missions.close()
-            if layer is not None:
-                layer.close()
-            node.close()
-            recorder.close()
+            companion.close()
             model.stop()
     result.wall_s = time.perf_counter() - t_wall
     _report(result)

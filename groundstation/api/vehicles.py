@@ -9,7 +9,7 @@ from typing import Annotated, Any
 from fastapi import APIRouter, Body, Path, Request
 from fastapi.responses import JSONResponse
 
-from companion.control_team import ParamAnswer, ParamSet  # the companion's own contract, proxied
+from companion.api_models import ParamAnswer, ParamSet  # the companion's own contract, proxied
 from groundstation.companions import ApiError
 from groundstation.schemas import (
     CommandAnswer,

@@ -1,5 +1,5 @@
 """The control surface's request and answer models (pydantic): one per body and answer, so the OpenAPI
-document of :mod:`companion.control` is complete. The status and event answers derive from the
+document of :mod:`companion.http` is complete. The status and event answers derive from the
 queue's dataclasses (:class:`~companion.flight.qapi.QueueStatus`,
 :class:`~companion.flight.events.QueueEvent`).
 """
@@ -112,12 +112,6 @@ class RetargetRequest(BaseModel):
 
 
 # --- models: answers -------------------------------------------------------------------------------
-class ErrorResponse(BaseModel):
-    """Every refused request (any 4xx)."""
-
-    error: str = Field(examples=["commands[1].end: expected a mapping"])
-
-
 def _model_of(cls: type, doc: str) -> type[BaseModel]:
     """A pydantic model with the fields of the dataclass ``cls`` (one definition of each answer)."""
     hints = typing.get_type_hints(cls)
