@@ -1,4 +1,4 @@
-"""Bench: the companion's setpoint stream against each autopilot over loopback UDP (issues 4 and 7).
+"""Bench: the companion's setpoint stream against each autopilot over loopback UDP.
 
 Starts the autopilot (the bundled model, ``python -m autopilot_model.sitl``, or ArduPilot's copter SITL
 named by ``TASKFLIGHT_ARDUCOPTER``; both paced at ``--speedup``) behind a UDP wire tap and a

@@ -1,4 +1,4 @@
-"""``taskflight ground``: the ground service (issue 12 item 1).
+"""``taskflight ground``: the ground service.
 
 ``taskflight ground [--team URL] [--db FILE] [--host H --port P] [--tokens FILE] [--companion ID=URL ...]
 [--companion-token T]``. Without ``--tokens`` an operator and an observer token are generated and

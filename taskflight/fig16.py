@@ -134,6 +134,16 @@ class _WallDeadline:
             time.sleep(0.01)
 
 
+def _at_waypoint(missions: Any, scan_id: str, at: int) -> Callable[[], bool]:
+    """True once the scan reached waypoint ``at`` or the mission ended."""
+    return lambda: _scan_waypoint(missions, scan_id) >= at or not missions.execution.running
+
+
+def _at_time(node: Any, t: float) -> Callable[[], bool]:
+    """True once the autopilot's clock reached ``t``."""
+    return lambda: bool(node.clock.now() >= t)
+
+
 def _scan_waypoint(missions: Any, scan_id: str) -> int:
     run = missions.execution.runs.get(scan_id)
     return int(run.progress().get("waypoint", 0)) if run is not None and not run.finished else 0
@@ -143,8 +153,7 @@ def _operator(node: Any, missions: Any, scan_id: str, break_ins: tuple[BreakIn, 
               result: Fig16Result) -> None:
     """The scripted operator: each break-in at its waypoint, the joystick, then continue or enough."""
     for b in break_ins:
-        wall.wait(lambda b=b: _scan_waypoint(missions, scan_id) >= b.at or not missions.execution.running,
-                  f"scan waypoint {b.at}")
+        wall.wait(_at_waypoint(missions, scan_id, b.at), f"scan waypoint {b.at}")
         if not missions.execution.running:
             result.problems.append(f"the mission ended before the break-in at waypoint {b.at}")
             return
@@ -154,7 +163,7 @@ def _operator(node: Any, missions: Any, scan_id: str, break_ins: tuple[BreakIn, 
         while node.clock.now() < end:  # the operator's stick at 10 Hz of autopilot time
             node.push_external("ext_vel", (*b.velocity, 0.0), 0.5)
             t = node.clock.now() + 0.1
-            wall.wait(lambda t=t: node.clock.now() >= t, "the joystick's next sample")
+            wall.wait(_at_time(node, t), "the joystick's next sample")
         node.push_external("ext_vel", (0.0, 0.0, 0.0, 0.0), 0.5)
         if b.then == "continue":
             missions.continue_()

@@ -1,4 +1,4 @@
-"""``taskflight up``: a whole simulated fleet in one command (issue 12 item 8; seed 003 Fig. 1).
+"""``taskflight up``: a whole simulated fleet in one command (seed 003 Fig. 1).
 
     taskflight up --vehicles N [--speedup K] [--ground-port P] [--tokens FILE] [--team-loss F]
                   [--team URL] [--state-dir DIR] [--base-instance I] [--no-ground]

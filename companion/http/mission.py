@@ -44,12 +44,12 @@ class _Strict(BaseModel):
 
 
 class StartRequest(_Strict):
-    break_in: str = Field("joystick", pattern="^(joystick|hover)$",
+    break_in: str = Field(default="joystick", pattern="^(joystick|hover)$",
                           description="what a pause does: the operator's joystick, or hold")
 
 
 class PauseMissionRequest(_Strict):
-    routine_id: str = Field("joystick", pattern="^(joystick|hover)$")
+    routine_id: str = Field(default="joystick", pattern="^(joystick|hover)$")
 
 
 class MissionVerbResponse(BaseModel):

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 import typing
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
 from pydantic import AllowInfNan, BaseModel, ConfigDict, Discriminator, Field, Strict, Tag, create_model
 
@@ -21,7 +21,7 @@ Number = Annotated[float, Strict(), AllowInfNan(False)]
 _CHANNEL_DOC = ("A channel in the flight codec's form: ``mode`` and that mode's parameters "
                 "(:mod:`companion.flight.commands`). Missing or null: DNU.")
 
-_COMMAND_EXAMPLES = [
+_COMMAND_EXAMPLES: Any = [
     {"vertical": {"mode": "POS", "altitude": 5, "take_off": True}, "end": {"e_v": True}},
     {"horizontal": {"mode": "POS", "north": 10, "east": 5, "speed": 3, "speed_modified_by": ["vertical"]},
      "vertical": {"mode": "POS", "altitude": 10, "frame": "relative"},
@@ -123,8 +123,15 @@ def _model_of(cls: type, doc: str) -> type[BaseModel]:
     return model
 
 
-#: The QAPI status (Sec. V): the paper's fields, then ours (:class:`companion.flight.qapi.QueueStatus`).
-QueueStatusModel = _model_of(QueueStatus, "The QAPI status (Sec. V): the paper's fields, then ours.")
+if TYPE_CHECKING:  # made from the dataclass at run time; a pydantic model to the type checker
+    class QueueStatusModel(BaseModel): ...
+
+    class EventModel(BaseModel): ...
+else:
+    #: The QAPI status (Sec. V): the paper's fields, then ours (:class:`companion.flight.qapi.QueueStatus`).
+    QueueStatusModel = _model_of(QueueStatus, "The QAPI status (Sec. V): the paper's fields, then ours.")
+    #: One queue event (:class:`companion.flight.events.QueueEvent`).
+    EventModel = _model_of(QueueEvent, "One queue event (companion.flight.events.QueueEvent).")
 
 
 class NodeInfo(BaseModel):
@@ -187,9 +194,6 @@ class PauseRoutinesResponse(BaseModel):
 class AcceptedResponse(BaseModel):
     accepted: bool = Field(description="false: older than the stream's newest sample (ignored)")
 
-
-#: One queue event (:class:`companion.flight.events.QueueEvent`).
-EventModel = _model_of(QueueEvent, "One queue event (companion.flight.events.QueueEvent).")
 
 
 class EventsResponse(BaseModel):

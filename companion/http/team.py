@@ -42,7 +42,7 @@ class _Strict(BaseModel):
 
 
 class TakeRequest(_Strict):
-    reason: str = Field("process monitor", max_length=200)
+    reason: str = Field(default="process monitor", max_length=200)
 
 
 class DirectedTask(_Strict):
