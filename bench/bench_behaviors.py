@@ -37,9 +37,7 @@ from autopilot_support import start_autopilot  # noqa: E402
 from mavlink_support import wait_for  # noqa: E402
 
 from bench.common import add_autopilot_argument, chosen_autopilots, machine, pct, table  # noqa: E402
-from companion.behaviors.system import ExecutiveLayer  # noqa: E402
-from companion.control import ControlServer  # noqa: E402
-from companion.node import QuadNode  # noqa: E402
+from companion.builder import CompanionConfig, build_companion  # noqa: E402
 
 
 def mission() -> list[str]:
@@ -56,7 +54,10 @@ def mission() -> list[str]:
 def fly(kind: str, speedup: float, state: Path, wanted: int) -> dict[str, Any]:
     state.mkdir(parents=True, exist_ok=True)
     ap = start_autopilot(kind, state, speedup)
-    node = QuadNode(ap.companion_url, rate_hz=20.0)
+    companion = build_companion(CompanionConfig(ap.companion_url, rate_hz=20.0, missions=False,
+                                                control_port=0, behavior_log=state / "behaviors.jsonl"))
+    node, layer = companion.node, companion.layer
+    assert layer is not None
     first_seen: dict[int, float] = {}  # command id -> autopilot time of its first streamed setpoint
     lock = threading.Lock()
 
@@ -67,12 +68,10 @@ def fly(kind: str, speedup: float, state: Path, wanted: int) -> dict[str, Any]:
 
     node.setpoint_listeners.append(on_setpoint)
     out: dict[str, Any] = {"wire_ms": [], "causes": Counter()}
-    layer = server = None
     try:
-        node.start()
-        layer = ExecutiveLayer.for_node(node, log_path=state / "behaviors.jsonl").start()
-        server = ControlServer(node, port=0, behaviors=layer).start()
-        http = httpx.Client(base_url=server.url, timeout=10.0)
+        companion.start()
+        assert companion.server is not None
+        http = httpx.Client(base_url=companion.server.url, timeout=10.0)
         w = 30 + 3 * 60 / speedup
         wait_for(lambda: layer.coordinator.is_active("SELF_LOCALIZE"), w, "a healthy estimate")
 
@@ -103,11 +102,7 @@ def fly(kind: str, speedup: float, state: Path, wanted: int) -> dict[str, Any]:
         out["tau_ms"] = [t * 1000 for t in layer.coordinator.coordination_times]
         http.close()
     finally:
-        if server is not None:
-            server.close()
-        if layer is not None:
-            layer.close()
-        node.close()
+        companion.close()
         ap.close()
     return out
 

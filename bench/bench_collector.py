@@ -33,15 +33,12 @@ if kind == "model":
     from autopilot_model.sitl import Sitl
     keep.append(Sitl(instance=40, urls=["udpin:127.0.0.1:0"], speedup=1.0, state_dir=tmp, persist=False))
 elif kind == "companion":
-    from companion.behaviors.system import ExecutiveLayer
-    from companion.control import ControlServer
-    from companion.mission_service import MissionService
-    from companion.node import QuadNode
+    from companion.builder import CompanionConfig, build_companion
     from companion.tst.platform import bundled_platform
-    node = QuadNode("udpout:127.0.0.1:9", rate_hz=20.0)
-    layer = ExecutiveLayer.for_node(node, log_path=tmp / "b.jsonl")
-    missions = MissionService(node, layer, bundled_platform("indoor"))
-    keep += [node, layer, missions, ControlServer(node, port=0, behaviors=layer, missions=missions)]
+    companion = build_companion(CompanionConfig("udpout:127.0.0.1:9", rate_hz=20.0,
+                                                behavior_log=tmp / "b.jsonl",
+                                                platform=bundled_platform("indoor"), control_port=0))
+    keep += [companion, companion.control_server()]
 else:
     from groundstation.app import create_app
     from groundstation.auth import Tokens

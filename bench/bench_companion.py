@@ -1,4 +1,4 @@
-"""Bench: the companion's setpoint stream against each autopilot over loopback UDP (issues 4 and 7).
+"""Bench: the companion's setpoint stream against each autopilot over loopback UDP.
 
 Starts the autopilot (the bundled model, ``python -m autopilot_model.sitl``, or ArduPilot's copter SITL
 named by ``TASKFLIGHT_ARDUCOPTER``; both paced at ``--speedup``) behind a UDP wire tap and a
@@ -32,6 +32,7 @@ from companion_support import cmd  # noqa: E402
 from mavlink_support import wait_for  # noqa: E402
 
 from bench.common import add_autopilot_argument, chosen_autopilots, machine, pct, table  # noqa: E402
+from companion.builder import CompanionConfig, build_companion  # noqa: E402
 from companion.node import QuadNode  # noqa: E402
 from companion.tracking import StreamRecorder  # noqa: E402
 
@@ -44,12 +45,14 @@ def sim_wait(node: QuadNode, seconds: float, speedup: float) -> None:
 def fly(kind: str, rate: float, speedup: float, state: Path, sample_s: float) -> dict[str, Any]:
     ap = start_autopilot(kind, state, speedup, record="SET_POSITION_TARGET_LOCAL_NED")
     tap = ap.tap
-    node = QuadNode(ap.companion_url, rate_hz=rate)
+    companion = build_companion(CompanionConfig(ap.companion_url, rate_hz=rate, behaviors=False,
+                                                control_port=None))
+    node = companion.node
     streamed: list[tuple[float, Any]] = []  # (autopilot time, setpoint)
     node.setpoint_listeners.append(lambda sp, f, t: streamed.append((t, sp)))
     out: dict[str, Any] = {}
     try:
-        node.start()
+        companion.start()
         w = 30 + 3 * 60 / speedup
         wait_for(lambda: node.link.mirror.snapshot().position is not None, w, "telemetry")
         node.add_command(
@@ -105,7 +108,7 @@ def fly(kind: str, rate: float, speedup: float, state: Path, sample_s: float) ->
         sim_wait(node, 2.0, speedup)
         out["track"] = recorder.tracking()
     finally:
-        node.close()
+        companion.close()
         ap.close()
     return out
 

@@ -1,4 +1,4 @@
-"""Bench: delegation time for a 100-node tree (issue 10, seed 000 Sec. III-A).
+"""Bench: delegation time for a 100-node tree (seed 000 Sec. III-A).
 
 The constraint check of delegation (:mod:`companion.tst.constraints`) on a synthetic Task Specification
 Tree: a sequence node (S) with 99 leaves alternating *fly-to* and *scan-ground* (100 nodes). Each leaf

@@ -1,4 +1,4 @@
-"""The ground service under a fleet of 100 (issue 12 bench): REST latency, WebSocket snapshot latency, CPU.
+"""The ground service under a fleet of 100: REST latency, WebSocket snapshot latency, CPU.
 
 ``taskflight ground`` runs as its own process on a real multicast team link; this script feeds that link
 with N members' rows at 10 Hz (the team wire format of seed 003 Sec. III-A, each member's own row as it

@@ -1,4 +1,4 @@
-"""Bench: the true horizontal speed in an outdoor (GPS) hover, beside the square's tracking (issue 8 item 10).
+"""Bench: the true horizontal speed in an outdoor (GPS) hover, beside the square's tracking.
 
 The vehicle takes off to 10 m with the outdoor profile of :mod:`bench.bench_tracking` (GPS-grade position:
 10 Hz, 0.1 s latency, metre-level correlated error; 3.6 m/s wind, gusts up to 3 m/s), settles 5 s and

@@ -1,4 +1,4 @@
-"""Bench (b) of issue 2: lockstep speed, simulated seconds per wall second, one vehicle at 500 Hz.
+"""Bench (b): lockstep speed, simulated seconds per wall second, one vehicle at 500 Hz.
 
 Runs the model as fast as it can (speedup 0) on one core through a hover and the 50 m square, and
 prints the ratio with the mean wall cost of an iteration and of each task group.
@@ -6,7 +6,7 @@ prints the ratio with the mean wall cost of an iteration and of each task group.
 With ``TASKFLIGHT_ARDUCOPTER`` set (or ``--arducopter``), ArduPilot's own copter SITL runs in the same
 run at its highest speed-up (``--speedup 10000``: as fast as it goes) and is measured the same way:
 simulated seconds per wall second from the ``time_boot_ms`` of its SYSTEM_TIME, on the ground and
-hovering at 10 m in GUIDED (issue 8: the model's lockstep speed beside ArduCopter's top speed).
+hovering at 10 m in GUIDED (the model's lockstep speed beside ArduCopter's top speed).
 
     python -m bench.bench_lockstep [--seconds 120] [--arducopter]
 """

@@ -1,4 +1,4 @@
-"""Bench: tracking on the reproduction of seed 000 Fig. 16 (issue 10), the scan-and-search flight.
+"""Bench: tracking on the reproduction of seed 000 Fig. 16, the scan-and-search flight.
 
 Runs :func:`taskflight.fig16.reproduce` (the bundled model with the indoor sensor profile in its own
 process, the companion with its behavior and mission layers, two operator break-ins) ``--runs`` times

@@ -1,4 +1,4 @@
-"""Bench (a) of issue 2: the model in real-time mode, 500 Hz main loop, for 60 s of wall time.
+"""Bench (a): the model in real-time mode, 500 Hz main loop, for 60 s of wall time.
 
 Flies take-off, a 20 m square and a hover while paced on the wall clock, then prints per task group the
 call frequency and its standard deviation (seed 002 Table 2), the duty time average/min/max over

@@ -1,4 +1,4 @@
-"""Bench (c) of issue 2: tracking error of the true position against P_d on the 50 m square at 5 m/s.
+"""Bench (c): tracking error of the true position against P_d on the 50 m square at 5 m/s.
 
 Two disturbance profiles, both with gusts and sensor noise on, the estimator (not the truth) in the loop:
 

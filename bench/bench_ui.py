@@ -1,4 +1,4 @@
-"""The web UI with 12 vehicles (issue 13 "Done means"): the map's update rate and frame time, measured in the
+"""The web UI with 12 vehicles: the map's update rate and frame time, measured in the
 browser.
 
 ``taskflight ground`` runs as its own process on a real multicast team link fed with N members' rows at

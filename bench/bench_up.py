@@ -1,4 +1,4 @@
-"""Bench: ``taskflight up`` for N = 3, 12 and 50 vehicles (issue 12 item 8, "Done means").
+"""Bench: ``taskflight up`` for N = 3, 12 and 50 vehicles.
 
 Each configuration starts a fleet as ``taskflight up`` does (:class:`taskflight.up.Up`, in this process:
 the models in one process, one companion process per vehicle on one team link, the ground service when

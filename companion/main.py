@@ -3,7 +3,7 @@
 ``taskflight companion --autopilot URL [--rate HZ] [--control-port P]`` connects to the autopilot
 (``udpout:127.0.0.1:14550`` for the bundled model or ArduPilot SITL, ``serial:/dev/ttyACM0:921600``
 for a flight controller), streams setpoints at ``--rate`` Hz of autopilot time and serves the QAPI
-over HTTP on ``--control-host`` (default ``127.0.0.1``) port P (see :mod:`companion.control`).
+over HTTP on ``--control-host`` (default ``127.0.0.1``) port P (see :mod:`companion.http`).
 ``--control-token`` (default: the environment variable ``TASKFLIGHT_CONTROL_TOKEN``, which other
 users cannot read from the process list) makes every endpoint require ``Authorization: Bearer
 <token>``; serving on a non-loopback host without one logs a warning. ``--max-validity S`` caps the
@@ -11,6 +11,10 @@ validity of external-data samples. ``--commands FILE`` queues a YAML list of fli
 start; ``--run`` starts executing them. ``--team URL`` joins a team (seed 003;
 :mod:`companion.team.join`): the vehicle shares its state on the team link and flies the team tasks the
 allocation gives it.
+
+The options become a :class:`~companion.builder.CompanionConfig` (:func:`config_from_args`: every file is
+read and checked here, a bad one exits with status 2) and :func:`~companion.builder.build_companion` makes
+the companion, as for every other user of a companion.
 """
 
 from __future__ import annotations
@@ -18,14 +22,16 @@ from __future__ import annotations
 import argparse
 import logging
 import os
-from typing import Any
+from typing import TYPE_CHECKING
 
 from taskflight_common.runtime import freeze_startup_heap, stop_on_signals
+from taskflight_common.tokens import TOKEN_ENV
+from taskflight_common.yamlio import ConfigError
+
+if TYPE_CHECKING:
+    from companion.builder import CompanionConfig
 
 log = logging.getLogger(__name__)
-
-#: where ``--control-token`` defaults from (same as :data:`companion.control.TOKEN_ENV`)
-TOKEN_ENV = "TASKFLIGHT_CONTROL_TOKEN"
 
 
 def add_companion_arguments(parser: argparse.ArgumentParser) -> None:
@@ -41,7 +47,7 @@ def add_companion_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--control-token", default=None, metavar="TOKEN",
                         help="require 'Authorization: Bearer TOKEN' on the control surface (default: "
                              f"${TOKEN_ENV} if set, else no authentication)")
-    # default None, resolved in run_companion: building the parser stays free of the flight layer's imports
+    # default None, resolved in config_from_args: building the parser stays free of the companion's imports
     parser.add_argument("--max-validity", type=float, default=None, metavar="S",
                         help="longest validity (s) an external-data sample may claim (default: "
                              "companion.flight.external.DEFAULT_MAX_VALIDITY_S)")
@@ -86,119 +92,59 @@ def control_token(args: argparse.Namespace) -> str | None:
     return token if token and token.strip() else None
 
 
-def run_companion(args: argparse.Namespace) -> int:
-    """Run until SIGINT/SIGTERM; returns the exit status (2 for bad options or files)."""
+def config_from_args(args: argparse.Namespace) -> CompanionConfig:
+    """The companion ``taskflight companion``'s options describe, every file read and checked
+    (:class:`ConfigError`, ValueError or OSError naming what is wrong)."""
+    # imported here, not at the top: every ``taskflight`` command builds this module's parser, and the
+    # companion's stack (pymavlink, FastAPI, scipy) takes seconds to import
     from companion.behaviors.catalog import load_catalog as load_behavior_catalog
-    from companion.behaviors.system import ExecutiveLayer
-    from companion.control import ControlServer
+    from companion.builder import CompanionConfig
     from companion.flight import load_catalog, load_commands, load_flight_config
     from companion.flight.external import DEFAULT_MAX_VALIDITY_S
-    from companion.mission_service import MissionService
-    from companion.node import QuadNode
     from companion.sensing.scenario import Scenario
     from companion.tst.platform import load_platform
     from companion.tst.spec import load_mission
-    from taskflight_common.yamlio import ConfigError
+
+    limits, envelope = load_flight_config(args.flight_config) if args.flight_config else (None, None)
+    return CompanionConfig(
+        autopilot=args.autopilot, rate_hz=args.rate, baud=args.baud, source_system=args.source_system,
+        max_validity_s=DEFAULT_MAX_VALIDITY_S if args.max_validity is None else args.max_validity,
+        limits=limits, envelope=envelope,
+        pause_routines=load_catalog(args.pause_routines) if args.pause_routines else None,
+        commands=tuple(load_commands(args.commands)) if args.commands else (),
+        behaviors=not args.no_behaviors,
+        behavior_catalog=None if args.no_behaviors else load_behavior_catalog(
+            *([args.behavior_catalog] if args.behavior_catalog else [])),
+        behavior_log=args.behavior_log,
+        platform=load_platform(args.platform) if args.platform else None,
+        scenario=Scenario.load(args.scenario) if args.scenario else None,
+        mission=load_mission(args.mission) if args.mission else None, start_mission=args.start,
+        team=args.team, team_policy=args.team_policy, name=args.name,
+        flight_log=args.flight_log, run=args.run,
+        control_port=args.control_port if args.control_port >= 0 else None,
+        control_host=args.control_host, control_token=control_token(args))
+
+
+def run_companion(args: argparse.Namespace) -> int:
+    """Run until SIGINT/SIGTERM; returns the exit status (2 for bad options or files)."""
+    from companion.builder import MissionRejectedError, build_companion  # start-up cost: see config_from_args
 
     try:
-        limits, envelope = load_flight_config(args.flight_config) if args.flight_config else (None, None)
-        catalog = load_catalog(args.pause_routines) if args.pause_routines else None
-        commands = load_commands(args.commands) if args.commands else []
-        behavior_catalog = None if args.no_behaviors else load_behavior_catalog(
-            *([args.behavior_catalog] if args.behavior_catalog else []))
-        platform = load_platform(args.platform) if args.platform else None
-        scenario = Scenario.load(args.scenario) if args.scenario else None
-        mission = load_mission(args.mission) if args.mission else None
-        if mission is not None and behavior_catalog is None:
-            raise ValueError("--mission needs the executive layer (drop --no-behaviors)")
-        if args.team and behavior_catalog is None:
-            raise ValueError("--team needs the executive layer (drop --no-behaviors)")
-        if args.team:
-            from companion.team.transport import open_transport
-
-            # a bad URL fails here, before anything flies
-            open_transport(args.team, member=0, position_of=lambda m: None).close()
-        node = QuadNode(args.autopilot, rate_hz=args.rate, limits=limits, envelope=envelope, catalog=catalog,
-                        baud=args.baud, source_system=args.source_system,
-                        max_validity_s=(DEFAULT_MAX_VALIDITY_S if args.max_validity is None
-                                        else args.max_validity))
+        companion = build_companion(config_from_args(args))
     except (ConfigError, ValueError, OSError) as exc:
         log.error("%s", exc)
         return 2
     stop = stop_on_signals()
-    server = None
-    layer = None
-    recorder = None
-    missions = None
-    member = None
     try:
-        if args.flight_log:
-            from companion.flightlog import FlightRecorder
-
-            recorder = FlightRecorder(node, args.flight_log)  # the execution system sets .active_node
-        node.start()
-        if behavior_catalog is not None:
-            layer = ExecutiveLayer.for_node(node, catalog=behavior_catalog, log_path=args.behavior_log,
-                                            scenario=scenario).start()
-            missions = MissionService(node, layer, platform, recorder=recorder)
-            if mission is not None and not _fly_mission(missions, mission, args.start, stop):
-                return 1
-            if args.team:
-                member = _join(missions, args, stop)
-        node.add_commands(commands)
-        if args.run:
-            node.run()
-        if args.control_port >= 0:
-            server = ControlServer(node, args.control_port, host=args.control_host,
-                                   token=control_token(args), behaviors=layer, missions=missions,
-                                   team=member).start()
-            log.info("companion: autopilot %s, %g Hz, control %s", args.autopilot, args.rate, server.url)
+        companion.start(stop)
         freeze_startup_heap("companion")
         while not stop.wait(0.5):
             pass
+    except MissionRejectedError:
+        return 1
     except (OSError, RuntimeError) as exc:
         log.error("%s", exc)
         return 1
     finally:
-        if server is not None:
-            server.close()
-        if member is not None:
-            member.close()
-        if missions is not None:
-            missions.close()
-        if layer is not None:
-            layer.close()
-        node.close()
-        if recorder is not None:
-            recorder.close()
+        companion.close()
     return 0
-
-
-def _join(missions: Any, args: argparse.Namespace, stop: Any) -> Any:
-    """Join the team once the autopilot is heard (the member id is its system id)."""
-    from companion.team.join import join_team
-
-    link = missions.node.link
-    while link.target_system is None:
-        if stop.wait(0.2):
-            return None
-    member = join_team(missions, args.team, link.target_system, policy=args.team_policy, name=args.name)
-    log.info("team %s: member %d (%s), policy %s", args.team, member.id, member.name, args.team_policy)
-    return member
-
-
-def _fly_mission(missions: Any, mission: Any, start: bool, stop: Any) -> bool:
-    """Delegate ``mission`` once the vehicle's home is known; start it if asked. False if rejected."""
-    while missions.node.link.mirror.snapshot().home is None or not missions.layer.coordinator.is_active(
-            "SELF_LOCALIZE"):
-        if stop.wait(0.2):
-            return True
-    result = missions.submit(mission)
-    if not result.accepted:
-        for reason in result.reasons:
-            log.error("mission rejected: %s", reason)
-        return False
-    log.info("mission %s accepted: %d nodes, %d waypoints", mission.name, len(result.plans), result.waypoints)
-    if start:
-        missions.start()
-    return True

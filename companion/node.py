@@ -41,6 +41,8 @@ from companion.flight import (
 from companion.flight.external import DEFAULT_MAX_VALIDITY_S
 from companion.link import AutopilotClock, GuidedSupervisor, MavlinkLink, Phase
 from companion.link.mirror import MirrorState
+from companion.link.params import ParamClient as AutopilotParams
+from companion.link.params import ParamError as ParamError  # re-exported: upper layers read no link module
 from companion.link.rc import RcMapping, rc_velocity
 from companion.link.setpoints import TargetFields
 
@@ -173,6 +175,10 @@ class QuadNode:
 
     def qapi_status(self) -> QueueStatus:
         return self.queue.status()
+
+    def param_client(self) -> AutopilotParams:
+        """A new client of the autopilot's parameters over this node's link (read; set with read-back)."""
+        return AutopilotParams(self.link)
 
     def status(self) -> dict[str, Any]:
         """QAPI status plus what the node, the link and the vehicle are doing."""

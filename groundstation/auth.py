@@ -1,10 +1,11 @@
-"""Who may do what on the ground service (issue 12 item 7): bearer tokens with two roles.
+"""Who may do what on the ground service: bearer tokens with two roles.
 
 * ``operator``: everything (seed 003 Fig. 1: the one person who runs the team);
 * ``observer``: read and the live stream only; a command answers 403 (and is audited).
 
-Tokens come from a YAML file ``{operator: [tokens], observer: [tokens]}`` or are generated at start
-(:func:`generate`) and printed. A token's name in the audit log is its role and a short fingerprint
+Tokens come from a YAML file ``{operator: [tokens], observer: [tokens]}``
+(:func:`taskflight_common.tokens.load_tokens`, the same rules as ``taskflight up``) or are generated at
+start (:func:`generate`) and printed. A token's name in the audit log is its role and a short fingerprint
 (the token itself is never written).
 """
 
@@ -17,9 +18,9 @@ from pathlib import Path
 
 import yaml
 
-from taskflight_common.tokens import role_tokens
+from taskflight_common.tokens import ROLES, check_tokens, load_tokens, role_tokens
 
-ROLES = ("operator", "observer")
+__all__ = ["ROLES", "Principal", "Tokens", "fingerprint"]
 
 
 @dataclass(frozen=True)
@@ -42,32 +43,12 @@ class Tokens:
     """The accepted tokens by role; :meth:`check` is constant-time per token."""
 
     def __init__(self, by_role: dict[str, list[str]]) -> None:
-        self.by_role: dict[str, list[str]] = {}
-        for role, tokens in by_role.items():
-            if role not in ROLES:
-                raise ValueError(f"tokens: unknown role {role!r} (roles: {', '.join(ROLES)})")
-            if not isinstance(tokens, list) or not all(isinstance(t, str) and t.strip() for t in tokens):
-                raise ValueError(f"tokens.{role}: expected a list of non-empty strings")
-            self.by_role[role] = [t.strip() for t in tokens]
-        if not self.by_role.get("operator"):
-            raise ValueError("tokens.operator: at least one operator token is needed")
-        seen: set[str] = set()
-        for tokens in self.by_role.values():
-            for t in tokens:
-                if t in seen:
-                    raise ValueError("tokens: a token is listed twice")
-                seen.add(t)
+        self.by_role: dict[str, list[str]] = {r: t for r, t in check_tokens(by_role).items() if t}
 
     @classmethod
     def load(cls, path: str | Path) -> Tokens:
-        """From a YAML file ``{operator: [...], observer: [...]}`` (ValueError naming what is wrong)."""
-        try:
-            data = yaml.safe_load(Path(path).read_text())
-        except (OSError, yaml.YAMLError) as exc:
-            raise ValueError(f"tokens file {path}: {exc}") from exc
-        if not isinstance(data, dict):
-            raise ValueError(f"tokens file {path}: expected a mapping {{operator: [...], observer: [...]}}")
-        return cls({str(k): v for k, v in data.items()})
+        """From a YAML file ``{operator: [...], observer: [...]}`` (ValueError: file, line and field)."""
+        return cls(load_tokens(path))
 
     @classmethod
     def generate(cls) -> Tokens:
@@ -88,10 +69,3 @@ class Tokens:
     def to_yaml(self) -> str:
         return yaml.safe_dump(self.by_role, sort_keys=False)
 
-
-def bearer(header: str | None) -> str | None:
-    """The token of an ``Authorization: Bearer <token>`` header (None if absent or another scheme)."""
-    if not header:
-        return None
-    scheme, _, credentials = header.strip().partition(" ")
-    return credentials.strip() or None if scheme.lower() == "bearer" else None

@@ -3,7 +3,7 @@
 Seed 003 Sec. II: the Process Monitor "allows the user to send high-level commands to individual
 processes ... If the Team Control interface fails or enters an unsafe command, it can be overridden by
 sending task commands to individual aircraft through the Process Monitor." Each vehicle's companion
-serves an HTTP control surface (:mod:`companion.control`); :class:`CompanionClient` calls it with the
+serves an HTTP control surface (:mod:`companion.http`); :class:`CompanionClient` calls it with the
 service's bearer token and turns what can go wrong into :class:`ApiError` s: no such vehicle 404, no
 control URL 409, the companion unreachable 502, no answer in time 504, its own refusals passed on.
 """
@@ -15,7 +15,11 @@ from typing import Any
 
 import httpx
 
+from taskflight_common.httpapi import ApiError
+
 log = logging.getLogger(__name__)
+
+__all__ = ["VERBS", "ApiError", "CompanionClient"]
 
 #: the operator's verbs -> (method, companion path, default body)
 VERBS: dict[str, tuple[str, str, Any]] = {
@@ -29,19 +33,6 @@ VERBS: dict[str, tuple[str, str, Any]] = {
     "abort": ("POST", "/mission/abort", None),
     "land": ("POST", "/behaviors/activate", {"text": "LAND", "requester": "operator"}),
 }
-
-
-class ApiError(Exception):
-    """A refusal: HTTP status, message and extra fields of the error answer."""
-
-    def __init__(self, status: int, message: str, **extra: Any) -> None:
-        super().__init__(message)
-        self.status = status
-        self.message = message
-        self.extra = {k: v for k, v in extra.items() if v is not None}
-
-    def body(self) -> dict[str, Any]:
-        return {"error": self.message, **self.extra}
 
 
 class CompanionClient:

@@ -1,4 +1,4 @@
-"""The ground service's database (issue 12 item 6): everything the operator said and the team did.
+"""The ground service's database: everything the operator said and the team did.
 
 Seed 000 Sec. VII and seed 003 Sec. II give the operator the team's tasks and the vehicles' missions;
 killed and restarted, the ground service must lose none of it. One SQLite file in WAL mode (the

@@ -1,4 +1,4 @@
-"""The live model of the fleet (issue 12 item 2; seed 003 Sec. II, Fig. 1).
+"""The live model of the fleet (seed 003 Sec. II, Fig. 1).
 
 Two sources per vehicle, as in seed 003's interface hierarchy:
 
@@ -256,7 +256,7 @@ class Fleet:
             team_state = "gone"
         else:
             team_state = "available" if row.status.available else "taken"
-        mission = {"state": None, "node": None, "progress": None}
+        mission: dict[str, Any] = {"state": None, "node": None, "progress": None}
         if p is not None and p.mission:
             m = p.mission
             mission = {"state": m.get("state"), "node": m.get("active_node"),

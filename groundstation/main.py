@@ -1,4 +1,4 @@
-"""``taskflight ground``: the ground service (issue 12 item 1).
+"""``taskflight ground``: the ground service.
 
 ``taskflight ground [--team URL] [--db FILE] [--host H --port P] [--tokens FILE] [--companion ID=URL ...]
 [--companion-token T]``. Without ``--tokens`` an operator and an observer token are generated and
@@ -15,11 +15,11 @@ import os
 import sys
 
 from taskflight_common.runtime import freeze_startup_heap
+from taskflight_common.tokens import TOKEN_ENV
 
 log = logging.getLogger(__name__)
 
 DEFAULT_TEAM = "udp://239.255.70.1:14600"
-TOKEN_ENV = "TASKFLIGHT_CONTROL_TOKEN"
 
 
 def add_ground_arguments(parser: argparse.ArgumentParser) -> None:

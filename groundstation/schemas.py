@@ -1,4 +1,4 @@
-"""The ground service's request and answer models (issue 12 items 2-5): the OpenAPI document.
+"""The ground service's request and answer models: the OpenAPI document.
 
 Positions are ``[lat, lon]`` or ``[lat, lon, alt]`` (degrees, metres above the vehicles' home), the
 frame the operator gives team tasks in (seed 003 Sec. II). Every refusal answers :class:`ErrorAnswer`.
@@ -172,7 +172,7 @@ class PauseRequest(_Strict):
 
 
 class TakeRequest(_Strict):
-    reason: str = Field("operator", max_length=200)
+    reason: str = Field(default="operator", max_length=200)
 
 
 class CommandAnswer(BaseModel):

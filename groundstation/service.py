@@ -1,4 +1,4 @@
-"""The ground service's core (issue 12): the team-control station, the fleet, the database, the events.
+"""The ground service's core: the team-control station, the fleet, the database, the events.
 
 Seed 003 Fig. 1: the operator commands the team by task through the Team Control interface (the
 station of :mod:`companion.team.station`, the one writer of the task board) and single vehicles through

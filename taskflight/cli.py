@@ -10,7 +10,7 @@ import logging
 import sys
 from collections.abc import Callable, Sequence
 
-from taskflight_common.runtime import die_with_parent
+from taskflight_common.runtime import die_with_parent, setup_logging
 
 
 def _cmd_autopilot(args: argparse.Namespace) -> int:
@@ -146,21 +146,16 @@ def build_parser() -> argparse.ArgumentParser:
     handlers: dict[str, Callable[[argparse.Namespace], int]] = {}
 
     ap = sub.add_parser("autopilot", help="run one simulated vehicle (the bundled autopilot model)")
-    try:
-        from autopilot_model.sitl import add_autopilot_arguments
-    except ImportError:  # the MAVLink side is optional at import time
-        from autopilot_model.demo import add_model_arguments as add_autopilot_arguments
+    from autopilot_model.sitl import add_autopilot_arguments
+
     add_autopilot_arguments(ap)
     handlers["autopilot"] = _cmd_autopilot
-    try:
-        from autopilot_model.fleet import add_fleet_arguments
-    except ImportError:
-        add_fleet_arguments = None
-    if add_fleet_arguments is not None:
-        fp = sub.add_parser("fleet", help="run N simulated vehicles in one process on one clock "
-                                          "(system ids 1..N, ports 5760+10i and 14550+10i)")
-        add_fleet_arguments(fp)
-        handlers["fleet"] = _cmd_fleet
+    fp = sub.add_parser("fleet", help="run N simulated vehicles in one process on one clock "
+                                      "(system ids 1..N, ports 5760+10i and 14550+10i)")
+    from autopilot_model.fleet import add_fleet_arguments
+
+    add_fleet_arguments(fp)
+    handlers["fleet"] = _cmd_fleet
 
     dp = sub.add_parser("demo", help="a demonstration flight on embedded defaults (model + companion)")
     from taskflight.demo import add_demo_arguments
@@ -182,14 +177,11 @@ def build_parser() -> argparse.ArgumentParser:
     add_up_arguments(upp)
     handlers["up"] = _cmd_up
 
-    try:
-        from companion.main import add_companion_arguments
-    except ImportError:
-        add_companion_arguments = None
-    if add_companion_arguments is not None:
-        cp = sub.add_parser("companion", help="run the companion for one vehicle")
-        add_companion_arguments(cp)
-        handlers["companion"] = _cmd_companion
+    cp = sub.add_parser("companion", help="run the companion for one vehicle")
+    from companion.main import add_companion_arguments
+
+    add_companion_arguments(cp)
+    handlers["companion"] = _cmd_companion
 
     bp = sub.add_parser("behaviors", help="the executive layer: behaviors, beliefs, processes (seed 001)")
     add_behaviors_arguments(bp)
@@ -218,8 +210,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     die_with_parent()  # a child of taskflight up stops when it dies
-    level = logging.WARNING - 10 * min(args.verbose, 2) if args.verbose else logging.INFO
-    logging.basicConfig(level=level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+    setup_logging(args.verbose, quiet_level=logging.INFO)
     try:
         return args._handlers[args.command](args)
     except KeyboardInterrupt:

@@ -117,9 +117,8 @@ def _sigterm_as_interrupt() -> Iterator[None]:
 
 def _run_stack_demo(args: argparse.Namespace) -> int:
     from companion.behaviors.catalog import load_catalog as load_behavior_catalog
-    from companion.behaviors.system import ExecutiveLayer
+    from companion.builder import CompanionConfig, build_companion
     from companion.flight.codec import load_commands
-    from companion.node import QuadNode
     from taskflight.demo_behaviors import BEHAVIORS_DEMO, fly_behaviors, load_activations
     from taskflight.sitlproc import ModelProcess
     from taskflight_common.yamlio import ConfigError
@@ -153,15 +152,17 @@ def _run_stack_demo(args: argparse.Namespace) -> int:
             return 2
         try:
             log.info("demo: autopilot model running (pid %s): %s", model.pid, model.ready_line)
-            node = QuadNode(f"udpout:127.0.0.1:{port}", rate_hz=20.0)
+            companion = build_companion(CompanionConfig(
+                f"udpout:127.0.0.1:{port}", rate_hz=20.0, behaviors=mission is not None,
+                behavior_catalog=catalog if mission is not None else None,
+                behavior_log=Path(state) / "behaviors.jsonl" if mission is not None else None,
+                missions=False, control_port=None))
+            node, layer = companion.node, companion.layer
             recorder = StreamRecorder(node)
             t_wall = time.perf_counter()
-            layer = None
             try:
-                node.start()
-                if mission is not None:
-                    layer = ExecutiveLayer.for_node(node, catalog=catalog,
-                                                    log_path=Path(state) / "behaviors.jsonl").start()
+                companion.start()
+                if layer is not None:
                     deadline = time.monotonic() + args.timeout / speedup + 30
                     ok, behavior_lines = fly_behaviors(layer, texts, deadline, lambda: not model.running)
                     ok = ok and _wait_landed(node, time.monotonic() + 60 / speedup + 10)
@@ -172,9 +173,7 @@ def _run_stack_demo(args: argparse.Namespace) -> int:
                 else:
                     ok = _fly(node, commands, args.timeout, speedup, lambda: model.running)
             finally:
-                if layer is not None:
-                    layer.close()
-                node.close()
+                companion.close()
             wall = time.perf_counter() - t_wall
         finally:
             model.stop()  # also on Ctrl-C / SIGTERM (KeyboardInterrupt) and errors

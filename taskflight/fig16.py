@@ -66,10 +66,7 @@ def reproduce(out_dir: str | Path | None = None, speedup: float = 5.0, mission: 
     """Fly the reproduction; ``node_hook(node)`` is called before the node starts (tests attach taps)."""
     from argparse import Namespace
 
-    from companion.behaviors.system import ExecutiveLayer
-    from companion.flightlog import FlightRecorder
-    from companion.mission_service import MissionService
-    from companion.node import QuadNode
+    from companion.builder import CompanionConfig, build_companion
     from companion.tst.platform import bundled_platform
     from companion.tst.spec import load_mission
     from taskflight.demo import _free_udp_port, _model_arguments, _ready
@@ -85,15 +82,15 @@ def reproduce(out_dir: str | Path | None = None, speedup: float = 5.0, mission: 
     with tempfile.TemporaryDirectory(prefix="taskflight-fig16-model-") as state:
         model = ModelProcess(_model_arguments(args, state, port, speedup))
         model.start()
-        node = QuadNode(f"udpout:127.0.0.1:{port}", rate_hz=20.0)
+        companion = build_companion(CompanionConfig(
+            f"udpout:127.0.0.1:{port}", rate_hz=20.0, behavior_log=out / "behaviors.jsonl",
+            platform=bundled_platform("indoor"), flight_log=result.log_path, control_port=None))
+        node, layer, missions = companion.node, companion.layer, companion.missions
+        assert layer is not None and missions is not None
         if node_hook is not None:
             node_hook(node)
-        recorder = FlightRecorder(node, result.log_path)
-        layer = missions = None
         try:
-            node.start()
-            layer = ExecutiveLayer.for_node(node, log_path=out / "behaviors.jsonl").start()
-            missions = MissionService(node, layer, bundled_platform("indoor"), recorder=recorder)
+            companion.start()
             wall = _WallDeadline(timeout_s / speedup + 60.0, model)
             wall.wait(lambda: _ready(node.link.mirror.snapshot()) and node.clock.synced
                       and node.link.mirror.snapshot().home is not None
@@ -117,12 +114,7 @@ def reproduce(out_dir: str | Path | None = None, speedup: float = 5.0, mission: 
         except (TimeoutError, RuntimeError) as exc:
             result.problems.append(str(exc))
         finally:
-            if missions is not None:
-                missions.close()
-            if layer is not None:
-                layer.close()
-            node.close()
-            recorder.close()
+            companion.close()
             model.stop()
     result.wall_s = time.perf_counter() - t_wall
     _report(result)
@@ -144,6 +136,16 @@ class _WallDeadline:
             time.sleep(0.01)
 
 
+def _at_waypoint(missions: Any, scan_id: str, at: int) -> Callable[[], bool]:
+    """True once the scan reached waypoint ``at`` or the mission ended."""
+    return lambda: _scan_waypoint(missions, scan_id) >= at or not missions.execution.running
+
+
+def _at_time(node: Any, t: float) -> Callable[[], bool]:
+    """True once the autopilot's clock reached ``t``."""
+    return lambda: bool(node.clock.now() >= t)
+
+
 def _scan_waypoint(missions: Any, scan_id: str) -> int:
     run = missions.execution.runs.get(scan_id)
     return int(run.progress().get("waypoint", 0)) if run is not None and not run.finished else 0
@@ -153,8 +155,7 @@ def _operator(node: Any, missions: Any, scan_id: str, break_ins: tuple[BreakIn, 
               result: Fig16Result) -> None:
     """The scripted operator: each break-in at its waypoint, the joystick, then continue or enough."""
     for b in break_ins:
-        wall.wait(lambda b=b: _scan_waypoint(missions, scan_id) >= b.at or not missions.execution.running,
-                  f"scan waypoint {b.at}")
+        wall.wait(_at_waypoint(missions, scan_id, b.at), f"scan waypoint {b.at}")
         if not missions.execution.running:
             result.problems.append(f"the mission ended before the break-in at waypoint {b.at}")
             return
@@ -164,7 +165,7 @@ def _operator(node: Any, missions: Any, scan_id: str, break_ins: tuple[BreakIn, 
         while node.clock.now() < end:  # the operator's stick at 10 Hz of autopilot time
             node.push_external("ext_vel", (*b.velocity, 0.0), 0.5)
             t = node.clock.now() + 0.1
-            wall.wait(lambda t=t: node.clock.now() >= t, "the joystick's next sample")
+            wall.wait(_at_time(node, t), "the joystick's next sample")
         node.push_external("ext_vel", (0.0, 0.0, 0.0, 0.0), 0.5)
         if b.then == "continue":
             missions.continue_()

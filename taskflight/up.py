@@ -1,4 +1,4 @@
-"""``taskflight up``: a whole simulated fleet in one command (issue 12 item 8; seed 003 Fig. 1).
+"""``taskflight up``: a whole simulated fleet in one command (seed 003 Fig. 1).
 
     taskflight up --vehicles N [--speedup K] [--ground-port P] [--tokens FILE] [--team-loss F]
                   [--team URL] [--state-dir DIR] [--base-instance I] [--no-ground]
@@ -49,7 +49,8 @@ from mission_specs import bundled
 from taskflight.children import Child, first_dead, stop_all
 from taskflight_common.geo import ned_to_geodetic
 from taskflight_common.ports import free_ports, model_ports, port_free
-from taskflight_common.tokens import new_token, role_tokens
+from taskflight_common.tokens import TOKEN_ENV, load_tokens, new_token, role_tokens
+from taskflight_common.yamlio import ConfigError
 
 log = logging.getLogger(__name__)
 
@@ -57,7 +58,6 @@ ROOT = Path(__file__).resolve().parents[1]
 PLATFORM = bundled("platform_outdoor.yaml")
 TEAM_GROUP = "239.255.70.1"
 DEFAULT_GROUND_PORT = 8700
-TOKEN_ENV = "TASKFLIGHT_CONTROL_TOKEN"
 
 
 class UpError(RuntimeError):
@@ -79,23 +79,12 @@ def free_team_url() -> str:
 
 
 # --- tokens ------------------------------------------------------------------------------------------
-def load_tokens(path: Path) -> dict[str, list[str]]:
-    """The tokens file: YAML ``{operator: [tokens], observer: [tokens]}`` (at least one operator)."""
+def read_tokens(path: Path) -> dict[str, list[str]]:
+    """The tokens file (:func:`taskflight_common.tokens.load_tokens`); UpError status 2 if it is wrong."""
     try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except (OSError, yaml.YAMLError) as exc:
-        raise UpError(f"tokens file {path}: {exc}", 2) from None
-    if not isinstance(data, dict) or not set(data) <= {"operator", "observer"}:
-        raise UpError(f"tokens file {path}: expected a mapping with keys operator and observer", 2)
-    out: dict[str, list[str]] = {}
-    for role in ("operator", "observer"):
-        tokens = data.get(role) or []
-        if not isinstance(tokens, list) or not all(isinstance(t, str) and t.strip() for t in tokens):
-            raise UpError(f"tokens file {path}: {role} must be a list of non-empty strings", 2)
-        out[role] = list(tokens)
-    if not out["operator"]:
-        raise UpError(f"tokens file {path}: no operator token", 2)
-    return out
+        return load_tokens(path)
+    except ConfigError as exc:
+        raise UpError(str(exc), 2) from None
 
 
 def write_tokens(path: Path, tokens: dict[str, list[str]]) -> None:
@@ -240,7 +229,7 @@ class Up:
                 raise UpError(f"--team: {exc}", 2) from None
         o.state_dir.mkdir(parents=True, exist_ok=True)
         if o.tokens_file is not None:
-            self.tokens = load_tokens(o.tokens_file)
+            self.tokens = read_tokens(o.tokens_file)
             self.tokens_path = o.tokens_file
         else:
             self.tokens = role_tokens()

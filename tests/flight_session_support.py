@@ -20,11 +20,8 @@ from companion_support import cmd
 from mavlink_support import GUIDED, wait_for
 from mavlink_support import wall as _wall
 
-from companion.behaviors.system import ExecutiveLayer
-from companion.control import ControlServer
+from companion.builder import CompanionConfig, build_companion
 from companion.flight import Envelope, EventKind, Setpoint
-from companion.mission_service import MissionService
-from companion.node import QuadNode
 from companion.tst.platform import bundled_platform
 
 TAKEOFF = {"vertical": {"mode": "POS", "altitude": 5, "take_off": True}, "end": {"e_v": True}}
@@ -40,22 +37,22 @@ class FlightSession:
         self.ap: Autopilot = start_autopilot(kind, state_dir, speedup)
         self.kind = kind
         self.tap, self.gcs = self.ap.tap, self.ap.gcs
-        self.node = QuadNode(self.ap.companion_url, rate_hz=20.0, envelope=envelope)
-        self.layer: ExecutiveLayer | None = None
+        self.companion = build_companion(CompanionConfig(
+            self.ap.companion_url, rate_hz=20.0, envelope=envelope, behaviors=behaviors or missions,
+            behavior_log=state_dir / "behaviors.jsonl" if behaviors or missions else None, scenario=scenario,
+            missions=missions, platform=bundled_platform("indoor"), control_port=0))
+        self.node = self.companion.node
+        self.layer = self.companion.layer
+        self.missions = self.companion.missions
         self.streamed: list[Setpoint] = []
         self.synced_ticks: list[bool] = []
         self.heard: list[tuple[float, bool, float]] = []  # (autopilot s, armed, altitude) per heartbeat
         self._lock = threading.Lock()
         self.node.setpoint_listeners.append(self._on_setpoint)
         self.node.link.listeners.append(self._on_message)
-        self.node.start()
-        self.missions: MissionService | None = None
-        if behaviors or missions:
-            self.layer = ExecutiveLayer.for_node(self.node, log_path=state_dir / "behaviors.jsonl",
-                                                 scenario=scenario).start()
-        if missions:
-            self.missions = MissionService(self.node, self.layer, bundled_platform("indoor"))
-        self.server = ControlServer(self.node, port=0, behaviors=self.layer, missions=self.missions).start()
+        self.companion.start()
+        assert self.companion.server is not None
+        self.server = self.companion.server
         self.http = httpx.Client(base_url=self.server.url, timeout=10.0)
         try:
             wait_for(lambda: self.node.link.mirror.snapshot().position is not None, self.wall(60),
@@ -164,10 +161,5 @@ class FlightSession:
 
     def close(self) -> None:
         self.http.close()
-        self.server.close()
-        if self.missions is not None:
-            self.missions.close()
-        if self.layer is not None:
-            self.layer.close()
-        self.node.close()
+        self.companion.close()
         self.ap.close()

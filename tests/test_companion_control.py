@@ -1,4 +1,4 @@
-"""The HTTP control surface (companion.control) without an autopilot: real HTTP over loopback.
+"""The HTTP control surface (companion.http) without an autopilot: real HTTP over loopback.
 
 The node is never started (no tick thread, no link): its queue answers the verbs, lists, events and
 external data on its own, which is all the surface needs. Each test gets its own node and server.
@@ -17,12 +17,14 @@ import httpx
 import pytest
 from mavlink_support import free_port, wait_for
 
-import companion.control as control
-from companion.control import ControlServer, create_app
+import companion.http.events as events_api
+from companion.builder import Companion, CompanionConfig, build_companion
 from companion.flight import Envelope, command_from_dict, command_to_dict
 from companion.flight.external import DEFAULT_MAX_VALIDITY_S
+from companion.http import ControlServer, create_app, is_loopback
 from companion.main import add_companion_arguments, control_token
 from companion.node import QuadNode
+from taskflight_common.tokens import TOKEN_ENV
 
 TAKE_OFF = {"vertical": {"mode": "POS", "altitude": 5, "take_off": True}, "end": {"e_v": True}}
 WAIT_1 = {"end": {"e_wait": 1}}
@@ -80,14 +82,26 @@ def assert_error(r: httpx.Response, code: int, text: str = "") -> str:
     return body["error"]
 
 
+#: the companions the tests built, by their node's id (a test serves its node with other hosts and tokens)
+_built: dict[int, Companion] = {}
+
+
 def new_node(**kw: Any) -> QuadNode:
-    return QuadNode(f"udpout:127.0.0.1:{free_port()}", **kw)  # nobody answers; never started
+    companion = build_companion(CompanionConfig(f"udpout:127.0.0.1:{free_port()}", behaviors=False,
+                                                control_port=0, **kw))  # nobody answers; never started
+    _built[id(companion.node)] = companion
+    return companion.node
+
+
+def control_server(node: QuadNode, **kw: Any) -> ControlServer:
+    """A control surface over ``node`` (not started), as the builder makes it."""
+    return _built[id(node)].control_server(**kw)
 
 
 @contextmanager
 def serve(node: QuadNode, token: str | None = None, host: str = "127.0.0.1",
           auth: str | None = None) -> Iterator[tuple[ControlServer, httpx.Client]]:
-    server = ControlServer(node, port=0, host=host, token=token).start()
+    server = control_server(node, host=host, token=token).start()
     headers = {"Authorization": f"Bearer {auth}"} if auth is not None else {}
     try:
         with httpx.Client(base_url=server.url, timeout=10.0, headers=headers) as http:
@@ -283,14 +297,14 @@ def test_events_wait(node: QuadNode, http: httpx.Client) -> None:
 
 
 def test_events_wait_refused_when_too_many_wait(node: QuadNode, monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(control, "MAX_WAITERS", 0)
+    monkeypatch.setattr(events_api, "MAX_WAITERS", 0)
     with serve(node) as (_, http):
         assert_error(http.get("/events/wait", params={"command_id": 1, "timeout_s": 0}), 429, "waiting")
 
 
 def test_close_ends_a_pending_wait(node: QuadNode) -> None:
     answers: list[object] = []
-    server = ControlServer(node, port=0).start()
+    server = control_server(node).start()
 
     def wait() -> None:
         try:
@@ -384,12 +398,13 @@ def test_control_host_any_address_answers_on_loopback(node: QuadNode) -> None:
 
 
 def test_non_loopback_without_token_warns(node: QuadNode, caplog: pytest.LogCaptureFixture) -> None:
-    with caplog.at_level(logging.WARNING, logger="companion.control"):
-        ControlServer(node, port=0, host="127.0.0.1")
-        ControlServer(node, port=0, host="0.0.0.0", token=TOKEN)
-        assert not [r for r in caplog.records if r.name == "companion.control"]
-        ControlServer(node, port=0, host="0.0.0.0")
-    warnings = [r for r in caplog.records if r.name == "companion.control" and r.levelno == logging.WARNING]
+    with caplog.at_level(logging.WARNING, logger="companion.http.server"):
+        control_server(node, host="127.0.0.1")
+        control_server(node, host="0.0.0.0", token=TOKEN)
+        assert not [r for r in caplog.records if r.name == "companion.http.server"]
+        control_server(node, host="0.0.0.0")
+    warnings = [r for r in caplog.records
+                if r.name == "companion.http.server" and r.levelno == logging.WARNING]
     assert len(warnings) == 1 and "without a token" in warnings[0].getMessage()
 
 
@@ -399,8 +414,8 @@ def test_empty_token_refused(node: QuadNode) -> None:
 
 
 def test_loopback_detection() -> None:
-    assert all(control.is_loopback(h) for h in ("127.0.0.1", "127.1.2.3", "::1", "[::1]", "localhost"))
-    assert not any(control.is_loopback(h) for h in ("0.0.0.0", "::", "192.168.1.5", "example.org"))
+    assert all(is_loopback(h) for h in ("127.0.0.1", "127.1.2.3", "::1", "[::1]", "localhost"))
+    assert not any(is_loopback(h) for h in ("0.0.0.0", "::", "192.168.1.5", "example.org"))
 
 
 # --- command line ----------------------------------------------------------------------------------------
@@ -411,16 +426,16 @@ def parse(argv: list[str]) -> argparse.Namespace:
 
 
 def test_cli_control_options(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.delenv(control.TOKEN_ENV, raising=False)
+    monkeypatch.delenv(TOKEN_ENV, raising=False)
     args = parse([])
     assert args.control_host == "127.0.0.1" and control_token(args) is None
     assert args.max_validity is None  # run_companion: DEFAULT_MAX_VALIDITY_S
     args = parse(["--control-host", "0.0.0.0", "--control-token", "abc", "--max-validity", "2.5"])
     assert args.control_host == "0.0.0.0" and control_token(args) == "abc" and args.max_validity == 2.5
-    monkeypatch.setenv(control.TOKEN_ENV, "from-env")
+    monkeypatch.setenv(TOKEN_ENV, "from-env")
     assert control_token(parse([])) == "from-env"
     assert control_token(parse(["--control-token", "abc"])) == "abc"
-    monkeypatch.setenv(control.TOKEN_ENV, "")
+    monkeypatch.setenv(TOKEN_ENV, "")
     assert control_token(parse([])) is None
 
 

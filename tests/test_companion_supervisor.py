@@ -20,6 +20,7 @@ from companion_support import cmd
 from fake_autopilot_support import GUIDED, LAND, FakeAutopilot, M, Received
 from mavlink_support import wait_for
 
+from companion.builder import CompanionConfig, build_companion
 from companion.flight import Limits
 from companion.flight.events import EventKind
 from companion.flight.qapi import CommandStatus, QueueState
@@ -87,9 +88,11 @@ def fly() -> Iterator[Fly]:
         fake = ScriptedFake(**kw)
         opened.append(fake)
         fake.start()
-        node = QuadNode(f"udpout:127.0.0.1:{fake.port}")
-        opened.append(node)
-        node.start()
+        companion = build_companion(CompanionConfig(f"udpout:127.0.0.1:{fake.port}", behaviors=False,
+                                                    control_port=None))
+        node = companion.node
+        opened.append(companion)
+        companion.start()
 
         def ready() -> bool:
             s = node.link.mirror.snapshot()

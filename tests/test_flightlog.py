@@ -266,8 +266,8 @@ def test_real_flight_is_logged_drawn_and_tabulated(tmp_path: Path,
     waypoint, a fly-to and a landing on the bundled model over loopback UDP; this test's own ``mark`` calls
     stand in for the TST execution system (driven by the queue's STARTED / FINISHED events, in the tick
     thread, as the execution system would be)."""
+    from companion.builder import CompanionConfig, build_companion
     from companion.flight.events import EventKind
-    from companion.node import QuadNode
     from taskflight.demo import _free_udp_port, _landed_and_disarmed, _model_arguments, _ready
     from taskflight.sitlproc import ModelProcess
 
@@ -288,7 +288,9 @@ def test_real_flight_is_logged_drawn_and_tabulated(tmp_path: Path,
     with tempfile.TemporaryDirectory(prefix="taskflight-flightlog-") as state:
         model_args = SimpleNamespace(seed=1, airframe=None, modules=None, sensors="indoor", truth=False)
         with ModelProcess(_model_arguments(model_args, state, port, SPEEDUP)):
-            node = QuadNode(f"udpout:127.0.0.1:{port}", rate_hz=20.0)
+            companion = build_companion(CompanionConfig(f"udpout:127.0.0.1:{port}", rate_hz=20.0,
+                                                        behaviors=False, control_port=None))
+            node = companion.node
             active: list[str | None] = [None]
             rec = FlightRecorder(node, log_path, lambda: active[0])
             node_of: dict[int, str] = {}
@@ -308,7 +310,7 @@ def test_real_flight_is_logged_drawn_and_tabulated(tmp_path: Path,
                     rec.mark("break_in_end", node=active[0], outcome="continued")
 
             try:
-                node.start()
+                companion.start()
                 _until(lambda: _ready(node.link.mirror.snapshot()) and node.clock.synced, 60, "pre-arm")
                 rec.mark("plan", area_ne=[[-1, -1], [-1, 9], [11, 9], [11, -1]],
                          waypoints_neu=[[10, 0, 4], [10, 8, 4], [4, 8, 4]],
@@ -332,7 +334,7 @@ def test_real_flight_is_logged_drawn_and_tabulated(tmp_path: Path,
                        "landed and disarmed")
             finally:
                 rec.close()
-                node.close()
+                companion.close()
     records = read_flight_log(log_path)
     rows = fig16b_table(records)
     got = [(r["TST Executor"], r["Horizontal"], r["Vertical"], r["Heading"], r["End condition"], r["Flags"])

@@ -1,4 +1,4 @@
-"""``/api/commands``: one command to several vehicles, answered per vehicle (issue 12 item 4)."""
+"""``/api/commands``: one command to several vehicles, answered per vehicle."""
 
 from __future__ import annotations
 

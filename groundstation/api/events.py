@@ -1,5 +1,4 @@
-"""``/api/events``, ``/api/audit``, ``/api/missions``, ``/api/whoami``: alerts, history and the audit log
-(issue 12 items 2 and 6)."""
+"""``/api/events``, ``/api/audit``, ``/api/missions``, ``/api/whoami``: alerts, history and the audit log."""
 
 from __future__ import annotations
 

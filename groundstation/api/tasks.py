@@ -1,4 +1,4 @@
-"""``/api/tasks``: team tasking (issue 12 item 3; seed 003 Sec. II, the Team Control interface)."""
+"""``/api/tasks``: team tasking (seed 003 Sec. II, the Team Control interface)."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
-"""``/api/vehicles``: the fleet's state and the Process Monitor's commands to one vehicle (issue 12 items
-2 and 4; seed 003 Sec. II "send high-level commands to individual processes ... inflight gain tuning";
+"""``/api/vehicles``: the fleet's state and the Process Monitor's commands to one vehicle (seed 003
+Sec. II "send high-level commands to individual processes ... inflight gain tuning";
 seed 000 Sec. VII: the operator's break-in, resume and "enough")."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ from typing import Annotated, Any
 from fastapi import APIRouter, Body, Path, Request
 from fastapi.responses import JSONResponse
 
-from companion.control_team import ParamAnswer, ParamSet  # the companion's own contract, proxied
+from companion.api_models import ParamAnswer, ParamSet  # the companion's own contract, proxied
 from groundstation.companions import ApiError
 from groundstation.schemas import (
     CommandAnswer,

@@ -1,4 +1,4 @@
-"""``/api/ws``: the live stream and the operator's stick (issue 12 items 4 and 5).
+"""``/api/ws``: the live stream and the operator's stick.
 
 The server sends ``{"type": "hello", "role"}``, then fleet snapshots ``{"type": "snapshot", "seq", "t",
 "vehicles": [...], "tasks": [...]}`` every ``snapshot_period_s`` (default 0.1 s: 10 Hz) and events

@@ -1,4 +1,4 @@
-// The ground service's REST API and live WebSocket (issue 12), as the UI uses them (issue 13 item 6).
+// The ground service's REST API and live WebSocket, as the UI uses them.
 const KEY = "taskflight.token";
 
 export function token() { return sessionStorage.getItem(KEY); }

@@ -1,4 +1,4 @@
-// The break-in joystick (issue 13 item 4; seed 000 Sec. VII: the operator breaks in and flies the vehicle):
+// The break-in joystick (seed 000 Sec. VII: the operator breaks in and flies the vehicle):
 // on-screen pad, keyboard (arrows / WASD, Q/E yaw, R/F up/down) and the Gamepad API, streamed over the
 // WebSocket at 15 Hz as the service's {"type": "joystick", "vehicle", "values": [vn, ve, vd, yaw_rate]}.
 const RATE_HZ = 15;

@@ -1,4 +1,4 @@
-// The fleet list, task list and alerts (issue 13 items 3 and 5; seed 003 Sec. II: "A list of the fleet
+// The fleet list, task list and alerts (seed 003 Sec. II: "A list of the fleet
 // members displays each UAV's map icon, current task, and most recent communication. The task list displays
 // the list of assigned tasks, any of which can be canceled at any time.").
 import { colour } from "./geo.js";

@@ -1,4 +1,4 @@
-// The operator's web UI (issue 13; seed 003 Sec. II, the Team Control interface): login, the live stream,
+// The operator's web UI (seed 003 Sec. II, the Team Control interface): login, the live stream,
 // the map, the lists, the vehicle panel and the dialogs. Snapshots arrive at 10 Hz; the latest is drawn
 // in the next animation frame (stats in window.taskflight.stats for the bench and the tests).
 import { call, Live, setToken, token } from "./api.js";

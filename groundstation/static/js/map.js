@@ -1,4 +1,4 @@
-// The map (issue 13 items 1-2; seed 003 Sec. II "All UAVs and tasks are displayed on a map, which is also
+// The map (seed 003 Sec. II "All UAVs and tasks are displayed on a map, which is also
 // used to input new tasks"): Leaflet with L.CRS.Simple in local metres around home, no tiles.
 import { colour, toGeo, toLocal } from "./geo.js";
 

@@ -1,4 +1,4 @@
-// The vehicle panel (issue 13 item 4): the mission tree with each node's Fig. 5 status (seed 000 Sec. IV),
+// The vehicle panel: the mission tree with each node's Fig. 5 status (seed 000 Sec. IV),
 // pause (break-in) / resume / enough / abort / land (seed 000 Sec. VII), the joystick during a break-in, a
 // live plot of altitude and speed, processes and in-flight gain tuning (seed 003 Sec. II, Process Monitor).
 import { call } from "./api.js";

@@ -1,4 +1,4 @@
-"""The mission layer on the control surface (issue 10 item 7; seed 000 Sec. III, VII).
+"""The mission layer on the control surface (seed 000 Sec. III, VII).
 
 ===============================  =====================================================================
 ``POST /mission``                a mission: JSON (``{"mission": name, "tree": {...}}``, the YAML format's
@@ -24,14 +24,16 @@ from __future__ import annotations
 import json
 from typing import Any
 
-from fastapi import FastAPI, Request
+from fastapi import APIRouter, Request
 from fastapi.responses import JSONResponse
 from pydantic import BaseModel, ConfigDict, Field
 
 from companion.mission_service import MissionService
+from companion.team.member import TeamMember
 from companion.tst.spec import mission_from_dict, mission_from_yaml
 from companion.tst.status import ExecutionRequestError, NodeExecutionStatus
 from companion.tst.tree import TreeError
+from taskflight_common.httpapi import ApiError
 from taskflight_common.yamlio import ConfigError
 
 YAML_TYPES = ("application/yaml", "application/x-yaml", "text/yaml", "text/x-yaml")
@@ -42,12 +44,12 @@ class _Strict(BaseModel):
 
 
 class StartRequest(_Strict):
-    break_in: str = Field("joystick", pattern="^(joystick|hover)$",
+    break_in: str = Field(default="joystick", pattern="^(joystick|hover)$",
                           description="what a pause does: the operator's joystick, or hold")
 
 
 class PauseMissionRequest(_Strict):
-    routine_id: str = Field("joystick", pattern="^(joystick|hover)$")
+    routine_id: str = Field(default="joystick", pattern="^(joystick|hover)$")
 
 
 class MissionVerbResponse(BaseModel):
@@ -62,13 +64,13 @@ class MissionAccepted(BaseModel):
     delegation: dict[str, Any]
 
 
-def add_mission_routes(app: FastAPI, service: MissionService, refuse: type[Exception],
-                       team: Any = None) -> None:
-    """Add the routes above to ``app``; ``refuse(status, message)`` is the surface's error type.
+def router(service: MissionService, team: TeamMember | None = None) -> APIRouter:
+    """The routes above.
 
     With ``team`` (the vehicle's :class:`~companion.team.member.TeamMember`), a mission given here is a
     directed command of the process monitor (seed 003 Fig. 1): the vehicle leaves the team first.
     """
+    app = APIRouter(tags=["mission"])
 
     def directed() -> None:
         if team is not None:
@@ -78,7 +80,7 @@ def add_mission_routes(app: FastAPI, service: MissionService, refuse: type[Excep
         try:
             st: NodeExecutionStatus = fn(*args)
         except ExecutionRequestError as exc:
-            raise refuse(409, str(exc)) from None
+            raise ApiError(409, str(exc)) from None
         return MissionVerbResponse(ok=True, state=st.state, status=st.to_dict())
 
     @app.post("/mission", response_model=MissionAccepted,
@@ -92,16 +94,16 @@ def add_mission_routes(app: FastAPI, service: MissionService, refuse: type[Excep
             elif kind == "application/json":
                 mission = mission_from_dict(json.loads(raw), "<request>")
             else:
-                raise refuse(415, f"send the mission as application/json or application/yaml, not {kind!r}")
+                raise ApiError(415, f"send the mission as application/json or application/yaml, not {kind!r}")
         except json.JSONDecodeError as exc:
-            raise refuse(400, f"malformed JSON: {exc}") from None
+            raise ApiError(400, f"malformed JSON: {exc}") from None
         except (ConfigError, TreeError, ValueError) as exc:
-            raise refuse(400, str(exc)) from None
+            raise ApiError(400, str(exc)) from None
         directed()
         try:
             result = service.submit(mission)
         except ExecutionRequestError as exc:
-            raise refuse(409, str(exc)) from None
+            raise ApiError(409, str(exc)) from None
         if not result.accepted:
             return JSONResponse(status_code=422, content={
                 "error": "rejected: " + "; ".join(result.reasons), "reasons": result.reasons})
@@ -131,3 +133,5 @@ def add_mission_routes(app: FastAPI, service: MissionService, refuse: type[Excep
     @app.get("/mission")
     def mission() -> dict[str, Any]:
         return service.status()
+
+    return app

@@ -1,4 +1,4 @@
-"""The control surface's process-monitor routes (seed 003 Sec. II, Fig. 1): the team and the parameters.
+"""The control surface's process-monitor routes for the team (seed 003 Sec. II, Fig. 1).
 
 Seed 003: "The Process Monitor simultaneously displays the status of individual software processes
 running on each UAV, and allows the user to send high-level commands to individual processes.
@@ -13,14 +13,11 @@ overridden by sending task commands to individual aircraft through the Process M
 ``POST /team/release``                    back into the team
 ``POST /team/task``                       a directed task ``{"kind": "visit", "points": [[lat, lon,
                                           alt]], "altitude": 0, "speed": 0}``: taken, flies it
-``GET  /processes``                       the executive layer's processes (seed 001 process manager)
-``GET  /params/{name}``                   an autopilot parameter, read over the companion's MAVLink link
-``PUT  /params/{name}``                   ``{"value": 0.15}``: set it; the answer is the autopilot's
-                                          read-back (409 if it kept another value, 504 if no answer)
 ========================================  ============================================================
 
 A mission given through ``POST /mission`` while the vehicle is in a team is a directed command too: the
-vehicle is taken out of the team first (see :mod:`companion.control_mission`).
+vehicle is taken out of the team first (see :mod:`companion.http.mission`); the parameters
+and the processes: :mod:`companion.http.params`.
 """
 
 from __future__ import annotations
@@ -28,13 +25,13 @@ from __future__ import annotations
 import itertools
 from typing import Any
 
-from fastapi import FastAPI
+from fastapi import APIRouter
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
-from companion.link.params import ParamClient, ParamError
 from companion.team.member import TeamMember
 from companion.team.types import TaskKind, TeamTask
 from taskflight_common.geo import check_point
+from taskflight_common.httpapi import ApiError
 
 #: ids of directed tasks (outside the station's numbering)
 _directed_ids = itertools.count(1_000_000)
@@ -45,7 +42,7 @@ class _Strict(BaseModel):
 
 
 class TakeRequest(_Strict):
-    reason: str = Field("process monitor", max_length=200)
+    reason: str = Field(default="process monitor", max_length=200)
 
 
 class DirectedTask(_Strict):
@@ -63,23 +60,14 @@ class DirectedTask(_Strict):
         return points
 
 
-class ParamSet(_Strict):
-    value: float = Field(..., allow_inf_nan=False)
-
-
-class ParamAnswer(BaseModel):
-    name: str
-    value: float
-    type: int
-
-
 class TeamVerb(BaseModel):
     ok: bool
     team: dict[str, Any]
 
 
-def add_team_routes(app: FastAPI, member: TeamMember, refuse: type[Exception]) -> None:
-    """The team routes above (``refuse(status, message)`` is the surface's error type)."""
+def router(member: TeamMember) -> APIRouter:
+    """The team routes above."""
+    app = APIRouter(tags=["team"])
 
     @app.get("/team")
     def team() -> dict[str, Any]:
@@ -98,42 +86,16 @@ def add_team_routes(app: FastAPI, member: TeamMember, refuse: type[Exception]) -
     @app.post("/team/task", response_model=TeamVerb)
     def task(body: DirectedTask) -> TeamVerb:
         if body.kind in (TaskKind.TST,):
-            raise refuse(400, "kind: give a tree through POST /mission")
+            raise ApiError(400, "kind: give a tree through POST /mission")
         need = 1 if body.kind is TaskKind.VISIT else 3 if body.kind is TaskKind.AREA_PART else 2
         if len(body.points) < need:
-            raise refuse(400, f"points: a {body.kind.value} task needs at least {need} points")
+            raise ApiError(400, f"points: a {body.kind.value} task needs at least {need} points")
         points = tuple((p[0], p[1], p[2] if len(p) > 2 else 0.0) for p in body.points)
         t = TeamTask(next(_directed_ids), 1, body.kind, points, altitude=body.altitude, speed=body.speed,
                      name=f"directed {body.kind.value}")
         if not member.assign(t):
             errors = member.switchboard.errors
-            raise refuse(422, f"rejected: {errors[-1] if errors else 'the vehicle cannot fly it'}")
+            raise ApiError(422, f"rejected: {errors[-1] if errors else 'the vehicle cannot fly it'}")
         return TeamVerb(ok=True, team=member.report())
 
-
-def add_param_routes(app: FastAPI, params: ParamClient, refuse: type[Exception],
-                     processes: Any = None) -> None:
-    """``/params/{name}`` (and ``/processes`` when the executive layer is served)."""
-
-    def answer(fn: Any, *args: Any) -> ParamAnswer:
-        try:
-            v = fn(*args)
-        except ValueError as exc:
-            raise refuse(400, str(exc)) from None
-        except ParamError as exc:
-            status = 409 if "kept" in str(exc) else 504
-            raise refuse(status, str(exc)) from None
-        return ParamAnswer(name=v.name, value=v.value, type=v.param_type)
-
-    @app.get("/params/{name}", response_model=ParamAnswer)
-    def get_param(name: str) -> ParamAnswer:
-        return answer(params.get, name)
-
-    @app.put("/params/{name}", response_model=ParamAnswer)
-    def put_param(name: str, body: ParamSet) -> ParamAnswer:
-        return answer(params.set, name, body.value)
-
-    if processes is not None:
-        @app.get("/processes")
-        def get_processes() -> list[dict[str, Any]]:
-            return processes.status()
+    return app

@@ -1,4 +1,4 @@
-"""The executive layer on the control surface (issue 9 item 7; seed 001 Sec. 6.2.2, 6.2.4).
+"""The executive layer on the control surface (seed 001 Sec. 6.2.2, 6.2.4).
 
 =====================================  ================================================================
 ``POST /behaviors/activate``           ``{"text": "GO_TO_POINT coordinate: (10, 0, 5)", "requester":
@@ -27,7 +27,7 @@ from __future__ import annotations
 
 from typing import Annotated, Any
 
-from fastapi import FastAPI, Query
+from fastapi import APIRouter, Query
 from pydantic import BaseModel, ConfigDict, Field
 
 from companion.behaviors.activation import ActivationError, format_activation, request_from
@@ -36,6 +36,7 @@ from companion.behaviors.coordinator import jsonable
 from companion.behaviors.processes import ProcessError
 from companion.behaviors.system import ExecutiveLayer
 from companion.flight import ExternalDataError
+from taskflight_common.httpapi import ApiError
 
 
 class _Strict(BaseModel):
@@ -107,15 +108,16 @@ class BeliefChangeAnswer(BaseModel):
     removed: list[str]
 
 
-def add_behavior_routes(app: FastAPI, layer: ExecutiveLayer, refuse: type[Exception]) -> None:
-    """Add the routes above to ``app``; ``refuse(status, message)`` is the surface's error type."""
+def router(layer: ExecutiveLayer) -> APIRouter:
+    """The routes above."""
+    app = APIRouter(tags=["behaviors"])
 
     def request_of(body: ActivateRequest) -> Any:
         if (body.text is None) == (body.behavior is None):
-            raise refuse(400, "give either 'text' or 'behavior' (+ 'params')")
+            raise ApiError(400, "give either 'text' or 'behavior' (+ 'params')")
         if body.text is not None:
             if body.params is not None:
-                raise refuse(400, "'params' goes with 'behavior', not with 'text'")
+                raise ApiError(400, "'params' goes with 'behavior', not with 'text'")
             return request_from(body.text, body.requester)
         return request_from({"behavior": body.behavior, "params": body.params or {}}, body.requester)
 
@@ -125,14 +127,14 @@ def add_behavior_routes(app: FastAPI, layer: ExecutiveLayer, refuse: type[Except
             req = request_of(body)
             layer.coordinator.check(req)  # a malformed request is a 400; a refused one an answer
         except ActivationError as exc:
-            raise refuse(400, f"format: {exc}") from None
+            raise ApiError(400, f"format: {exc}") from None
         return ActivationAnswer(**layer.coordinator.activate(req).to_dict())
 
     @app.post("/behaviors/inhibit", response_model=ActivationAnswer)
     def inhibit(body: InhibitRequest) -> ActivationAnswer:
         target = body.behavior or body.activation_id
         if not target or (body.behavior and body.activation_id):
-            raise refuse(400, "give either 'behavior' or 'activation_id'")
+            raise ApiError(400, "give either 'behavior' or 'activation_id'")
         return ActivationAnswer(**layer.coordinator.inhibit(target, body.requester).to_dict())
 
     @app.post("/behaviors/check", response_model=CheckAnswer)
@@ -141,7 +143,7 @@ def add_behavior_routes(app: FastAPI, layer: ExecutiveLayer, refuse: type[Except
             req = request_of(body)
             params = layer.coordinator.check(req)
         except ActivationError as exc:
-            raise refuse(400, f"format: {exc}") from None
+            raise ApiError(400, f"format: {exc}") from None
         return CheckAnswer(ok=True, behavior=req.behavior, params=jsonable(params),
                            text=format_activation(req.behavior, params))
 
@@ -154,9 +156,9 @@ def add_behavior_routes(app: FastAPI, layer: ExecutiveLayer, refuse: type[Except
         try:
             return JoystickAnswer(accepted=layer.joystick.push(body.values, body.validity_s))
         except ProcessError as exc:
-            raise refuse(409, str(exc)) from None
+            raise ApiError(409, str(exc)) from None
         except ExternalDataError as exc:
-            raise refuse(400, f"malformed sample: {exc}") from None
+            raise ApiError(400, f"malformed sample: {exc}") from None
 
     @app.get("/beliefs", response_model=BeliefsView)
     def beliefs(query: Annotated[str | None, Query(description="e.g. object(?x, battery), charge(?x, ?y)")]
@@ -166,7 +168,7 @@ def add_behavior_routes(app: FastAPI, layer: ExecutiveLayer, refuse: type[Except
         try:
             q = parse_query(query)
         except BeliefError as exc:
-            raise refuse(400, str(exc)) from None
+            raise ApiError(400, str(exc)) from None
         return BeliefsView(query=query, bindings=bindings_to_json(layer.beliefs.consult(q)), beliefs=[])
 
     @app.post("/beliefs", response_model=BeliefChangeAnswer)
@@ -175,7 +177,9 @@ def add_behavior_routes(app: FastAPI, layer: ExecutiveLayer, refuse: type[Except
             adds = [parse_belief(t) for t in body.add]
             removes = [parse_belief(t) for t in body.remove]
         except BeliefError as exc:
-            raise refuse(400, str(exc)) from None
+            raise ApiError(400, str(exc)) from None
         retracted = [str(b) for a in adds for b in layer.beliefs.add(a)]
         removed = [str(b) for b in removes if layer.beliefs.remove(b)]
         return BeliefChangeAnswer(added=[str(a) for a in adds], retracted=retracted, removed=removed)
+
+    return app

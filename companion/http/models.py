@@ -1,5 +1,5 @@
 """The control surface's request and answer models (pydantic): one per body and answer, so the OpenAPI
-document of :mod:`companion.control` is complete. The status and event answers derive from the
+document of :mod:`companion.http` is complete. The status and event answers derive from the
 queue's dataclasses (:class:`~companion.flight.qapi.QueueStatus`,
 :class:`~companion.flight.events.QueueEvent`).
 """
@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 import typing
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
 from pydantic import AllowInfNan, BaseModel, ConfigDict, Discriminator, Field, Strict, Tag, create_model
 
@@ -21,7 +21,7 @@ Number = Annotated[float, Strict(), AllowInfNan(False)]
 _CHANNEL_DOC = ("A channel in the flight codec's form: ``mode`` and that mode's parameters "
                 "(:mod:`companion.flight.commands`). Missing or null: DNU.")
 
-_COMMAND_EXAMPLES = [
+_COMMAND_EXAMPLES: Any = [
     {"vertical": {"mode": "POS", "altitude": 5, "take_off": True}, "end": {"e_v": True}},
     {"horizontal": {"mode": "POS", "north": 10, "east": 5, "speed": 3, "speed_modified_by": ["vertical"]},
      "vertical": {"mode": "POS", "altitude": 10, "frame": "relative"},
@@ -112,12 +112,6 @@ class RetargetRequest(BaseModel):
 
 
 # --- models: answers -------------------------------------------------------------------------------
-class ErrorResponse(BaseModel):
-    """Every refused request (any 4xx)."""
-
-    error: str = Field(examples=["commands[1].end: expected a mapping"])
-
-
 def _model_of(cls: type, doc: str) -> type[BaseModel]:
     """A pydantic model with the fields of the dataclass ``cls`` (one definition of each answer)."""
     hints = typing.get_type_hints(cls)
@@ -129,8 +123,15 @@ def _model_of(cls: type, doc: str) -> type[BaseModel]:
     return model
 
 
-#: The QAPI status (Sec. V): the paper's fields, then ours (:class:`companion.flight.qapi.QueueStatus`).
-QueueStatusModel = _model_of(QueueStatus, "The QAPI status (Sec. V): the paper's fields, then ours.")
+if TYPE_CHECKING:  # made from the dataclass at run time; a pydantic model to the type checker
+    class QueueStatusModel(BaseModel): ...
+
+    class EventModel(BaseModel): ...
+else:
+    #: The QAPI status (Sec. V): the paper's fields, then ours (:class:`companion.flight.qapi.QueueStatus`).
+    QueueStatusModel = _model_of(QueueStatus, "The QAPI status (Sec. V): the paper's fields, then ours.")
+    #: One queue event (:class:`companion.flight.events.QueueEvent`).
+    EventModel = _model_of(QueueEvent, "One queue event (companion.flight.events.QueueEvent).")
 
 
 class NodeInfo(BaseModel):
@@ -193,9 +194,6 @@ class PauseRoutinesResponse(BaseModel):
 class AcceptedResponse(BaseModel):
     accepted: bool = Field(description="false: older than the stream's newest sample (ignored)")
 
-
-#: One queue event (:class:`companion.flight.events.QueueEvent`).
-EventModel = _model_of(QueueEvent, "One queue event (companion.flight.events.QueueEvent).")
 
 
 class EventsResponse(BaseModel):

@@ -1,0 +1,214 @@
+"""The companion's composition root: one configuration, one builder, for every user of a companion.
+
+``taskflight companion`` (:mod:`companion.main`), the demos, ``fig16``, the benches and the tests all build
+a vehicle's companion here: :class:`CompanionConfig` says what it is made of (the autopilot link, the
+flight envelope and limits, the pause routines, the executive layer and its behavior catalog, the mission
+layer's platform, the team, the control surface and its token), :func:`build_companion` makes the parts,
+and :class:`Companion` starts and closes them in their one order:
+
+* start: the QuadNode (seed 000 Fig. 10: the queue's tick thread and the link), the executive layer
+  (seed 001), the mission given at start (seed 000 Sec. III; delegated once the vehicle's home is known),
+  the team member (seed 003; once the autopilot is heard), the commands to queue and ``run``, the control
+  surface (:mod:`companion.http`);
+* close: the control surface, the team member, the mission layer, the executive layer, the node, the
+  flight log.
+
+Between :func:`build_companion` and :meth:`Companion.start` a caller may attach listeners to the node
+(``node.setpoint_listeners``, ``node.link.listeners``): the node is made but not started.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from companion.behaviors.catalog import BehaviorCatalog
+from companion.behaviors.system import ExecutiveLayer
+from companion.flight import Envelope, FlightCommand, Limits, PauseRoutineCatalog
+from companion.flight.external import DEFAULT_MAX_VALIDITY_S
+from companion.flightlog import FlightRecorder
+from companion.http import ControlServer
+from companion.mission_service import MissionService
+from companion.node import QuadNode
+from companion.sensing.scenario import Scenario
+from companion.team.join import join_team
+from companion.team.member import TeamMember
+from companion.team.transport import open_transport
+from companion.tst.platform import Platform
+from companion.tst.spec import Mission
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class CompanionConfig:
+    """What one vehicle's companion is made of (``taskflight companion``'s options, loaded)."""
+
+    #: the autopilot link: ``udpout:HOST:PORT``, ``udpin:...``, ``tcp:...``, ``serial:DEVICE[:BAUD]``
+    autopilot: str
+    #: setpoint stream rate (Hz of autopilot time, 1..50)
+    rate_hz: float = 20.0
+    baud: int = 57600
+    #: our MAVLink system id (None: the autopilot's own)
+    source_system: int | None = None
+    #: longest validity an external-data sample may claim (s)
+    max_validity_s: float = DEFAULT_MAX_VALIDITY_S
+    #: the queue's limits and operational envelope (None: the defaults)
+    limits: Limits | None = None
+    envelope: Envelope | None = None
+    #: the queue's pause routines (None: the bundled ones; seed 000 Sec. V)
+    pause_routines: PauseRoutineCatalog | None = None
+    #: serve the executive layer (seed 001); False: the queue is driven through the QAPI only
+    behaviors: bool = True
+    #: its behavior catalog (None: the bundled one)
+    behavior_catalog: BehaviorCatalog | None = None
+    #: behavior and process events as JSON lines
+    behavior_log: str | Path | None = None
+    #: objects for the simulated downward camera
+    scenario: Scenario | None = None
+    #: serve the mission layer (Task Specification Trees, seed 000) on top of the executive layer
+    missions: bool = True
+    #: the platform for delegation (None: the bundled indoor platform)
+    platform: Platform | None = None
+    #: the flight log (JSON lines: setpoints, positions, commands, mission events)
+    flight_log: str | Path | None = None
+    #: a mission to delegate once the vehicle's home is known; ``start_mission``: start it once accepted
+    mission: Mission | None = None
+    start_mission: bool = False
+    #: flight commands queued at start; ``run``: run the queue at start
+    commands: tuple[FlightCommand, ...] = field(default=())
+    run: bool = False
+    #: the team link to join (seed 003), the allocation policy, the vehicle's name in the team
+    team: str | None = None
+    team_policy: str = "greedy"
+    name: str = ""
+    #: the control surface: port (0 any free; None off), host, bearer token (None: no authentication)
+    control_port: int | None = 8765
+    control_host: str = "127.0.0.1"
+    control_token: str | None = None
+
+    def __post_init__(self) -> None:
+        if self.mission is not None and not self.behaviors:
+            raise ValueError("--mission needs the executive layer (drop --no-behaviors)")
+        if self.team and not self.behaviors:
+            raise ValueError("--team needs the executive layer (drop --no-behaviors)")
+
+
+class MissionRejectedError(RuntimeError):
+    """The mission given at start was rejected by delegation (the reasons are logged)."""
+
+
+class Companion:
+    """One vehicle's companion, made by :func:`build_companion` (see module docstring)."""
+
+    def __init__(self, config: CompanionConfig, node: QuadNode, recorder: FlightRecorder | None,
+                 layer: ExecutiveLayer | None, missions: MissionService | None) -> None:
+        self.config = config
+        self.node = node
+        self.recorder = recorder
+        self.layer = layer
+        self.missions = missions
+        self.member: TeamMember | None = None
+        self.server: ControlServer | None = None
+
+    def control_server(self, port: int | None = None, host: str | None = None,
+                       token: str | None = None) -> ControlServer:
+        """A control surface over this companion's parts (not started); the config's port, host and token
+        unless given."""
+        c = self.config
+        return ControlServer(self.node, port if port is not None else (c.control_port or 0),
+                             host=host if host is not None else c.control_host,
+                             token=token if token is not None else c.control_token,
+                             behaviors=self.layer, missions=self.missions, team=self.member)
+
+    def start(self, stop: threading.Event | None = None) -> Companion:
+        """Start the parts in order (module docstring). ``stop`` ends the waits for the vehicle (the
+        mission's and the team's); :class:`MissionRejectedError` if the mission given at start is rejected."""
+        c = self.config
+        stop = stop or threading.Event()
+        self.node.start()
+        if self.layer is not None:
+            self.layer.start()
+        if self.missions is not None:
+            if c.mission is not None:
+                self._fly_mission(self.missions, c.mission, stop)
+            if c.team:
+                self.member = self._join(self.missions, c.team, stop)
+        self.node.add_commands(c.commands)
+        if c.run:
+            self.node.run()
+        if c.control_port is not None and c.control_port >= 0:
+            self.server = self.control_server().start()
+            log.info("companion: autopilot %s, %g Hz, control %s", c.autopilot, c.rate_hz, self.server.url)
+        return self
+
+    def close(self) -> None:
+        """Close what was made, in the reverse order of the start (a part never started closes too)."""
+        if self.server is not None:
+            self.server.close()
+        if self.member is not None:
+            self.member.close()
+        if self.missions is not None:
+            self.missions.close()
+        if self.layer is not None:
+            self.layer.close()
+        self.node.close()
+        if self.recorder is not None:
+            self.recorder.close()
+
+    def __enter__(self) -> Companion:
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # --- the waits for the vehicle -------------------------------------------------------------------------
+    def _fly_mission(self, missions: MissionService, mission: Mission, stop: threading.Event) -> None:
+        """Delegate ``mission`` once the vehicle's home is known; start it if asked."""
+        assert self.layer is not None
+        while missions.node.link.mirror.snapshot().home is None or not self.layer.coordinator.is_active(
+                "SELF_LOCALIZE"):
+            if stop.wait(0.2):
+                return
+        result = missions.submit(mission)
+        if not result.accepted:
+            for reason in result.reasons:
+                log.error("mission rejected: %s", reason)
+            raise MissionRejectedError(f"mission {mission.name} rejected")
+        log.info("mission %s accepted: %d nodes, %d waypoints", mission.name, len(result.plans),
+                 result.waypoints)
+        if self.config.start_mission:
+            missions.start()
+
+    def _join(self, missions: MissionService, url: str, stop: threading.Event) -> TeamMember | None:
+        """Join the team once the autopilot is heard (the member id is its system id)."""
+        link = missions.node.link
+        while link.target_system is None:
+            if stop.wait(0.2):
+                return None
+        c = self.config
+        member = join_team(missions, url, link.target_system, policy=c.team_policy, name=c.name)
+        log.info("team %s: member %d (%s), policy %s", url, member.id, member.name, c.team_policy)
+        return member
+
+
+def build_companion(config: CompanionConfig) -> Companion:
+    """The companion ``config`` describes, made and not started (ValueError or OSError if it cannot be).
+
+    A team URL is opened and closed once here, so that a bad one fails before anything flies.
+    """
+    if config.team:
+        open_transport(config.team, member=0, position_of=lambda m: None).close()
+    node = QuadNode(config.autopilot, rate_hz=config.rate_hz, limits=config.limits, envelope=config.envelope,
+                    catalog=config.pause_routines, baud=config.baud, source_system=config.source_system,
+                    max_validity_s=config.max_validity_s)
+    recorder = FlightRecorder(node, config.flight_log) if config.flight_log else None
+    layer = missions = None
+    if config.behaviors:
+        layer = ExecutiveLayer.for_node(node, catalog=config.behavior_catalog, log_path=config.behavior_log,
+                                        scenario=config.scenario)
+        if config.missions:
+            missions = MissionService(node, layer, config.platform, recorder=recorder)
+    return Companion(config, node, recorder, layer, missions)

@@ -1,0 +1,75 @@
+"""uvicorn serving the control surface (:func:`companion.http.app.create_app`) in a background thread."""
+
+from __future__ import annotations
+
+import ipaddress
+import logging
+import threading
+import time
+
+import uvicorn
+
+from companion.behaviors.system import ExecutiveLayer
+from companion.http.app import create_app
+from companion.mission_service import MissionService
+from companion.node import QuadNode
+from companion.team.member import TeamMember
+from taskflight_common.tokens import TOKEN_ENV
+
+log = logging.getLogger(__name__)
+
+
+def is_loopback(host: str) -> bool:
+    """True for ``localhost`` and loopback addresses (127.0.0.0/8, ::1)."""
+    if host.strip().lower() == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host.strip("[]")).is_loopback
+    except ValueError:
+        return False
+
+
+class ControlServer:
+    """uvicorn serving :func:`create_app` on ``host:port`` in a background thread (port 0: any free)."""
+
+    def __init__(self, node: QuadNode, port: int = 8765, host: str = "127.0.0.1",
+                 token: str | None = None, behaviors: ExecutiveLayer | None = None,
+                 missions: MissionService | None = None, team: TeamMember | None = None) -> None:
+        self.app = create_app(node, token, behaviors, missions, team)
+        config = uvicorn.Config(self.app, host=host, port=port, log_level="warning", lifespan="off",
+                                timeout_graceful_shutdown=2)
+        self.server = uvicorn.Server(config)
+        self._thread = threading.Thread(target=self.server.run, name="control-http", daemon=True)
+        self.host = host
+        self.port = port
+        self.token_required = token is not None
+        if token is None and not is_loopback(host):
+            log.warning("control surface on %s without a token: anyone who reaches the port can fly the "
+                        "vehicle (set --control-token or %s)", host, TOKEN_ENV)
+
+    def start(self, timeout_s: float = 10.0) -> ControlServer:
+        self._thread.start()
+        deadline = time.monotonic() + timeout_s
+        while not self.server.started:
+            if not self._thread.is_alive() or time.monotonic() > deadline:
+                raise RuntimeError(f"control server did not start on {self.host}:{self.port}")
+            self._thread.join(0.01)
+        sock = self.server.servers[0].sockets[0]
+        self.port = sock.getsockname()[1]
+        log.info("control surface on %s port %d (%s), %s", self.host, self.port, self.url,
+                 "bearer token required" if self.token_required else "no authentication")
+        return self
+
+    @property
+    def url(self) -> str:
+        """Where a client on this machine reaches the surface (loopback for a wildcard host)."""
+        host = {"0.0.0.0": "127.0.0.1", "": "127.0.0.1", "::": "::1"}.get(self.host, self.host)
+        if ":" in host and not host.startswith("["):
+            host = f"[{host}]"
+        return f"http://{host}:{self.port}"
+
+    def close(self) -> None:
+        self.app.state.closing.set()
+        self.server.should_exit = True
+        if self._thread.is_alive():
+            self._thread.join(timeout=5.0)
