@@ -23,13 +23,15 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 from companion.tst.status import NodeExecutionStatus
+from companion.tst.tree import ControlType, control_type
 
 
 def derived_status(node_type: str, children: Sequence[NodeExecutionStatus]) -> NodeExecutionStatus:
     """The Fig. 5 status of an ``S``, ``C`` or ``IF`` node whose (taken) children have ``children``."""
-    if node_type in ("S", "IF"):
+    control = control_type(node_type)
+    if control in (ControlType.S, ControlType.IF):
         return _sequence(children)
-    if node_type == "C":
+    if control is ControlType.C:
         return _concurrent(children)
     raise ValueError(f"no derived status for a {node_type} node (only S, C and IF)")
 

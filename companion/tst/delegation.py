@@ -48,7 +48,7 @@ from companion.tst.params import Interval, LinearRelation, Qualitative, is_free
 from companion.tst.platform import Platform
 from companion.tst.registry import leaf_type
 from companion.tst.spec import Mission
-from companion.tst.tree import TstNode
+from companion.tst.tree import ControlType, TstNode
 
 __all__ = ["ENDURANCE_LABEL", "Delegation", "NodePlan", "check", "delegate", "expand", "get_constraints"]
 
@@ -242,12 +242,12 @@ def _plan(node: TstNode, platform: Platform, values: dict[str, dict[str, Any]], 
     pos = start
     ends = []
     for child in node.children:
-        child_end = _plan(child, platform, values, start if node.type in ("C", "IF") else pos, plans, reasons,
-                          keep_speeds)
+        parallel = node.control in (ControlType.C, ControlType.IF)  # each child starts where the node does
+        child_end = _plan(child, platform, values, start if parallel else pos, plans, reasons, keep_speeds)
         pos = child_end
         ends.append(child_end)
     plans.setdefault(str(node.id), NodePlan(str(node.id), node.type))
-    return ends[0] if node.type == "IF" and ends else pos
+    return ends[0] if node.control is ControlType.IF and ends else pos
 
 
 def _apply(node: TstNode, platform: Platform, sol: Solution, values: dict[str, Any], plan: NodePlan,
@@ -276,7 +276,7 @@ def _tree_seconds(node: TstNode, leaf_s: dict[str, float]) -> float:
     if node.is_leaf_task:
         return leaf_s.get(str(node.id), 0.0)
     kids = [_tree_seconds(c, leaf_s) for c in node.children]
-    return sum(kids) if node.type in ("S", "WHILE") else max(kids, default=0.0)
+    return sum(kids) if node.control in (ControlType.S, ControlType.WHILE) else max(kids, default=0.0)
 
 
 def _fastest(root: TstNode, platform: Platform, plans: dict[str, NodePlan]) -> float:

@@ -26,7 +26,7 @@ from companion.tst.params import LinearRelation
 from companion.tst.plan import NodePlan
 from companion.tst.platform import Platform
 from companion.tst.registry import leaf_type
-from companion.tst.tree import CONTROL_TYPES, TstNode
+from companion.tst.tree import CONTROL_TYPES, ControlType, TstNode
 
 __all__ = ["check", "get_constraints", "get_relations", "var", "where"]
 
@@ -73,10 +73,10 @@ def _control_duration(node: TstNode, problem: ConstraintProblem) -> None:
     total = var(node, "duration")
     problem.variable(total)
     kids = [var(c, "duration") for c in node.children]
-    if node.type == "S":
+    if node.control is ControlType.S:
         problem.add(Linear({total: 1.0, **{k: -1.0 for k in kids}}, "==", 0.0),
                     label=f"{nid}.duration = sum of its children's", definition=True)
-    elif node.type == "WHILE":
+    elif node.control is ControlType.WHILE:
         problem.add(Linear({total: 1.0, kids[0]: -1.0}, "==", 0.0),
                     label=f"{nid}.duration = one pass of its body", definition=True)
     else:

@@ -41,7 +41,7 @@ from companion.tst.status import (
     NodeExecutionStatus,
     control_execution_info,
 )
-from companion.tst.tree import TstNode
+from companion.tst.tree import ControlType, TstNode
 
 log = logging.getLogger(__name__)
 
@@ -77,19 +77,19 @@ class ControlRun:
     def start(self) -> NodeExecutionStatus:
         self.lifecycle.prepare()
         self.lifecycle.start()
-        kind = self.node.type
-        if kind == "C":
+        kind = self.node.control
+        if kind is ControlType.C:
             for child in self.node.children:
                 self._spawn(child)
-        elif kind == "S":
+        elif kind is ControlType.S:
             self._next_in_sequence()
-        elif kind == "IF":
+        elif kind is ControlType.IF:
             holds, bindings = self._evaluate()
             self.branch = "then" if holds else "else"
             taken = self.node.then if holds else self.node.else_
             if taken is not None:
                 self._spawn(taken, bindings)
-        elif kind == "WHILE" and not self._iterate():
+        elif kind is ControlType.WHILE and not self._iterate():
             self.lifecycle.succeed()  # the condition does not hold: nothing to repeat
             return self.status
         self._settle()
@@ -133,7 +133,7 @@ class ControlRun:
         for run in list(self.children):
             if not run.finished:
                 run.tick(now_s)
-        if self.node.type == "WHILE" and self.children and not self.children[-1].finished:
+        if self.node.control is ControlType.WHILE and self.children and not self.children[-1].finished:
             body = self.children[-1]
             holds, _ = parse_condition(self.node.condition or "").evaluate(self.ctx.layer.beliefs)
             if not holds and body.lifecycle.info.can_be_enoughed and body.status.executing:
@@ -161,13 +161,14 @@ class ControlRun:
             return
         if any(not r.finished for r in self.children):
             return
-        kind = self.node.type
-        if kind == "S" and self._index < len(self.node.children):  # the current child just succeeded
+        kind = self.node.control
+        # the current child of a sequence just succeeded
+        if kind is ControlType.S and self._index < len(self.node.children):
             self._index += 1
             self._next_in_sequence()
             if self._index < len(self.node.children):
                 return
-        elif kind == "WHILE" and self.children and self._iterate():
+        elif kind is ControlType.WHILE and self.children and self._iterate():
             return  # the next iteration runs (a body that ended at once is looked at next tick)
         self.lifecycle.succeed()
 
@@ -205,7 +206,7 @@ class ControlRun:
 
     def to_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {}
-        if self.node.type == "WHILE":
+        if self.node.control is ControlType.WHILE:
             out["iteration"] = self.iteration
         if self.branch is not None:
             out["branch"] = self.branch

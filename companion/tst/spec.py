@@ -51,7 +51,15 @@ from companion.behaviors.belief_syntax import BeliefError
 from companion.tst.conditions import parse_condition
 from companion.tst.params import ParamError
 from companion.tst.registry import is_leaf_type
-from companion.tst.tree import CONDITIONAL_TYPES, CONTROL_TYPES, TreeError, TstNode, known_types
+from companion.tst.tree import (
+    CONDITIONAL_TYPES,
+    CONTROL_TYPES,
+    ControlType,
+    TreeError,
+    TstNode,
+    control_type,
+    known_types,
+)
 from taskflight_common.yamlio import ConfigError, Fields, LineList, load_yaml, load_yaml_text
 
 log = logging.getLogger(__name__)
@@ -158,14 +166,15 @@ class _Builder:
         return text
 
     def _children(self, f: Fields, node_type: str) -> list[TstNode]:
-        if node_type == "IF":
+        control = control_type(node_type)
+        if control is ControlType.IF:
             if not f.has("then"):
                 raise f.error(None, "an IF node needs a then child")
             out = [self.node(f.sub("then"))]
             if f.has("else"):
                 out.append(self.node(f.sub("else")))
             return out
-        if node_type == "WHILE":
+        if control is ControlType.WHILE:
             if not f.has("body"):
                 raise f.error(None, "a WHILE node needs a body")
             return [self.node(f.sub("body"))]

@@ -23,16 +23,37 @@ import itertools
 import re
 from collections.abc import Iterator
 from dataclasses import dataclass, field
+from enum import StrEnum
 from typing import Any
 
 from companion.tst.params import constraint_to_json, is_free
 from companion.tst.registry import is_leaf_type, leaf_type, leaf_type_names
 
+
+class ControlType(StrEnum):
+    """Seed 000 Sec. II's control nodes: sequence (S), concurrent (C), conditional (IF), loop (WHILE).
+
+    The leaf task types are registered (:mod:`companion.tst.registry`); the four control types are the
+    tree's own and fixed, so they are an enumeration: code asks :attr:`TstNode.control`, never compares
+    the type's string.
+    """
+
+    S = "S"
+    C = "C"
+    IF = "IF"
+    WHILE = "WHILE"
+
+
 #: The control node types and how many children each takes (min, max; None: no maximum).
 CONTROL_TYPES: dict[str, tuple[int, int | None]] = {
-    "S": (1, None), "C": (1, None), "IF": (1, 2), "WHILE": (1, 1)}
+    ControlType.S: (1, None), ControlType.C: (1, None), ControlType.IF: (1, 2), ControlType.WHILE: (1, 1)}
 #: Node types that carry a condition.
-CONDITIONAL_TYPES = ("IF", "WHILE")
+CONDITIONAL_TYPES = (ControlType.IF, ControlType.WHILE)
+
+
+def control_type(node_type: str) -> ControlType | None:
+    """The control type named ``node_type``; None for a leaf task type."""
+    return ControlType(node_type) if node_type in CONTROL_TYPES else None
 
 _AUTO_ID = re.compile(r"n(\d+)")
 
@@ -96,23 +117,28 @@ class TstNode:
         return self.type in CONTROL_TYPES
 
     @property
+    def control(self) -> ControlType | None:
+        """The control type of a control node; None for a leaf task."""
+        return control_type(self.type)
+
+    @property
     def is_leaf_task(self) -> bool:
         return is_leaf_type(self.type)
 
     @property
     def then(self) -> TstNode | None:
         """An IF node's *then* child."""
-        return self.children[0] if self.type == "IF" and self.children else None
+        return self.children[0] if self.control is ControlType.IF and self.children else None
 
     @property
     def else_(self) -> TstNode | None:
         """An IF node's *else* child, if any."""
-        return self.children[1] if self.type == "IF" and len(self.children) > 1 else None
+        return self.children[1] if self.control is ControlType.IF and len(self.children) > 1 else None
 
     @property
     def body(self) -> TstNode | None:
         """A WHILE node's body."""
-        return self.children[0] if self.type == "WHILE" and self.children else None
+        return self.children[0] if self.control is ControlType.WHILE and self.children else None
 
     def free_params(self) -> dict[str, Any]:
         """The parameters holding a constraint rather than a value."""
@@ -188,11 +214,11 @@ class TstNode:
                 out["params"] = {k: param_to_json(v) for k, v in self.params.items()}
             if self.children:
                 out["expansion"] = [c.to_dict() for c in self.children]
-        elif self.type == "IF":
+        elif self.control is ControlType.IF:
             out["then"] = self.children[0].to_dict() if self.children else None
             if len(self.children) > 1:
                 out["else"] = self.children[1].to_dict()
-        elif self.type == "WHILE":
+        elif self.control is ControlType.WHILE:
             out["body"] = self.children[0].to_dict() if self.children else None
         else:
             out["children"] = [c.to_dict() for c in self.children]
