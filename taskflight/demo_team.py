@@ -272,6 +272,6 @@ def report(up: Up, progress: Progress) -> str:
             lines.append(f"  flight time {fig.airborne_s:.1f} s, {fig.distance_m:.0f} m flown; {tracking}")
     lines.append("tasks:")
     for tid, r in sorted(progress.rows.items()):
-        who = ", ".join(f"vehicle {h}" for h in progress.holders.get(tid, [])) or "nobody"
-        lines.append(f"  {tid} {r.kind:<12} {r.name:<8} {r.state:<10} held by {who}")
+        holders = ", ".join(f"vehicle {h}" for h in progress.holders.get(tid, [])) or "nobody"
+        lines.append(f"  {tid} {r.kind:<12} {r.name:<8} {r.state:<10} held by {holders}")
     return "\n".join(lines)
