@@ -46,6 +46,7 @@ from typing import Any
 
 from taskflight_common.clock import SimClock
 from taskflight_common.geo import ned_to_geodetic
+from taskflight_common.ports import model_ports
 from taskflight_common.runtime import die_with_parent, setup_logging
 
 log = logging.getLogger(__name__)
@@ -77,9 +78,8 @@ def fleet_homes(n: int, home: Sequence[float] | None = None, spacing_m: float = 
 def template_urls(templates: Sequence[str], instance: int, sysid: int | None = None) -> list[str]:
     """Endpoint URLs of ``instance`` from templates with ``{instance}``, ``{sysid}`` (default instance+1),
     ``{tcp}`` (5760+10N) and ``{udp}`` (14550+10N), e.g. ``udpin:127.0.0.1:{udp}``."""
-    fields = {"instance": instance, "sysid": instance + 1 if sysid is None else sysid,
-              "tcp": 5760 + 10 * instance,
-              "udp": 14550 + 10 * instance}
+    tcp, udp = model_ports(instance)
+    fields = {"instance": instance, "sysid": instance + 1 if sysid is None else sysid, "tcp": tcp, "udp": udp}
     out = []
     for t in templates:
         try:

@@ -33,13 +33,15 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from taskflight_common.ports import model_ports
 from taskflight_common.runtime import freeze_startup_heap, setup_logging, stop_on_signals
 
 log = logging.getLogger(__name__)
 
-#: Module library entries the MAVLink side needs, merged in when the library file lacks them.
 def default_urls(instance: int) -> list[str]:
-    return [f"tcpin:0.0.0.0:{5760 + 10 * instance}", f"udpin:0.0.0.0:{14550 + 10 * instance}"]
+    """ArduPilot SITL's listening endpoints of ``instance`` (:func:`taskflight_common.ports.model_ports`)."""
+    tcp, udp = model_ports(instance)
+    return [f"tcpin:0.0.0.0:{tcp}", f"udpin:0.0.0.0:{udp}"]
 
 
 def default_state_dir() -> Path:

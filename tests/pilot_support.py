@@ -18,7 +18,10 @@ from typing import Any
 from autopilot_support import Autopilot
 from mavlink_support import M, wait_for
 
-STABILIZE, ALT_HOLD, LOITER, RTL, POSHOLD = 0, 2, 5, 6, 16
+from taskflight_common.ardupilot import CopterMode
+
+STABILIZE, ALT_HOLD, LOITER, RTL, POSHOLD = (
+    CopterMode.STABILIZE, CopterMode.ALT_HOLD, CopterMode.LOITER, CopterMode.RTL, CopterMode.POSHOLD)
 CENTRE = (1500, 1500, 1500, 1500)
 IGNORE = 65535
 

@@ -55,6 +55,7 @@ from autopilot_model.modules.guided_targets import (  # noqa: F401 - re-exported
 )
 from autopilot_model.modules.shared_params import define_rtl_alt
 from autopilot_model.modules.smart_rtl import SmartRtl
+from taskflight_common.ardupilot import CopterMode
 from taskflight_common.geo import geodetic_to_ned
 
 if TYPE_CHECKING:
@@ -62,21 +63,21 @@ if TYPE_CHECKING:
 
 log = logging.getLogger(__name__)
 
-STABILIZE = 0
-ALT_HOLD = 2
-AUTO = 3
-GUIDED = 4
-LOITER = 5
-RTL = 6
-CIRCLE = 7
-LAND = 9
-POSHOLD = 16
-BRAKE = 17
-SMART_RTL = 21
+STABILIZE = CopterMode.STABILIZE
+ALT_HOLD = CopterMode.ALT_HOLD
+AUTO = CopterMode.AUTO
+GUIDED = CopterMode.GUIDED
+LOITER = CopterMode.LOITER
+RTL = CopterMode.RTL
+CIRCLE = CopterMode.CIRCLE
+LAND = CopterMode.LAND
+POSHOLD = CopterMode.POSHOLD
+BRAKE = CopterMode.BRAKE
+SMART_RTL = CopterMode.SMART_RTL
 
-MODE_NAMES: dict[int, str] = {STABILIZE: "STABILIZE", ALT_HOLD: "ALT_HOLD", AUTO: "AUTO", GUIDED: "GUIDED",
-                              LOITER: "LOITER", RTL: "RTL", CIRCLE: "CIRCLE", LAND: "LAND",
-                              POSHOLD: "POSHOLD", BRAKE: "BRAKE", SMART_RTL: "SMART_RTL"}
+#: The ArduCopter modes the model flies: number -> name.
+MODE_NAMES: dict[int, str] = {m.value: m.name for m in (
+    STABILIZE, ALT_HOLD, AUTO, GUIDED, LOITER, RTL, CIRCLE, LAND, POSHOLD, BRAKE, SMART_RTL)}
 MODE_NUMBERS: dict[str, int] = {v: k for k, v in MODE_NAMES.items()}
 #: Modes ArduCopter lets a ground station arm in (AUTO, RTL, LAND, BRAKE refuse arming).
 ARMABLE = frozenset({STABILIZE, ALT_HOLD, GUIDED, LOITER, POSHOLD})

@@ -38,6 +38,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from autopilot_model.modules import navigation as navmod
 from autopilot_model.modules.rc_input import PITCH, ROLL, YAW, RcInput
+from taskflight_common.ardupilot import CopterMode
 
 if TYPE_CHECKING:
     from autopilot_model.modules.flight_modes import FlightModes
@@ -45,9 +46,10 @@ if TYPE_CHECKING:
 log = logging.getLogger(__name__)
 
 GRAVITY = 9.80665
-STABILIZE, ALT_HOLD, AUTO, GUIDED, LOITER, RTL, LAND, POSHOLD, BRAKE = 0, 2, 3, 4, 5, 6, 9, 16, 17
+STABILIZE, ALT_HOLD, AUTO, GUIDED, LOITER, RTL, LAND, POSHOLD, BRAKE, SMART_RTL = (
+    CopterMode.STABILIZE, CopterMode.ALT_HOLD, CopterMode.AUTO, CopterMode.GUIDED, CopterMode.LOITER,
+    CopterMode.RTL, CopterMode.LAND, CopterMode.POSHOLD, CopterMode.BRAKE, CopterMode.SMART_RTL)
 PILOT_MODES = frozenset({STABILIZE, ALT_HOLD, LOITER, POSHOLD})
-SMART_RTL = 21
 #: FS_THR_ENABLE -> failsafe mode (4, 5: SmartRTL first, then this one; the model has no DO_LAND_START: 6 RTL)
 _FS_THR_MODES = {1: RTL, 2: RTL, 3: LAND, 4: RTL, 5: LAND, 6: RTL, 7: BRAKE}
 # FS_OPTIONS bits (Copter::FailsafeOption)
