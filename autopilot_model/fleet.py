@@ -227,7 +227,7 @@ class Fleet:
             # each vehicle's construction, seconds apart for 50 vehicles
             unix0_us = int(time.time() * 1e6) - clock.now_us
             for sitl in self.vehicles:
-                sitl.telemetry.unix0_us = unix0_us
+                sitl.link.telemetry.unix0_us = unix0_us
         paced = clock.speedup > 0
         batch = self.batch
         late = self.lateness_s.append

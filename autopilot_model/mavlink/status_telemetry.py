@@ -28,7 +28,11 @@ from autopilot_model.modules import fence as fm
 from .commands import ACCEPTED, FAILED, Command, CommandResult
 
 if TYPE_CHECKING:
+    from autopilot_model.modules.vehicle_api import VehicleApi
+
+    from .commands import CommandDispatcher
     from .endpoint import MavlinkEndpoint
+    from .streams import StreamScheduler
     from .transport import Peer
 
 M = mavlink2
@@ -46,11 +50,12 @@ def _i(v: float, lo: int, hi: int) -> int:
 class FenceLink:
     """FENCE_STATUS and MAV_CMD_DO_FENCE_ENABLE for the vehicle's geofence (:class:`.fence.Fence`)."""
 
-    def __init__(self, endpoint: MavlinkEndpoint, fence: fm.Fence) -> None:
+    def __init__(self, endpoint: MavlinkEndpoint, streams: StreamScheduler, commands: CommandDispatcher,
+                 fence: fm.Fence) -> None:
         self.ep = endpoint
         self.fence = fence
-        endpoint.streams.add_builder("FENCE_STATUS", self.fence_status)
-        endpoint.commands.add(M.MAV_CMD_DO_FENCE_ENABLE, self.do_fence_enable)
+        streams.add_builder("FENCE_STATUS", self.fence_status)
+        commands.add(M.MAV_CMD_DO_FENCE_ENABLE, self.do_fence_enable)
 
     def fence_status(self) -> Any:
         f = self.fence
@@ -92,12 +97,12 @@ class FenceLink:
 
 
 class StatusTelemetry:
-    """EKF_STATUS_REPORT, NAV_CONTROLLER_OUTPUT and GPS_GLOBAL_ORIGIN builders on ``endpoint.streams``."""
+    """EKF_STATUS_REPORT, NAV_CONTROLLER_OUTPUT and GPS_GLOBAL_ORIGIN builders on the stream scheduler."""
 
-    def __init__(self, endpoint: MavlinkEndpoint, vehicle: Any) -> None:
+    def __init__(self, endpoint: MavlinkEndpoint, streams: StreamScheduler, vehicle: VehicleApi) -> None:
         self.ep = endpoint
         self.v = vehicle
-        b = endpoint.streams.add_builder
+        b = streams.add_builder
         b("EKF_STATUS_REPORT", self.ekf_status_report)
         b("NAV_CONTROLLER_OUTPUT", self.nav_controller_output)
         b("GPS_GLOBAL_ORIGIN", self.gps_global_origin)

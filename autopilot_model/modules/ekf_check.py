@@ -21,11 +21,14 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
-from autopilot_model.modules.flight_modes import ALT_HOLD, AUTO, BRAKE, GUIDED, LAND, LOITER, RTL
+from autopilot_model.modules.flight_modes import ALT_HOLD, AUTO, BRAKE, GUIDED, LAND, LOITER, RTL, FlightModes
+
+if TYPE_CHECKING:
+    from autopilot_model.modules.vehicle_api import VehicleApi
 
 log = logging.getLogger(__name__)
 
@@ -53,7 +56,7 @@ def define_ekf_params(params: Any) -> None:
 class EkfCheck:
     """ArduCopter's EKF check and failsafe for one vehicle; see the module docstring."""
 
-    def __init__(self, vehicle: Any, modes: Any, announce: Callable[[int, str], None]) -> None:
+    def __init__(self, vehicle: VehicleApi, modes: FlightModes, announce: Callable[[int, str], None]) -> None:
         self.vehicle = vehicle
         self.modes = modes
         self.params = vehicle.params

@@ -25,7 +25,7 @@ The failsafe's response (RTL, LAND, BRAKE; LAND when more than 100 m outside) is
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from shapely.geometry import Point, Polygon
 
@@ -40,6 +40,9 @@ from autopilot_model.modules.mission import (
     vehicle_frames,
 )
 from taskflight_common.geo import geodetic_to_ned
+
+if TYPE_CHECKING:
+    from autopilot_model.modules.vehicle_api import VehicleApi
 
 ALT_MAX = 1
 CIRCLE = 2
@@ -145,7 +148,7 @@ class FenceShapes:
 class Fence:
     """One vehicle's geofence state (see the module docstring). ``store`` gives the FENCE plan."""
 
-    def __init__(self, vehicle: Any, store: MissionStore | None = None) -> None:
+    def __init__(self, vehicle: VehicleApi, store: MissionStore | None = None) -> None:
         self.vehicle = vehicle
         self.params = p = vehicle.params
         define_fence_params(p)

@@ -37,6 +37,7 @@ from typing import TYPE_CHECKING, Any
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from autopilot_model.modules import navigation as navmod
+from autopilot_model.modules.guided_targets import sqrt_controller
 from autopilot_model.modules.rc_input import PITCH, ROLL, YAW, RcInput
 from taskflight_common.ardupilot import CopterMode
 
@@ -76,10 +77,6 @@ def define_pilot_params(params: Any) -> None:
     params.define("LOIT_ANG_MAX", 0.0, 0.0, 45.0, doc="LOITER: maximum lean (deg), 0 = 2/3 of ANGLE_MAX")
 
 
-def sqrt_controller(error: float, p: float, second_ord_lim: float, dt: float) -> float:
-    """ArduPilot's ``sqrt_controller`` for a positive error (see :mod:`.flight_modes`)."""
-    from autopilot_model.modules.flight_modes import sqrt_controller as sc
-    return sc(error, p, second_ord_lim, dt)
 
 
 class PilotModes:

@@ -11,11 +11,15 @@ ArduCopter warn that the nearest point is far; the model does not warn.
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from taskflight_common.geo import geodetic_to_ned
 
 from .mission_items import RALLY, RALLY_POINT, RELATIVE_FRAMES
+
+if TYPE_CHECKING:
+    from autopilot_model.modules.mission_store import MissionStore
+    from autopilot_model.modules.vehicle_api import VehicleApi
 
 
 def define_rally_params(params: Any) -> None:
@@ -24,7 +28,8 @@ def define_rally_params(params: Any) -> None:
                   "rally point")
 
 
-def return_target(vehicle: Any, store: Any) -> tuple[tuple[float, float, float], float] | None:
+def return_target(vehicle: VehicleApi, store: MissionStore | None
+                  ) -> tuple[tuple[float, float, float], float] | None:
     """(rally point NED, its altitude above home) when RTL should go there; None: home."""
     if store is None or store.count(RALLY) == 0:
         return None

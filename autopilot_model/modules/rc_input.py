@@ -26,7 +26,10 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from autopilot_model.modules.vehicle_api import VehicleApi
 
 log = logging.getLogger(__name__)
 
@@ -57,7 +60,7 @@ def define_rc_params(params: Any) -> None:
 class RcInput:
     """The RC channels of one vehicle (the one writer of ``radio_in``) and the RC failsafe's state."""
 
-    def __init__(self, vehicle: Any) -> None:
+    def __init__(self, vehicle: VehicleApi) -> None:
         self.v = vehicle
         self.params = vehicle.params
         define_rc_params(self.params)

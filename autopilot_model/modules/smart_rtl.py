@@ -17,7 +17,10 @@ every point it recorded, so it flies back over the same track with a few more co
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from autopilot_model.modules.vehicle_api import VehicleApi
 
 _PRELAND_UP_M = 2.0
 _REACHED_M = 1.0
@@ -31,7 +34,7 @@ def define_smart_rtl_params(params: Any) -> None:
 class SmartRtl:
     """The recorded path and the return along it."""
 
-    def __init__(self, vehicle: Any) -> None:
+    def __init__(self, vehicle: VehicleApi) -> None:
         self.v = vehicle
         define_smart_rtl_params(vehicle.params)
         self.path: list[tuple[float, float, float]] = []
