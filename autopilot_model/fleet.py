@@ -44,6 +44,7 @@ from pathlib import Path
 from types import TracebackType
 from typing import Any
 
+from autopilot_model.scheduler.mainloop import FLUSH_EVERY
 from taskflight_common.clock import SimClock
 from taskflight_common.geo import ned_to_geodetic
 from taskflight_common.ports import model_ports
@@ -51,8 +52,6 @@ from taskflight_common.runtime import die_with_parent, setup_logging
 
 log = logging.getLogger(__name__)
 
-#: iterations between two statistics flushes of a main loop (scheduler.mainloop._FLUSH_EVERY)
-FLUSH_EVERY = 1000
 #: periods of lateness kept for the statistics (two minutes at 500 Hz)
 LATENESS_KEPT = 60_000
 
@@ -161,8 +160,7 @@ class Fleet:
         n = len(self.vehicles)
         for i, sitl in enumerate(self.vehicles):
             loop = sitl.vehicle.start()
-            if hasattr(loop, "_next_flush"):
-                loop._next_flush += (i * FLUSH_EVERY) // n
+            loop.delay_first_flush((i * FLUSH_EVERY) // n)
 
     # --- reading -------------------------------------------------------------------------------------
     def __len__(self) -> int:

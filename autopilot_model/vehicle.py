@@ -41,7 +41,7 @@ from autopilot_model.modules.actuators import Mixer
 from autopilot_model.modules.control import CascadedController
 from autopilot_model.modules.estimation import Estimator
 from autopilot_model.modules.guidance import Envelope, SetpointGenerator
-from autopilot_model.modules.navigation import Navigator
+from autopilot_model.modules.navigation import LANDED_ON_GROUND, Navigator
 from autopilot_model.modules.sensors import PROFILES, Barometer, Compass, Imu, PositionSensor
 from autopilot_model.params import ParamStore
 from autopilot_model.physics.battery import Battery
@@ -317,14 +317,10 @@ class Vehicle:
         """Re-initialise P_d at the estimated state (on arming, take-off and after landing)."""
         e = self.state.vector
         yaw = float(quat_yaw(e[6], e[7], e[8], e[9]))
-        on_ground = self.nav.landed_state == 1 if hasattr(self, "nav") else True
+        on_ground = self.nav.landed_state == LANDED_ON_GROUND
         vel = (0.0, 0.0, 0.0) if on_ground else (float(e[3]), float(e[4]), float(e[5]))
         self.guidance.reset((float(e[0]), float(e[1]), min(float(e[2]), 0.0) if on_ground else float(e[2])),
                             vel, yaw)
-
-    def world_on_ground_estimate(self) -> bool:
-        e = self.state.vector
-        return bool(e[2] > -0.3 and abs(e[5]) < 0.3)
 
     def state_alt_estimate(self) -> float:
         """Estimated down position (m, NED), from the state interface."""

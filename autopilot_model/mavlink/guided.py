@@ -135,7 +135,7 @@ class GuidedTargetsProtocol:
         if flags is None:
             return
         pos_i, vel_i, acc_i, yaw_i, rate_i = flags
-        heading = self.v.state.heading if hasattr(self.v.state, "heading") else self.v.state.euler[2]
+        heading = self.v.state.heading
         body = frame in BODY_FRAMES
         pos = vel = acc = None
         if not pos_i:

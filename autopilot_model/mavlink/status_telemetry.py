@@ -40,7 +40,6 @@ EKF_READY_FLAGS = (M.EKF_ATTITUDE | M.EKF_VELOCITY_HORIZ | M.EKF_VELOCITY_VERT |
                    | M.EKF_POS_HORIZ_ABS | M.EKF_POS_VERT_ABS | M.EKF_PRED_POS_HORIZ_REL
                    | M.EKF_PRED_POS_HORIZ_ABS)
 """What ArduCopter's EKF3 reports in a GPS hover (0x33F)."""
-_GUIDANCE_POS = 0  # SetpointGenerator's position mode (guidance._POS)
 
 
 def _i(v: float, lo: int, hi: int) -> int:
@@ -124,15 +123,15 @@ class StatusTelemetry:
 
     def _position_target(self) -> tuple[float, float, float] | None:
         g = self.v.guidance
-        if getattr(g, "_mode", None) != _GUIDANCE_POS or not self.v.nav.armed:
+        if not self.v.nav.armed:
             return None
-        t = getattr(g, "_t", None)
+        t = g.target
         return None if t is None else (float(t[0]), float(t[1]), float(t[2]))
 
     def nav_controller_output(self) -> Any:
         st = self.v.state
         roll, pitch, _ = st.euler
-        yaw_target = math.degrees(getattr(self.v.guidance, "yaw", st.euler[2]))
+        yaw_target = math.degrees(self.v.guidance.yaw)
         bearing, dist, alt_err = 0, 0, 0.0
         target = self._position_target()
         if target is not None:

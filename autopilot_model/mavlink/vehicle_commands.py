@@ -122,6 +122,7 @@ class VehicleCommands:
         if msg.target_system != self.ep.sysid:
             self.ep.stats["wrong_target"] += 1
             return
+        reason: str | None
         if not msg.base_mode & M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED:
             result, reason = DENIED, "Mode: only custom modes are supported"
         elif msg.custom_mode not in fm.MODE_NAMES:

@@ -233,12 +233,8 @@ Vec3 = tuple[float, float, float]
 
 def vehicle_frames(vehicle: VehicleApi) -> tuple[Vec3, float, Vec3]:
     """(origin (lat, lon, alt AMSL) of the local frame, home altitude AMSL, home position NED)."""
-    origin = tuple(float(v) for v in vehicle.state.origin)
-    home = getattr(vehicle, "home", None)
-    if callable(home):
-        home = home()
-    if home is None:
-        return origin, origin[2], (0.0, 0.0, 0.0)  # type: ignore[return-value]
-    lat, lon, alt = float(home[0]), float(home[1]), float(home[2])
+    o = vehicle.state.origin
+    origin = (float(o[0]), float(o[1]), float(o[2]))
+    lat, lon, alt = (float(x) for x in vehicle.home[:3])
     n, e, d = geodetic_to_ned(origin, lat, lon, alt)
-    return origin, alt, (float(n), float(e), float(d))  # type: ignore[return-value]
+    return origin, alt, (float(n), float(e), float(d))

@@ -168,7 +168,7 @@ class RcInput:
 
     def angle(self, ch: int) -> float:
         """``pwm_to_angle_dz_trim``: -4500..4500 (roll right, pitch back, yaw right positive)."""
-        pwm = self.radio_in[ch]
+        pwm: float = self.radio_in[ch]
         if pwm == 0:
             return 0.0
         n = ch + 1
@@ -188,7 +188,7 @@ class RcInput:
 
     def throttle(self) -> float:
         """``pwm_to_range_dz``: the throttle stick 0..1000 (500 with no RC: mid-stick)."""
-        pwm = self.radio_in[THROTTLE]
+        pwm: float = self.radio_in[THROTTLE]
         if pwm == 0:
             return 500.0
         lo, hi = self.params.get("RC3_MIN"), self.params.get("RC3_MAX")

@@ -34,7 +34,7 @@ log = logging.getLogger(__name__)
 
 _Phase = tuple[tuple[Callable[[int], None], tuple[Callable[[], Any], ...]], ...]
 
-_FLUSH_EVERY = 1000   # iterations between two statistics flushes
+FLUSH_EVERY = 1000   # iterations between two statistics flushes
 
 
 class LoopClock(Protocol):
@@ -72,8 +72,12 @@ class MainLoop:
         self._ev_append = self.stats.appender(EVENTS_GROUP)
         self._world_append = self.stats.appender(WORLD)
         self._phases = self._build_phases()
-        self._next_flush = _FLUSH_EVERY
+        self._next_flush = FLUSH_EVERY
         self._initialised = False
+
+    def delay_first_flush(self, iterations: int) -> None:
+        """Move the first statistics flush ``iterations`` later (a fleet staggers its vehicles' flushes)."""
+        self._next_flush += iterations
 
     @property
     def iteration(self) -> int:
@@ -157,7 +161,7 @@ class MainLoop:
             clock.advance(self.period_us)
             n = self._n = self._n + 1
             if n >= self._next_flush:          # before pacing: the sleep absorbs it in real time
-                self._next_flush = n + _FLUSH_EVERY
+                self._next_flush = n + FLUSH_EVERY
                 st.flush()
             if clock.speedup > 0:
                 clock.pace()
