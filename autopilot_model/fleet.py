@@ -1,4 +1,4 @@
-"""Many simulated vehicles in one process on one clock (issue 12 item 8, ``taskflight up``'s models).
+"""Many simulated vehicles in one process on one clock (``taskflight up``'s models).
 
 A real-time :class:`~autopilot_model.sitl.Sitl` paces its 500 Hz main loop on the wall by sleeping and then
 spinning through the last millisecond of every 2 ms period (:meth:`taskflight_common.clock.SimClock.pace`):
@@ -22,9 +22,9 @@ statistics flushes (staggered) and the collector's full passes over the vehicles
 (``gc.freeze`` once they are built).
 
 Vehicle ``i`` (from 0) is instance ``base_instance + i``: system id ``first_sysid + i`` (MAV_SYSID; 1..N
-by default, whatever the instance numbers, as issue 12 item 8 asks), the endpoints of a single Sitl of
-that instance (TCP 5760+10N for MAVProxy/QGroundControl, UDP 14550+10N listening), its parameters and
-missions in ``<state-dir>/instance<N>/``, and its home ``spacing_m`` metres east of the previous
+by default, whatever the instance numbers: a ground station sees a fleet as 1..N), the endpoints of
+a single Sitl of that instance (TCP 5760+10N for MAVProxy/QGroundControl, UDP 14550+10N listening), its
+parameters and missions in ``<state-dir>/instance<N>/``, and its home ``spacing_m`` metres east of the previous
 vehicle's (so vehicles do not sit on each other).
 
     python -m autopilot_model.fleet --vehicles 12 [--speedup 1] [--base-instance 0] [--spacing 5]

@@ -8,11 +8,11 @@ The world
 steps once per iteration after the autopilot's functions, so the autopilot sees the world one period late,
 as a real one does.
 
-Every step comes from the schedule (issue 8, defect 3): the world and the clock advance by the main loop
+Every step comes from the schedule (seed 002 Sec. 3.2): the world and the clock advance by the main loop
 period; each periodic function (estimator, setpoint generator, controller, navigator, the position,
 barometer and compass corrections) steps by the period times its prescaler. Nothing assumes 500 Hz.
 
-The module resolver, not this code, chooses the position source (issue 8 item 5): the sensor profile
+The module resolver, not this code, chooses the position source: the sensor profile
 (``sensors=`` or the airframe's ``sensors``) is a module of the library that depends on ``gps`` or
 ``mocap`` (both provide ``@position_source`` and conflict, seed 002 Sec. 3.2 and Fig. 3); the vehicle adds
 it to the selection and reads back which source the resolution loaded and the period of its function
@@ -25,8 +25,9 @@ estimate_buffer`) and publishes it; the controller's kernel reads the read-only 
 :attr:`~autopilot_model.state.StateInterface.vector`, the pilot modes and the navigator read the same
 blackboard. Nothing on the control path reads the estimator's working array.
 
-This class is also the small Python API that tests use to command the model (issue 2); the MAVLink
-endpoint (issue 3) registers its own module functions with :meth:`Vehicle.register`.
+This class is also the small Python API that tests use to command the model; the MAVLink
+endpoint's wiring (:mod:`autopilot_model.mavlink.wiring`) registers its module functions with
+:meth:`Vehicle.register`.
 """
 
 from __future__ import annotations

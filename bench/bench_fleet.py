@@ -1,4 +1,4 @@
-"""Bench of issue 12 item 8: many vehicles' models in one process on one clock (:mod:`autopilot_model.fleet`).
+"""Bench: many vehicles' models in one process on one clock (:mod:`autopilot_model.fleet`).
 
 For N = 1, 3, 12, 50 at real time and N = 12, 50 in lockstep, a fleet process (this script with ``--child``)
 runs a warm-up, then a measured wall interval, and reports: its CPU share (``os.times``, user + system,

@@ -1,4 +1,4 @@
-"""Modes, commands and missions (issue 8 items 7 and 8), run against any autopilot, recording what a ground
+"""Modes, commands and missions, run against any autopilot, recording what a ground
 station observes. No tests here: ``tests/test_differential_modes.py`` compares the observations of the
 model and of ArduPilot's copter SITL; ``docs/conformance.md`` tabulates them.
 

@@ -1,4 +1,4 @@
-"""Many vehicles in one process on one clock (:mod:`autopilot_model.fleet`, issue 12 item 8).
+"""Many vehicles in one process on one clock (:mod:`autopilot_model.fleet`).
 
 The fleet runs in its own process (``python -m autopilot_model.fleet``, as ``taskflight up`` will start it)
 and is reached over real loopback sockets with pymavlink: each vehicle on its own UDP and TCP ports with its

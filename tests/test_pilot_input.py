@@ -1,4 +1,4 @@
-"""Pilot input on the model (issue 8 item 6), in-process through its MAVLink handlers: the RC channel
+"""Pilot input on the model, in-process through its MAVLink handlers: the RC channel
 semantics of RC_CHANNELS_OVERRIDE and MANUAL_CONTROL, the arming checks on the sticks, each pilot mode's
 response, the RC failsafe and its options, RC_CHANNELS / SERVO_OUTPUT_RAW and their stream group.
 

@@ -23,7 +23,7 @@ Also: MISSION_CLEAR_ALL, MISSION_SET_CURRENT (answered with MISSION_CURRENT), MI
 on every change and streamed by the endpoint's telemetry (its builder is registered here). Mission
 types MISSION, FENCE and RALLY are kept separately.
 
-Time base (issue 8, defect 4): every timeout here is simulated time (the vehicle clock), as in
+Time base: every timeout here is simulated time (the vehicle clock), as in
 ArduCopter SITL, where ``MissionItemProtocol::update`` measures the request timeout with
 ``AP_HAL::millis()`` and SITL's ``millis()`` is the simulation's stopped clock. So the protocol keeps
 the same rule as the GCS failsafe and every other vehicle timer: a model sped up N times repeats an

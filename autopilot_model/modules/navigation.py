@@ -2,7 +2,7 @@
 
 Arming with pre-arm checks, take-off, landing with a land detector, and the target setters that feed
 the setpoint generator (seed 000 Fig. 9: the flight command's target parameters P_t). ArduCopter's
-flight modes (issue 3, :mod:`autopilot_model.modules.flight_modes`) are built on these actions.
+flight modes (:mod:`autopilot_model.modules.flight_modes`) are built on these actions.
 Nothing here touches the setpoints directly: every motion goes through the generator, so the envelope
 and the continuity of P_d always hold.
 """
