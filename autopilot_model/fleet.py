@@ -24,8 +24,8 @@ statistics flushes (staggered) and the collector's full passes over the vehicles
 Vehicle ``i`` (from 0) is instance ``base_instance + i``: system id ``first_sysid + i`` (MAV_SYSID; 1..N
 by default, whatever the instance numbers: a ground station sees a fleet as 1..N), the endpoints of
 a single Sitl of that instance (TCP 5760+10N for MAVProxy/QGroundControl, UDP 14550+10N listening), its
-parameters and missions in ``<state-dir>/instance<N>/``, and its home ``spacing_m`` metres east of the previous
-vehicle's (so vehicles do not sit on each other).
+parameters and missions in ``<state-dir>/instance<N>/``, and its home ``spacing_m`` metres east of
+the previous vehicle's (so vehicles do not sit on each other).
 
     python -m autopilot_model.fleet --vehicles 12 [--speedup 1] [--base-instance 0] [--spacing 5]
 """
