@@ -16,15 +16,16 @@ input in CIRCLE (ArduCopter: the pitch stick changes the radius, roll the rate).
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
     from autopilot_model.modules.vehicle_api import VehicleApi
+    from autopilot_model.params import ParamStore
 
 _PULL = 1.0  # 1/s: velocity per metre of error onto the point on the circle
 
 
-def define_circle_params(params: Any) -> None:
+def define_circle_params(params: ParamStore) -> None:
     params.define("CIRCLE_RADIUS", 1000.0, 0.0, 200000.0, doc="CIRCLE mode radius (cm)")
     params.define("CIRCLE_RATE", 20.0, -90.0, 90.0, doc="CIRCLE mode turn rate (deg/s, negative: "
                   "counter-clockwise)")

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
@@ -29,6 +29,7 @@ from autopilot_model.modules.flight_modes import ALT_HOLD, AUTO, BRAKE, GUIDED, 
 
 if TYPE_CHECKING:
     from autopilot_model.modules.vehicle_api import VehicleApi
+    from autopilot_model.params import ParamStore
 
 log = logging.getLogger(__name__)
 
@@ -45,7 +46,7 @@ FS_EKF_ACTION_ALTHOLD = 2
 FS_EKF_ACTION_LAND_EVEN_STABILIZE = 3
 
 
-def define_ekf_params(params: Any) -> None:
+def define_ekf_params(params: ParamStore) -> None:
     """FS_EKF_ACTION and FS_EKF_THRESH (ArduCopter names, values and defaults)."""
     params.define("FS_EKF_ACTION", FS_EKF_ACTION_LAND, 1, 3, "int",
                   "EKF failsafe action: 1 LAND, 2 ALT_HOLD, 3 LAND even in STABILIZE")

@@ -25,7 +25,7 @@ The failsafe's response (RTL, LAND, BRAKE; LAND when more than 100 m outside) is
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from shapely.geometry import Point, Polygon
 
@@ -43,6 +43,7 @@ from taskflight_common.geo import geodetic_to_ned
 
 if TYPE_CHECKING:
     from autopilot_model.modules.vehicle_api import VehicleApi
+    from autopilot_model.params import ParamStore
 
 ALT_MAX = 1
 CIRCLE = 2
@@ -74,7 +75,7 @@ def fence_names(bits: int) -> str:
     return text + (" fences" if len(names) > 1 else " fence")
 
 
-def define_fence_params(params: Any) -> None:
+def define_fence_params(params: ParamStore) -> None:
     """The FENCE_ parameters (ArduCopter names, ranges and defaults)."""
     params.define("FENCE_ENABLE", 0, 0, 1, "int", "geofence on (DO_FENCE_ENABLE does not change it)")
     params.define("FENCE_TYPE", 7, 0, 15, "int",

@@ -63,6 +63,7 @@ if TYPE_CHECKING:
     from autopilot_model.modules.mission_store import MissionStore
     from autopilot_model.modules.pilot_modes import PilotModes
     from autopilot_model.modules.vehicle_api import VehicleApi
+    from autopilot_model.params import ParamStore
 
 log = logging.getLogger(__name__)
 
@@ -120,7 +121,7 @@ def mode_name(mode: int) -> str:
     return MODE_NAMES.get(mode, f"MODE{mode}")
 
 
-def define_mode_params(params: Any) -> None:
+def define_mode_params(params: ParamStore) -> None:
     params.define("GUID_TIMEOUT", 3.0, 0.1, 5.0,
                   doc="GUIDED: stop if no new velocity/acceleration target for this long (s)")
     define_rtl_alt(params)

@@ -64,6 +64,8 @@ from .mission_store import MissionStore
 from .shared_params import define_rtl_alt
 
 if TYPE_CHECKING:
+    from autopilot_model.params import ParamStore
+
     from .auto_yaw import AutoYaw
     from .vehicle_api import GroundLink, VehicleApi
 
@@ -134,7 +136,7 @@ _SETTLE_S = 2.0
 just outside a (very small) acceptance radius."""
 
 
-def define_mission_params(params: Any) -> None:
+def define_mission_params(params: ParamStore) -> None:
     """ArduCopter parameters the mission runner reads (units as ArduCopter: cm, cm/s)."""
     params.define("WPNAV_RADIUS", 200.0, 5.0, 1000.0, doc="waypoint acceptance radius (cm) when an item's "
                   "param2 is 0")

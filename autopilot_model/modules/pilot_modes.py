@@ -32,7 +32,8 @@ from __future__ import annotations
 
 import logging
 import math
-from typing import TYPE_CHECKING, Any
+from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
@@ -43,6 +44,7 @@ from taskflight_common.ardupilot import CopterMode
 
 if TYPE_CHECKING:
     from autopilot_model.modules.flight_modes import FlightModes
+    from autopilot_model.params import ParamStore
 
 log = logging.getLogger(__name__)
 
@@ -60,7 +62,7 @@ CONTINUE_IF_LANDING = 8
 LAND_DETECT_S = 1.0
 
 
-def define_pilot_params(params: Any) -> None:
+def define_pilot_params(params: ParamStore) -> None:
     params.define("PILOT_SPEED_UP", 250.0, 50.0, 500.0, doc="pilot's maximum climb rate (cm/s)")
     params.define("PILOT_SPEED_DN", 0.0, 0.0, 500.0,
                   doc="pilot's maximum descent rate (cm/s), 0: PILOT_SPEED_UP")
@@ -93,7 +95,7 @@ class PilotModes:
         self._brake_timer = 0.0
         self._brake_accel = 0.0
         self._poshold_braking = False
-        self.announce: Any = None  # (severity, text) -> None, set by the MAVLink wiring
+        self.announce: Callable[[int, str], None] | None = None  # STATUSTEXT, set by the wiring
         rc.on_failsafe.append(self.radio_failsafe)
 
     # --- stick read-outs ---------------------------------------------------------------------------

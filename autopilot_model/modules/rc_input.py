@@ -26,10 +26,11 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
     from autopilot_model.modules.vehicle_api import VehicleApi
+    from autopilot_model.params import ParamStore
 
 log = logging.getLogger(__name__)
 
@@ -40,7 +41,7 @@ UINT16_MAX = 65535
 INT16_MAX = 32767
 
 
-def define_rc_params(params: Any) -> None:
+def define_rc_params(params: ParamStore) -> None:
     for ch in range(1, 5):
         params.define(f"RC{ch}_MIN", 1100.0, 800.0, 2200.0, "int", f"RC channel {ch} minimum PWM (us)")
         params.define(f"RC{ch}_MAX", 1900.0, 800.0, 2200.0, "int", f"RC channel {ch} maximum PWM (us)")

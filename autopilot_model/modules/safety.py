@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
@@ -43,6 +43,7 @@ from autopilot_model.modules.mission import MissionStore
 if TYPE_CHECKING:
     from autopilot_model.modules.flight_modes import FlightModes
     from autopilot_model.modules.vehicle_api import GroundLink, VehicleApi
+    from autopilot_model.params import ParamStore
 
 log = logging.getLogger(__name__)
 
@@ -58,7 +59,7 @@ _LANDED_LANDING = 4
 _LANDING_MODES = (LAND,)
 
 
-def define_safety_params(params: Any, cells: int, capacity_mah: float) -> None:
+def define_safety_params(params: ParamStore, cells: int, capacity_mah: float) -> None:
     """The failsafe parameters (ArduCopter names and units)."""
     params.define("FS_GCS_ENABLE", 0, 0, 7, "int",
                   "GCS failsafe: 0 off, 1 RTL, 2 continue AUTO else RTL, 3 SmartRTL/RTL, 4 SmartRTL/LAND, "
