@@ -30,7 +30,6 @@ class Ep(Recorder):
 @pytest.fixture
 def rig():
     v = KinematicVehicle()
-    v.nav.prearm_checks = []  # the Navigator's list the fence adds its pre-arm check to
     ep, modes, store = Ep(), Modes(), MissionStore()
     safety = Safety(v, ep, modes, store)
     return v, ep, modes, store, safety
