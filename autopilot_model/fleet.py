@@ -44,11 +44,13 @@ from pathlib import Path
 from types import TracebackType
 from typing import Any
 
-from autopilot_model.scheduler.mainloop import FLUSH_EVERY
+from autopilot_model.demo import add_model_arguments
+from autopilot_model.sitl import Sitl, default_urls, parse_home
 from taskflight_common.clock import SimClock
 from taskflight_common.geo import ned_to_geodetic
 from taskflight_common.ports import model_ports
-from taskflight_common.runtime import die_with_parent, setup_logging
+from taskflight_common.runtime import die_with_parent, setup_logging, stop_on_signals
+from taskflight_common.yamlio import ConfigError
 
 log = logging.getLogger(__name__)
 
@@ -60,7 +62,7 @@ def fleet_homes(n: int, home: Sequence[float] | None = None, spacing_m: float = 
                 ) -> list[tuple[float, ...]]:
     """Homes of ``n`` vehicles: ``home`` (LAT, LON, ALT[, HDG]; default CMAC) and then every
     ``spacing_m`` metres east of it (ArduPilot's flat-earth conversion, :mod:`taskflight_common.geo`)."""
-    from autopilot_model.vehicle import DEFAULT_HOME
+    from autopilot_model.vehicle import DEFAULT_HOME  # start-up cost: the model imports numba
 
     base = tuple(float(x) for x in (home if home is not None else DEFAULT_HOME))
     if len(base) not in (3, 4):
@@ -98,8 +100,6 @@ class Fleet:
                  urls: Sequence[Sequence[str]] | None = None, url_templates: Sequence[str] | None = None,
                  first_sysid: int = 1, batch: int = 1, max_lag_s: float = 0.5, spin_s: float = 0.0,
                  **sitl_options: Any) -> None:
-        from autopilot_model.sitl import Sitl, default_urls
-
         if n < 1:
             raise ValueError(f"a fleet has at least one vehicle, got {n}")
         if not 0 <= base_instance <= 255 - n:
@@ -160,7 +160,7 @@ class Fleet:
         n = len(self.vehicles)
         for i, sitl in enumerate(self.vehicles):
             loop = sitl.vehicle.start()
-            loop.delay_first_flush((i * FLUSH_EVERY) // n)
+            loop.stagger_flush(i, n)
 
     # --- reading -------------------------------------------------------------------------------------
     def __len__(self) -> int:
@@ -265,9 +265,6 @@ class Fleet:
 # --- command line ------------------------------------------------------------------------------------
 def add_fleet_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``python -m autopilot_model.fleet`` / ``taskflight fleet``."""
-    from autopilot_model.demo import add_model_arguments
-    from autopilot_model.sitl import _home
-
     add_model_arguments(parser)
     parser.add_argument("--vehicles", "-n", type=int, required=True, help="number of vehicles N")
     parser.add_argument("--base-instance", "-I", type=int, default=0,
@@ -275,7 +272,7 @@ def add_fleet_arguments(parser: argparse.ArgumentParser) -> None:
                              "5760+10(I+i) TCP and 14550+10(I+i) UDP)")
     parser.add_argument("--first-sysid", type=int, default=1,
                         help="system id of vehicle 0 (vehicle i: this + i; default 1)")
-    parser.add_argument("--home", type=_home, default=None,
+    parser.add_argument("--home", type=parse_home, default=None,
                         help="LAT,LON,ALT[,HEADING] of vehicle 0 (default: CMAC)")
     parser.add_argument("--spacing", type=float, default=5.0,
                         help="metres east between two homes (default 5)")
@@ -295,9 +292,6 @@ def add_fleet_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run_fleet(args: argparse.Namespace) -> int:
     """Run the fleet until interrupted (or ``--duration``); returns the exit status."""
-    from taskflight_common.runtime import stop_on_signals
-    from taskflight_common.yamlio import ConfigError
-
     speedup = args.speedup if args.speedup is not None else 1.0
     try:
         fleet = Fleet(args.vehicles, speedup, base_instance=args.base_instance, state_dir=args.state_dir,

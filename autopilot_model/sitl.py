@@ -34,16 +34,6 @@ from pathlib import Path
 from typing import Any
 
 from autopilot_model.demo import add_model_arguments
-from autopilot_model.mavlink.endpoint import MavlinkEndpoint
-from autopilot_model.mavlink.signing import parse_key
-from autopilot_model.mavlink.wiring import vehicle_link
-from autopilot_model.modules.flight_modes import FlightModes
-from autopilot_model.modules.gcs_params import define_gcs_params
-from autopilot_model.modules.mission import MissionRunner, MissionStore
-from autopilot_model.modules.pilot_modes import PilotModes
-from autopilot_model.modules.rc_input import RcInput
-from autopilot_model.modules.safety import Safety
-from autopilot_model.vehicle import DEFAULT_HOME, DEFAULT_MODULES, Vehicle
 from taskflight_common.ports import model_ports
 from taskflight_common.runtime import freeze_startup_heap, setup_logging, stop_on_signals
 from taskflight_common.yamlio import ConfigError
@@ -71,6 +61,18 @@ class Sitl:
                  modules: str | Path | None = None, state_dir: str | Path | None = None,
                  signing_key: bytes | None = None, sensors: str | None = None, use_truth: bool = False,
                  seed: int | None = 0, persist: bool = True, sysid: int | None = None) -> None:
+        # imported here, not at the top, for start-up cost only: the command line builds its parser from
+        # this module, and the model (numba, shapely) takes about 2 s to import
+        from autopilot_model.mavlink.endpoint import MavlinkEndpoint
+        from autopilot_model.mavlink.wiring import vehicle_link
+        from autopilot_model.modules.flight_modes import FlightModes
+        from autopilot_model.modules.gcs_params import define_gcs_params
+        from autopilot_model.modules.mission import MissionRunner, MissionStore
+        from autopilot_model.modules.pilot_modes import PilotModes
+        from autopilot_model.modules.rc_input import RcInput
+        from autopilot_model.modules.safety import Safety
+        from autopilot_model.vehicle import DEFAULT_HOME, DEFAULT_MODULES, Vehicle
+
         self.instance = instance
         base = Path(state_dir) if state_dir is not None else default_state_dir()
         self.state_dir = base / f"instance{instance}"
@@ -124,7 +126,7 @@ class Sitl:
 
 
 # --- command line ------------------------------------------------------------------------------------
-def _home(text: str) -> tuple[float, ...]:
+def parse_home(text: str) -> tuple[float, ...]:
     parts = [float(x) for x in text.split(",")]
     if len(parts) not in (3, 4):
         raise argparse.ArgumentTypeError("--home wants LAT,LON,ALT[,HEADING]")
@@ -136,7 +138,7 @@ def add_autopilot_arguments(parser: argparse.ArgumentParser) -> None:
     add_model_arguments(parser)
     parser.add_argument("--instance", "-I", type=int, default=0,
                         help="instance N: system id N+1, default ports 5760+10N (TCP) and 14550+10N (UDP)")
-    parser.add_argument("--home", type=_home, default=None, help="LAT,LON,ALT[,HEADING] (default: CMAC)")
+    parser.add_argument("--home", type=parse_home, default=None, help="LAT,LON,ALT[,HEADING] (default: CMAC)")
     parser.add_argument("--mavlink", action="append", default=None, metavar="URL",
                         help="udpin:HOST:PORT, udpout:HOST:PORT or tcpin:HOST:PORT (repeatable; "
                              "default tcpin:0.0.0.0:5760+10N and udpin:0.0.0.0:14550+10N)")
@@ -152,6 +154,8 @@ def add_autopilot_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run_autopilot(args: argparse.Namespace) -> int:
     """Run one vehicle until interrupted (or ``--duration``); returns the exit status."""
+    from autopilot_model.mavlink.signing import parse_key  # start-up cost, as in Sitl
+
     key = parse_key(args.signing_key) if getattr(args, "signing_key", None) else None
     speedup = args.speedup if getattr(args, "speedup", None) is not None else 1.0
     try:

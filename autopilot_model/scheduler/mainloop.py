@@ -75,9 +75,10 @@ class MainLoop:
         self._next_flush = FLUSH_EVERY
         self._initialised = False
 
-    def delay_first_flush(self, iterations: int) -> None:
-        """Move the first statistics flush ``iterations`` later (a fleet staggers its vehicles' flushes)."""
-        self._next_flush += iterations
+    def stagger_flush(self, i: int, n: int) -> None:
+        """Move the first statistics flush by ``i``/``n`` of the flush interval (vehicle ``i`` of a fleet of
+        ``n`` started together, so that their flushes fall in different periods)."""
+        self._next_flush += (i * FLUSH_EVERY) // n
 
     @property
     def iteration(self) -> int:
