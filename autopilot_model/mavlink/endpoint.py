@@ -2,7 +2,7 @@
 
 Seed 002 (Sec. 3.2, Fig. 4) puts the datalink among the *event* functions, polled every main-loop
 iteration, and the telemetry in its own task group at the end of the iteration. Accordingly the
-endpoint registers two functions with the vehicle:
+endpoint has two functions, which the wiring (:mod:`.wiring`) registers with the vehicle:
 
 * ``mavlink.poll`` (event, every iteration): one ``epoll`` call; when data is waiting, read it, parse
   it (:mod:`.framing`), check signatures (:mod:`.signing`) and target ids, and dispatch each message to
