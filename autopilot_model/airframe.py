@@ -6,14 +6,31 @@ the file, the line and the field when something is wrong.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import NotRequired, TypedDict
 
 from taskflight_common.yamlio import ConfigError, Fields, load_yaml
 
 CONFIG_DIR = Path(__file__).parent / "config"
 DEFAULT_AIRFRAME = CONFIG_DIR / "quad_x.yaml"
 SENSOR_PROFILES = ("indoor", "outdoor", "perfect")
+
+
+class EnvelopeLimits(TypedDict):
+    """The flight envelope P_env of an airframe file (m, m/s, m/s^2, deg/s; a box or a polygon)."""
+
+    max_speed_h: float
+    max_speed_up: float
+    max_speed_down: float
+    max_accel_h: float
+    max_accel_v: float
+    max_yaw_rate: float
+    alt_floor: float
+    alt_ceiling: float
+    box: NotRequired[Sequence[float]]
+    polygon: NotRequired[Sequence[Sequence[float]]]
 
 
 @dataclass
@@ -35,7 +52,7 @@ class Airframe:
     battery_cells: int
     battery_capacity_mah: float
     battery_r: float
-    envelope: dict[str, object]
+    envelope: EnvelopeLimits
     sensors: str
     wind_mean: tuple[float, float, float]
     gust_sigma: float
@@ -73,7 +90,7 @@ def load_airframe(path: str | Path | None = None) -> Airframe:
     env = f.sub("envelope", {})
     env.unknown(("max_speed_h", "max_speed_up", "max_speed_down", "max_accel_h", "max_accel_v",
                  "max_yaw_rate", "alt_floor", "alt_ceiling", "box", "polygon"))
-    envelope: dict[str, object] = {
+    envelope: EnvelopeLimits = {
         "max_speed_h": env.number("max_speed_h", 10.0, positive=True, hi=50.0),
         "max_speed_up": env.number("max_speed_up", 2.5, positive=True, hi=20.0),
         "max_speed_down": env.number("max_speed_down", 1.5, positive=True, hi=20.0),
@@ -83,7 +100,7 @@ def load_airframe(path: str | Path | None = None) -> Airframe:
         "alt_floor": env.number("alt_floor", -1000.0),
         "alt_ceiling": env.number("alt_ceiling", 120.0),
     }
-    if envelope["alt_ceiling"] <= envelope["alt_floor"]:  # type: ignore[operator]
+    if envelope["alt_ceiling"] <= envelope["alt_floor"]:
         raise env.error("alt_ceiling", "must be above alt_floor")
     if env.has("box") and env.has("polygon"):
         raise env.error("polygon", "give either box or polygon, not both")

@@ -2,7 +2,7 @@
 
 Flies the bundled model through take-off, a square and a landing in lockstep and prints a report
 (tracking error of the truth against P_d, simulated speed, scheduler statistics). With the MAVLink
-side present (issue 3) the same vehicle can be flown from a ground station: ``taskflight autopilot``.
+side present the same vehicle can be flown from a ground station: ``taskflight autopilot``.
 """
 
 from __future__ import annotations

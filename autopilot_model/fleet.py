@@ -1,4 +1,4 @@
-"""Many simulated vehicles in one process on one clock (issue 12 item 8, ``taskflight up``'s models).
+"""Many simulated vehicles in one process on one clock (``taskflight up``'s models).
 
 A real-time :class:`~autopilot_model.sitl.Sitl` paces its 500 Hz main loop on the wall by sleeping and then
 spinning through the last millisecond of every 2 ms period (:meth:`taskflight_common.clock.SimClock.pace`):
@@ -22,10 +22,10 @@ statistics flushes (staggered) and the collector's full passes over the vehicles
 (``gc.freeze`` once they are built).
 
 Vehicle ``i`` (from 0) is instance ``base_instance + i``: system id ``first_sysid + i`` (MAV_SYSID; 1..N
-by default, whatever the instance numbers, as issue 12 item 8 asks), the endpoints of a single Sitl of
-that instance (TCP 5760+10N for MAVProxy/QGroundControl, UDP 14550+10N listening), its parameters and
-missions in ``<state-dir>/instance<N>/``, and its home ``spacing_m`` metres east of the previous
-vehicle's (so vehicles do not sit on each other).
+by default, whatever the instance numbers: a ground station sees a fleet as 1..N), the endpoints of
+a single Sitl of that instance (TCP 5760+10N for MAVProxy/QGroundControl, UDP 14550+10N listening), its
+parameters and missions in ``<state-dir>/instance<N>/``, and its home ``spacing_m`` metres east of
+the previous vehicle's (so vehicles do not sit on each other).
 
     python -m autopilot_model.fleet --vehicles 12 [--speedup 1] [--base-instance 0] [--spacing 5]
 """
@@ -44,14 +44,16 @@ from pathlib import Path
 from types import TracebackType
 from typing import Any
 
+from autopilot_model.demo import add_model_arguments
+from autopilot_model.sitl import Sitl, default_urls, parse_home
 from taskflight_common.clock import SimClock
 from taskflight_common.geo import ned_to_geodetic
-from taskflight_common.runtime import die_with_parent, setup_logging
+from taskflight_common.ports import model_ports
+from taskflight_common.runtime import die_with_parent, setup_logging, stop_on_signals
+from taskflight_common.yamlio import ConfigError
 
 log = logging.getLogger(__name__)
 
-#: iterations between two statistics flushes of a main loop (scheduler.mainloop._FLUSH_EVERY)
-FLUSH_EVERY = 1000
 #: periods of lateness kept for the statistics (two minutes at 500 Hz)
 LATENESS_KEPT = 60_000
 
@@ -60,7 +62,7 @@ def fleet_homes(n: int, home: Sequence[float] | None = None, spacing_m: float = 
                 ) -> list[tuple[float, ...]]:
     """Homes of ``n`` vehicles: ``home`` (LAT, LON, ALT[, HDG]; default CMAC) and then every
     ``spacing_m`` metres east of it (ArduPilot's flat-earth conversion, :mod:`taskflight_common.geo`)."""
-    from autopilot_model.vehicle import DEFAULT_HOME
+    from autopilot_model.vehicle import DEFAULT_HOME  # start-up cost: the model imports numba
 
     base = tuple(float(x) for x in (home if home is not None else DEFAULT_HOME))
     if len(base) not in (3, 4):
@@ -77,9 +79,8 @@ def fleet_homes(n: int, home: Sequence[float] | None = None, spacing_m: float = 
 def template_urls(templates: Sequence[str], instance: int, sysid: int | None = None) -> list[str]:
     """Endpoint URLs of ``instance`` from templates with ``{instance}``, ``{sysid}`` (default instance+1),
     ``{tcp}`` (5760+10N) and ``{udp}`` (14550+10N), e.g. ``udpin:127.0.0.1:{udp}``."""
-    fields = {"instance": instance, "sysid": instance + 1 if sysid is None else sysid,
-              "tcp": 5760 + 10 * instance,
-              "udp": 14550 + 10 * instance}
+    tcp, udp = model_ports(instance)
+    fields = {"instance": instance, "sysid": instance + 1 if sysid is None else sysid, "tcp": tcp, "udp": udp}
     out = []
     for t in templates:
         try:
@@ -99,8 +100,6 @@ class Fleet:
                  urls: Sequence[Sequence[str]] | None = None, url_templates: Sequence[str] | None = None,
                  first_sysid: int = 1, batch: int = 1, max_lag_s: float = 0.5, spin_s: float = 0.0,
                  **sitl_options: Any) -> None:
-        from autopilot_model.sitl import Sitl, default_urls
-
         if n < 1:
             raise ValueError(f"a fleet has at least one vehicle, got {n}")
         if not 0 <= base_instance <= 255 - n:
@@ -161,8 +160,7 @@ class Fleet:
         n = len(self.vehicles)
         for i, sitl in enumerate(self.vehicles):
             loop = sitl.vehicle.start()
-            if hasattr(loop, "_next_flush"):
-                loop._next_flush += (i * FLUSH_EVERY) // n
+            loop.stagger_flush(i, n)
 
     # --- reading -------------------------------------------------------------------------------------
     def __len__(self) -> int:
@@ -227,7 +225,7 @@ class Fleet:
             # each vehicle's construction, seconds apart for 50 vehicles
             unix0_us = int(time.time() * 1e6) - clock.now_us
             for sitl in self.vehicles:
-                sitl.telemetry.unix0_us = unix0_us
+                sitl.link.telemetry.unix0_us = unix0_us
         paced = clock.speedup > 0
         batch = self.batch
         late = self.lateness_s.append
@@ -267,9 +265,6 @@ class Fleet:
 # --- command line ------------------------------------------------------------------------------------
 def add_fleet_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``python -m autopilot_model.fleet`` / ``taskflight fleet``."""
-    from autopilot_model.demo import add_model_arguments
-    from autopilot_model.sitl import _home
-
     add_model_arguments(parser)
     parser.add_argument("--vehicles", "-n", type=int, required=True, help="number of vehicles N")
     parser.add_argument("--base-instance", "-I", type=int, default=0,
@@ -277,7 +272,7 @@ def add_fleet_arguments(parser: argparse.ArgumentParser) -> None:
                              "5760+10(I+i) TCP and 14550+10(I+i) UDP)")
     parser.add_argument("--first-sysid", type=int, default=1,
                         help="system id of vehicle 0 (vehicle i: this + i; default 1)")
-    parser.add_argument("--home", type=_home, default=None,
+    parser.add_argument("--home", type=parse_home, default=None,
                         help="LAT,LON,ALT[,HEADING] of vehicle 0 (default: CMAC)")
     parser.add_argument("--spacing", type=float, default=5.0,
                         help="metres east between two homes (default 5)")
@@ -297,9 +292,6 @@ def add_fleet_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run_fleet(args: argparse.Namespace) -> int:
     """Run the fleet until interrupted (or ``--duration``); returns the exit status."""
-    from taskflight_common.runtime import stop_on_signals
-    from taskflight_common.yamlio import ConfigError
-
     speedup = args.speedup if args.speedup is not None else 1.0
     try:
         fleet = Fleet(args.vehicles, speedup, base_instance=args.base_instance, state_dir=args.state_dir,

@@ -26,6 +26,7 @@ import os
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
+from typing import SupportsFloat
 
 log = logging.getLogger(__name__)
 
@@ -134,6 +135,8 @@ class ParamStore:
         """``value`` as ``d`` stores it, or :class:`ParamError`."""
         name = d.name
         try:
+            if not isinstance(value, SupportsFloat | str):
+                raise TypeError(type(value).__name__)
             v = float(value)
         except (TypeError, ValueError):
             raise ParamError(f"{name}: not a number: {value!r}") from None

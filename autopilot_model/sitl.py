@@ -3,12 +3,12 @@
 :class:`Sitl` is what ``taskflight autopilot`` runs, and what the integration tests start (in a
 subprocess, through ``python -m autopilot_model.sitl``). It assembles:
 
-* the :class:`~autopilot_model.vehicle.Vehicle` (issue 2),
+* the :class:`~autopilot_model.vehicle.Vehicle`,
 * :class:`~autopilot_model.modules.flight_modes.FlightModes` (``flight_modes.update``, navigation group),
-* the :class:`~autopilot_model.mavlink.endpoint.MavlinkEndpoint` (``mavlink.poll`` as an event function,
-  ``mavlink.telemetry`` in the telemetry group, seed 002) with the telemetry builders, the vehicle
-  commands and the GUIDED target handlers,
-* missions (store, protocol, runner) and failsafes (safety), from the missions-and-failsafes work,
+* missions (store, runner) and failsafes (safety),
+* the :class:`~autopilot_model.mavlink.endpoint.MavlinkEndpoint` with every protocol piece, built by
+  :func:`autopilot_model.mavlink.wiring.vehicle_link` (``mavlink.poll`` as an event function,
+  ``mavlink.telemetry`` in the telemetry group, seed 002),
 * parameters persisted per instance (``<state-dir>/instance<N>/params.json``), loaded before any
   piece declares its parameters (a saved value is applied as its parameter is declared, so every piece
   starts with the saved value, as ArduCopter's ``AP_Param::load_all`` does before the libraries start).
@@ -33,13 +33,17 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from autopilot_model.demo import add_model_arguments
+from taskflight_common.ports import model_ports
 from taskflight_common.runtime import freeze_startup_heap, setup_logging, stop_on_signals
+from taskflight_common.yamlio import ConfigError
 
 log = logging.getLogger(__name__)
 
-#: Module library entries the MAVLink side needs, merged in when the library file lacks them.
 def default_urls(instance: int) -> list[str]:
-    return [f"tcpin:0.0.0.0:{5760 + 10 * instance}", f"udpin:0.0.0.0:{14550 + 10 * instance}"]
+    """ArduPilot SITL's listening endpoints of ``instance`` (:func:`taskflight_common.ports.model_ports`)."""
+    tcp, udp = model_ports(instance)
+    return [f"tcpin:0.0.0.0:{tcp}", f"udpin:0.0.0.0:{udp}"]
 
 
 def default_state_dir() -> Path:
@@ -57,14 +61,16 @@ class Sitl:
                  modules: str | Path | None = None, state_dir: str | Path | None = None,
                  signing_key: bytes | None = None, sensors: str | None = None, use_truth: bool = False,
                  seed: int | None = 0, persist: bool = True, sysid: int | None = None) -> None:
+        # imported here, not at the top, for start-up cost only: the command line builds its parser from
+        # this module, and the model (numba, shapely) takes about 2 s to import
         from autopilot_model.mavlink.endpoint import MavlinkEndpoint
-        from autopilot_model.mavlink.guided import GuidedTargetsProtocol
-        from autopilot_model.mavlink.pilot import PilotLink
-        from autopilot_model.mavlink.telemetry import VehicleTelemetry
-        from autopilot_model.mavlink.vehicle_commands import VehicleCommands
+        from autopilot_model.mavlink.wiring import vehicle_link
         from autopilot_model.modules.flight_modes import FlightModes
+        from autopilot_model.modules.gcs_params import define_gcs_params
+        from autopilot_model.modules.mission import MissionRunner, MissionStore
         from autopilot_model.modules.pilot_modes import PilotModes
         from autopilot_model.modules.rc_input import RcInput
+        from autopilot_model.modules.safety import Safety
         from autopilot_model.vehicle import DEFAULT_HOME, DEFAULT_MODULES, Vehicle
 
         self.instance = instance
@@ -79,61 +85,31 @@ class Sitl:
         if persist:
             kwargs["params_file"] = self.state_dir / "params.json"
         self.vehicle = v = Vehicle.from_files(airframe, mod_file, **kwargs)
+        # the modules (seed 002 Fig. 2): flight modes, pilot input, missions, failsafes
         self.modes = FlightModes(v)
         v.register("flight_modes.update", self.modes.update)
-        self.endpoint = MavlinkEndpoint(v, list(urls) if urls else default_urls(instance), sysid=sysid,
-                                        signing_key=signing_key)
+        self.endpoint = MavlinkEndpoint(v.clock, v.params, list(urls) if urls else default_urls(instance),
+                                        sysid=sysid, signing_key=signing_key, instance=instance)
         if sysid is not None:  # a fleet's numbering: wins over a saved MAV_SYSID, as MAV_SYSID's default
             v.params.set_default("MAV_SYSID", sysid)
-        self.telemetry = VehicleTelemetry(self.endpoint, self.modes)
-        self.commands = VehicleCommands(self.endpoint, self.modes)
-        self.guided = GuidedTargetsProtocol(self.endpoint, self.modes)
         self.rc = RcInput(v)
         self.modes.pilot = PilotModes(self.modes, self.rc)
         self.modes.pilot.announce = self.endpoint.statustext
-        self.pilot_link = PilotLink(self.endpoint, self.rc)
-        selected = ["flight_modes", "mavlink"]
-        selected += self._wire_missions_and_safety()
-        from autopilot_model.modules.gcs_params import define_gcs_params
-        define_gcs_params(v.params)  # last: a module's own definition of a name comes first
-        for name in v.params.unknown_saved():
-            log.warning("%s: unknown parameter %s ignored", self.state_dir / "params.json", name)
-        v.select(*selected)
-        v.start()
-
-    def _wire_missions_and_safety(self) -> list[str]:
-        """Missions and failsafes (their own modules); returns the scheduler modules they need."""
-        from pymavlink.dialects.v20 import ardupilotmega as m
-
-        from autopilot_model.mavlink.mission_protocol import MissionProtocol
-        from autopilot_model.mavlink.status_telemetry import FenceLink, StatusTelemetry
-        from autopilot_model.modules.mission import MissionRunner, MissionStore
-        from autopilot_model.modules.safety import Safety
-
-        v = self.vehicle
         self.missions = MissionStore(self.state_dir / "missions.json")
-        self.mission_protocol = MissionProtocol(self.endpoint, self.missions)
         self.mission_runner = MissionRunner(v, self.missions, self.endpoint, self.modes)
         self.modes.mission_runner = self.mission_runner
         self.modes.missions = self.missions  # rally points for RTL
-        if hasattr(self.mission_protocol, "status"):
-            self.mission_protocol.status = self.mission_runner
         self.safety = Safety(v, self.endpoint, self.modes, self.missions)
-        self.modes.fence = fence = self.safety.fence
-        self.fence_link = FenceLink(self.endpoint, fence)
-        self.safety.on_fence_breach = self.fence_link.send_now
-        self.status_telemetry = StatusTelemetry(self.endpoint, v)
-        v.register("mission.periodic", self.mission_protocol.periodic)
+        self.modes.fence = self.safety.fence
         v.register("safety.periodic", self.safety.periodic)
-        self.telemetry.capabilities |= (m.MAV_PROTOCOL_CAPABILITY_MISSION_INT
-                                        | m.MAV_PROTOCOL_CAPABILITY_MISSION_FENCE
-                                        | m.MAV_PROTOCOL_CAPABILITY_MISSION_RALLY)
-        self.telemetry.critical = lambda: bool(
-            self.safety.gcs_failsafe or self.safety.battery_level or self.safety.fence_breached
-            or self.safety.ekf_failsafe or self.rc.failsafe)
-        self.telemetry.fence_state = lambda: (
-            bool(fence.present()), fence.enabled and v.params.get("FENCE_ACTION") != 0, bool(fence.breached))
-        return ["mission", "safety"]
+        # the MAVLink side, wired in one place
+        self.link = vehicle_link(self.endpoint, v, self.modes, self.rc, self.missions, self.mission_runner,
+                                 self.safety)
+        define_gcs_params(v.params)  # last: a module's own definition of a name comes first
+        for name in v.params.unknown_saved():
+            log.warning("%s: unknown parameter %s ignored", self.state_dir / "params.json", name)
+        v.select("flight_modes", "mavlink", "mission", "safety")
+        v.start()
 
     # --- running -------------------------------------------------------------------------------
     def run(self, duration_s: float | None = None, stop: threading.Event | None = None) -> None:
@@ -150,7 +126,7 @@ class Sitl:
 
 
 # --- command line ------------------------------------------------------------------------------------
-def _home(text: str) -> tuple[float, ...]:
+def parse_home(text: str) -> tuple[float, ...]:
     parts = [float(x) for x in text.split(",")]
     if len(parts) not in (3, 4):
         raise argparse.ArgumentTypeError("--home wants LAT,LON,ALT[,HEADING]")
@@ -159,12 +135,10 @@ def _home(text: str) -> tuple[float, ...]:
 
 def add_autopilot_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``taskflight autopilot`` (the vehicle's and the MAVLink side's)."""
-    from autopilot_model.demo import add_model_arguments
-
     add_model_arguments(parser)
     parser.add_argument("--instance", "-I", type=int, default=0,
                         help="instance N: system id N+1, default ports 5760+10N (TCP) and 14550+10N (UDP)")
-    parser.add_argument("--home", type=_home, default=None, help="LAT,LON,ALT[,HEADING] (default: CMAC)")
+    parser.add_argument("--home", type=parse_home, default=None, help="LAT,LON,ALT[,HEADING] (default: CMAC)")
     parser.add_argument("--mavlink", action="append", default=None, metavar="URL",
                         help="udpin:HOST:PORT, udpout:HOST:PORT or tcpin:HOST:PORT (repeatable; "
                              "default tcpin:0.0.0.0:5760+10N and udpin:0.0.0.0:14550+10N)")
@@ -180,8 +154,7 @@ def add_autopilot_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run_autopilot(args: argparse.Namespace) -> int:
     """Run one vehicle until interrupted (or ``--duration``); returns the exit status."""
-    from autopilot_model.mavlink.signing import parse_key
-    from taskflight_common.yamlio import ConfigError
+    from autopilot_model.mavlink.signing import parse_key  # start-up cost, as in Sitl
 
     key = parse_key(args.signing_key) if getattr(args, "signing_key", None) else None
     speedup = args.speedup if getattr(args, "speedup", None) is not None else 1.0
@@ -211,7 +184,7 @@ def run_autopilot(args: argparse.Namespace) -> int:
         for k, val in sorted(sitl.endpoint.stats.items()):
             print(f"  {k:28s} {val}")
         loop = sitl.vehicle.loop
-        if loop is not None and hasattr(loop, "stats"):
+        if loop is not None:
             print(loop.stats.table())
     return 0
 

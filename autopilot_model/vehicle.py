@@ -8,11 +8,11 @@ The world
 steps once per iteration after the autopilot's functions, so the autopilot sees the world one period late,
 as a real one does.
 
-Every step comes from the schedule (issue 8, defect 3): the world and the clock advance by the main loop
+Every step comes from the schedule (seed 002 Sec. 3.2): the world and the clock advance by the main loop
 period; each periodic function (estimator, setpoint generator, controller, navigator, the position,
 barometer and compass corrections) steps by the period times its prescaler. Nothing assumes 500 Hz.
 
-The module resolver, not this code, chooses the position source (issue 8 item 5): the sensor profile
+The module resolver, not this code, chooses the position source: the sensor profile
 (``sensors=`` or the airframe's ``sensors``) is a module of the library that depends on ``gps`` or
 ``mocap`` (both provide ``@position_source`` and conflict, seed 002 Sec. 3.2 and Fig. 3); the vehicle adds
 it to the selection and reads back which source the resolution loaded and the period of its function
@@ -25,8 +25,9 @@ estimate_buffer`) and publishes it; the controller's kernel reads the read-only 
 :attr:`~autopilot_model.state.StateInterface.vector`, the pilot modes and the navigator read the same
 blackboard. Nothing on the control path reads the estimator's working array.
 
-This class is also the small Python API that tests use to command the model (issue 2); the MAVLink
-endpoint (issue 3) registers its own module functions with :meth:`Vehicle.register`.
+This class is also the small Python API that tests use to command the model; the MAVLink
+endpoint's wiring (:mod:`autopilot_model.mavlink.wiring`) registers its module functions with
+:meth:`Vehicle.register`.
 """
 
 from __future__ import annotations
@@ -41,7 +42,7 @@ from autopilot_model.modules.actuators import Mixer
 from autopilot_model.modules.control import CascadedController
 from autopilot_model.modules.estimation import Estimator
 from autopilot_model.modules.guidance import Envelope, SetpointGenerator
-from autopilot_model.modules.navigation import Navigator
+from autopilot_model.modules.navigation import LANDED_ON_GROUND, Navigator
 from autopilot_model.modules.sensors import PROFILES, Barometer, Compass, Imu, PositionSensor
 from autopilot_model.params import ParamStore
 from autopilot_model.physics.battery import Battery
@@ -317,14 +318,10 @@ class Vehicle:
         """Re-initialise P_d at the estimated state (on arming, take-off and after landing)."""
         e = self.state.vector
         yaw = float(quat_yaw(e[6], e[7], e[8], e[9]))
-        on_ground = self.nav.landed_state == 1 if hasattr(self, "nav") else True
+        on_ground = self.nav.landed_state == LANDED_ON_GROUND
         vel = (0.0, 0.0, 0.0) if on_ground else (float(e[3]), float(e[4]), float(e[5]))
         self.guidance.reset((float(e[0]), float(e[1]), min(float(e[2]), 0.0) if on_ground else float(e[2])),
                             vel, yaw)
-
-    def world_on_ground_estimate(self) -> bool:
-        e = self.state.vector
-        return bool(e[2] > -0.3 and abs(e[5]) < 0.3)
 
     def state_alt_estimate(self) -> float:
         """Estimated down position (m, NED), from the state interface."""

@@ -26,9 +26,13 @@ os.environ.setdefault("MAVLINK20", "1")
 from pymavlink import mavutil
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
+from taskflight_common.ardupilot import CopterMode
+
 M = mavlink2
 #: ArduCopter custom modes (HEARTBEAT custom_mode)
-STABILIZE, ALT_HOLD, AUTO, GUIDED, LOITER, RTL, LAND, BRAKE = 0, 2, 3, 4, 5, 6, 9, 17
+STABILIZE, ALT_HOLD, AUTO, GUIDED, LOITER, RTL, LAND, BRAKE = (
+    CopterMode.STABILIZE, CopterMode.ALT_HOLD, CopterMode.AUTO, CopterMode.GUIDED, CopterMode.LOITER,
+    CopterMode.RTL, CopterMode.LAND, CopterMode.BRAKE)
 #: MAV_CMD_COMPONENT_ARM_DISARM param2 that forces a disarm in flight
 FORCE_DISARM = 21196
 #: ArduCopter's REQUEST_DATA_STREAM groups, restricted to what the fake produces

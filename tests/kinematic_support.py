@@ -5,6 +5,7 @@ that records what would be sent."""
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import Any
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
@@ -28,6 +29,7 @@ class KinematicNav:
         self.speed = 5.0
         self.landing = False
         self.speeds: list[float | None] = []
+        self.prearm_checks: list[Callable[[], str | None]] = []  # as the Navigator's
 
     def arm(self, force: bool = False) -> tuple[bool, str]:
         self.armed = True

@@ -25,6 +25,7 @@ os.environ.setdefault("MAVLINK20", "1")
 from pymavlink import mavutil
 
 from taskflight.sitlproc import ModelProcess
+from taskflight_common.ardupilot import CopterMode
 
 mavutil.set_dialect("ardupilotmega")
 
@@ -33,7 +34,9 @@ M = mavutil.mavlink
 #: the speedup the SITL tests run the model at
 SPEEDUP = 10.0
 #: ArduCopter flight modes (HEARTBEAT custom_mode)
-STABILIZE, ALT_HOLD, AUTO, GUIDED, LOITER, RTL, LAND, BRAKE = 0, 2, 3, 4, 5, 6, 9, 17
+STABILIZE, ALT_HOLD, AUTO, GUIDED, LOITER, RTL, LAND, BRAKE = (
+    CopterMode.STABILIZE, CopterMode.ALT_HOLD, CopterMode.AUTO, CopterMode.GUIDED, CopterMode.LOITER,
+    CopterMode.RTL, CopterMode.LAND, CopterMode.BRAKE)
 #: SET_POSITION_TARGET_* type masks: position only, velocity only
 POS_ONLY = 0b110111111000
 VEL_ONLY = 0b110111000111

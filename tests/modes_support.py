@@ -1,4 +1,4 @@
-"""Modes, commands and missions (issue 8 items 7 and 8), run against any autopilot, recording what a ground
+"""Modes, commands and missions, run against any autopilot, recording what a ground
 station observes. No tests here: ``tests/test_differential_modes.py`` compares the observations of the
 model and of ArduPilot's copter SITL; ``docs/conformance.md`` tabulates them.
 
@@ -22,9 +22,12 @@ from autopilot_support import Autopilot
 from mavlink_support import GUIDED, M, wait_for
 from pilot_support import Sticks
 
+from taskflight_common.ardupilot import CopterMode
 from taskflight_common.geo import ned_to_geodetic
 
-AUTO, LOITER, RTL, CIRCLE, SMART_RTL, STABILIZE = 3, 5, 6, 7, 21, 0
+AUTO, LOITER, RTL, CIRCLE, SMART_RTL, STABILIZE = (
+    CopterMode.AUTO, CopterMode.LOITER, CopterMode.RTL, CopterMode.CIRCLE, CopterMode.SMART_RTL,
+    CopterMode.STABILIZE)
 ACCEPTED = M.MAV_RESULT_ACCEPTED
 REL_INT = M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT
 

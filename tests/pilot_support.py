@@ -1,6 +1,6 @@
 """A pilot's flight (sticks over MAVLink), run against any autopilot, recording what a ground station sees.
 
-Issue 8 item 6. :class:`Sticks` is a transmitter: a thread that sends RC_CHANNELS_OVERRIDE (or
+:class:`Sticks` is a transmitter: a thread that sends RC_CHANNELS_OVERRIDE (or
 MANUAL_CONTROL) at 25 Hz of wall time until told to stop. :func:`observe_pilot` flies the same
 scenario on the model and on ArduPilot's copter SITL (:mod:`autopilot_support`); the latter is given
 ``SIM_RC_FAIL=1`` (no receiver: its only RC is the override, as the model's) so that silence on the
@@ -18,7 +18,10 @@ from typing import Any
 from autopilot_support import Autopilot
 from mavlink_support import M, wait_for
 
-STABILIZE, ALT_HOLD, LOITER, RTL, POSHOLD = 0, 2, 5, 6, 16
+from taskflight_common.ardupilot import CopterMode
+
+STABILIZE, ALT_HOLD, LOITER, RTL, POSHOLD = (
+    CopterMode.STABILIZE, CopterMode.ALT_HOLD, CopterMode.LOITER, CopterMode.RTL, CopterMode.POSHOLD)
 CENTRE = (1500, 1500, 1500, 1500)
 IGNORE = 65535
 

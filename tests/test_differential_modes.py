@@ -1,4 +1,4 @@
-"""Differential conformance of modes, commands and missions (issue 8 items 7 and 8): model vs ArduCopter SITL.
+"""Differential conformance of modes, commands and missions: model vs ArduCopter SITL.
 
 :mod:`modes_support` flies two pymavlink scenarios on each autopilot: the commands (CONDITION_YAW,
 DO_CHANGE_SPEED, DO_REPOSITION, DO_PAUSE_CONTINUE, DO_SET_ROI_LOCATION, DO_SET_HOME, CIRCLE, SMART_RTL,

@@ -39,10 +39,10 @@ def sitl(tmp_path: Path) -> Iterator[Sitl]:
 def _published_finite(s: Sitl) -> bool:
     """What the state interface and the telemetry carry is finite."""
     st = s.vehicle.state
-    att = s.telemetry.attitude()
+    att = s.link.telemetry.attitude()
     values = [*st.position_ned, *st.velocity_ned, *st.quat, *st.body_rates,
               att.roll, att.pitch, att.yaw, att.rollspeed, att.pitchspeed, att.yawspeed]
-    lpos = s.telemetry.local_position_ned()
+    lpos = s.link.telemetry.local_position_ned()
     values += [lpos.x, lpos.y, lpos.z, lpos.vx, lpos.vy, lpos.vz]
     return all(math.isfinite(x) for x in values)
 
@@ -62,7 +62,7 @@ def _run(s: Sitl, seconds: float, each: Callable[[], None] | None = None) -> boo
 
 
 def _ahrs_healthy(s: Sitl) -> bool:
-    return bool(s.telemetry.sys_status().onboard_control_sensors_health & mavlink.MAV_SYS_STATUS_AHRS)
+    return bool(s.link.telemetry.sys_status().onboard_control_sensors_health & mavlink.MAV_SYS_STATUS_AHRS)
 
 
 def _wild_position(s: Sitl, offset: tuple[float, float, float], samples: int | None) -> None:
@@ -91,7 +91,7 @@ def test_nan_in_the_estimate_triggers_the_ekf_failsafe(sitl: Sitl) -> None:
     assert _run(sitl, 2.0)
     assert sitl.modes.mode == LAND
     assert "EKF variance" in sitl.safety.events
-    assert sitl.safety.ekf_failsafe and sitl.telemetry.system_status() == mavlink.MAV_STATE_CRITICAL
+    assert sitl.safety.ekf_failsafe and sitl.link.telemetry.system_status() == mavlink.MAV_STATE_CRITICAL
     # it lands on the restored estimate and disarms; the failsafe clears once disarmed
     assert v.run_until(lambda: not v.nav.armed, 40.0)
     assert v.nav.landed_state == LANDED_ON_GROUND and math.hypot(*v.world.position[:2]) < 3.0

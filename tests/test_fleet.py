@@ -1,4 +1,4 @@
-"""Many vehicles in one process on one clock (:mod:`autopilot_model.fleet`, issue 12 item 8).
+"""Many vehicles in one process on one clock (:mod:`autopilot_model.fleet`).
 
 The fleet runs in its own process (``python -m autopilot_model.fleet``, as ``taskflight up`` will start it)
 and is reached over real loopback sockets with pymavlink: each vehicle on its own UDP and TCP ports with its
@@ -124,7 +124,8 @@ def test_lockstep_fleet_in_process_advances_every_vehicle_together(tmp_path: Pat
         assert done == 500 and f.rounds == 500  # the first period is the warm-up round, unpaced
         assert [s.vehicle.clock.now_us for s in f.vehicles] == [1_000_000, 1_000_000]
         assert [s.endpoint.sysid for s in f.vehicles] == [1, 2]
-        assert f.vehicles[0].telemetry.unix0_us == f.vehicles[1].telemetry.unix0_us  # one SYSTEM_TIME base
+        a, b = (s.link.telemetry for s in f.vehicles)
+        assert a.unix0_us == b.unix0_us  # one SYSTEM_TIME base
         # the two main loops fold their statistics in different periods (500 iterations apart)
         assert [s.vehicle.loop._next_flush for s in f.vehicles] == [1000, 1500]
         assert f.lateness_s == type(f.lateness_s)()  # lockstep: never paced

@@ -1,4 +1,4 @@
-"""Signing and invalid fields against the whole model process (issue 3 items 9 and 10).
+"""Signing and invalid fields against the whole model process.
 
 A SITL with a signing key: an unsigned ground station is not acted on, a signed one is; NaN or
 infinite fields in GUIDED targets change nothing and are counted; the vehicle keeps flying.

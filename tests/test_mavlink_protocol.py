@@ -21,6 +21,7 @@ from autopilot_model.mavlink.commands import ACCEPTED, DENIED, UNSUPPORTED, Comm
 from autopilot_model.mavlink.endpoint import MavlinkEndpoint
 from autopilot_model.mavlink.framing import FrameParser
 from autopilot_model.mavlink.signing import key_from_passphrase
+from autopilot_model.mavlink.wiring import LinkProtocol, link_protocol
 from autopilot_model.params import ParamStore
 from taskflight_common.clock import SimClock
 
@@ -99,16 +100,25 @@ class Gcs:
         return self.wait(vehicle, lambda m: m.get_type() == "COMMAND_ACK" and m.command == cmd)
 
 
+def make_endpoint(v: StandIn, urls: list[str], signing_key: bytes | None = None) -> LinkProtocol:
+    """The endpoint's core with the vehicle-independent pieces, its functions registered on ``v``."""
+    ep = MavlinkEndpoint(v.clock, v.params, urls, signing_key=signing_key)
+    v.register("mavlink.poll", ep.poll)
+    v.register("mavlink.telemetry", ep.telemetry)
+    return link_protocol(ep)
+
+
 @pytest.fixture()
 def setup(tmp_path: Any) -> Any:
     v = StandIn()
     port = free_port()
-    ep = MavlinkEndpoint(v, [f"udpin:127.0.0.1:{port}"])
-    ep.streams.add_builder("HEARTBEAT", lambda: ep.mav.heartbeat_encode(
+    proto = make_endpoint(v, [f"udpin:127.0.0.1:{port}"])
+    ep = proto.endpoint
+    proto.streams.add_builder("HEARTBEAT", lambda: ep.mav.heartbeat_encode(
         mavlink2.MAV_TYPE_QUADROTOR, mavlink2.MAV_AUTOPILOT_ARDUPILOTMEGA, 1, 4, 3))
-    ep.streams.add_builder("SYSTEM_TIME", lambda: ep.mav.system_time_encode(0, v.clock.time_boot_ms))
+    proto.streams.add_builder("SYSTEM_TIME", lambda: ep.mav.system_time_encode(0, v.clock.time_boot_ms))
     gcs = Gcs(port)
-    yield v, ep, gcs
+    yield v, proto, gcs
     ep.close()
 
 
@@ -118,7 +128,8 @@ def _hello(v: StandIn, gcs: Gcs) -> None:
 
 
 def test_heartbeat_answers_whoever_sends_and_gcs_heartbeat_is_recorded(setup: Any) -> None:
-    v, ep, gcs = setup
+    v, proto, gcs = setup
+    ep = proto.endpoint
     assert ep.last_gcs_heartbeat_s is None
     _hello(v, gcs)
     assert ep.last_gcs_heartbeat_s is not None
@@ -127,10 +138,10 @@ def test_heartbeat_answers_whoever_sends_and_gcs_heartbeat_is_recorded(setup: An
 
 
 def test_unknown_command_unsupported_and_denied_has_statustext(setup: Any) -> None:
-    v, ep, gcs = setup
+    v, proto, gcs = setup
     _hello(v, gcs)
     assert gcs.command(v, 31999).result == UNSUPPORTED
-    ep.commands.add(42424, lambda c, p: (DENIED, "Nope: because"))
+    proto.commands.add(42424, lambda c, p: (DENIED, "Nope: because"))
     ack = gcs.command(v, 42424)
     assert ack.result == DENIED
     txt = gcs.wait(v, lambda m: m.get_type() == "STATUSTEXT")
@@ -138,10 +149,11 @@ def test_unknown_command_unsupported_and_denied_has_statustext(setup: Any) -> No
 
 
 def test_retransmission_executed_once_acked_twice(setup: Any) -> None:
-    v, ep, gcs = setup
+    v, proto, gcs = setup
+    ep = proto.endpoint
     _hello(v, gcs)
     calls: list[Command] = []
-    ep.commands.add(42425, lambda c, p: (calls.append(c), (ACCEPTED, None))[1])
+    proto.commands.add(42425, lambda c, p: (calls.append(c), (ACCEPTED, None))[1])
     assert gcs.command(v, 42425, 1.0).result == ACCEPTED
     assert gcs.command(v, 42425, 1.0, confirmation=1).result == ACCEPTED
     assert gcs.command(v, 42425, 1.0).result == ACCEPTED  # identical, within the window
@@ -152,7 +164,7 @@ def test_retransmission_executed_once_acked_twice(setup: Any) -> None:
 
 
 def test_set_message_interval_and_request_message(setup: Any) -> None:
-    v, _ep, gcs = setup
+    v, _proto, gcs = setup
     _hello(v, gcs)
     ack = gcs.command(v, mavlink2.MAV_CMD_SET_MESSAGE_INTERVAL, mavlink2.MAVLINK_MSG_ID_SYSTEM_TIME, 20000)
     assert ack.result == ACCEPTED
@@ -176,7 +188,8 @@ def test_set_message_interval_and_request_message(setup: Any) -> None:
 
 
 def test_param_protocol_list_read_set_and_rejects(setup: Any, tmp_path: Any) -> None:
-    v, ep, gcs = setup
+    v, proto, gcs = setup
+    ep = proto.endpoint
     v.params.attach_file(tmp_path / "params.json")
     _hello(v, gcs)
     gcs.send(gcs.mav.param_request_list_encode(1, 1))
@@ -210,10 +223,11 @@ def test_param_protocol_list_read_set_and_rejects(setup: Any, tmp_path: Any) -> 
 
 
 def test_robustness_counts_and_never_acts(setup: Any) -> None:
-    v, ep, gcs = setup
+    v, proto, gcs = setup
+    ep = proto.endpoint
     _hello(v, gcs)
     calls: list[Command] = []
-    ep.commands.add(42426, lambda c, p: (calls.append(c), (ACCEPTED, None))[1])
+    proto.commands.add(42426, lambda c, p: (calls.append(c), (ACCEPTED, None))[1])
     good = gcs.mav.command_long_encode(1, 1, 42426, 0, 1, 2, 3, 4, 5, 6, 7).pack(gcs.mav)
     gcs.raw(os.urandom(40).replace(b"\xfd", b"\x00").replace(b"\xfe", b"\x00"))  # garbage
     gcs.raw(good[:20])  # truncated
@@ -248,10 +262,11 @@ def test_signing_unsigned_refused_signed_accepted() -> None:
     v = StandIn()
     port = free_port()
     key = key_from_passphrase("taskflight")
-    ep = MavlinkEndpoint(v, [f"udpin:127.0.0.1:{port}"], signing_key=key)
-    ep.streams.add_builder("HEARTBEAT", lambda: ep.mav.heartbeat_encode(2, 3, 1, 4, 3))
+    proto = make_endpoint(v, [f"udpin:127.0.0.1:{port}"], signing_key=key)
+    ep = proto.endpoint
+    proto.streams.add_builder("HEARTBEAT", lambda: ep.mav.heartbeat_encode(2, 3, 1, 4, 3))
     calls: list[Command] = []
-    ep.commands.add(42427, lambda c, p: (calls.append(c), (ACCEPTED, None))[1])
+    proto.commands.add(42427, lambda c, p: (calls.append(c), (ACCEPTED, None))[1])
     try:
         plain = Gcs(port)
         plain.send(plain.mav.command_long_encode(1, 1, 42427, 0, 1, 0, 0, 0, 0, 0, 0))
@@ -272,7 +287,8 @@ def test_signing_unsigned_refused_signed_accepted() -> None:
 def test_only_the_configured_gcs_system_counts_for_the_gcs_failsafe(setup: Any) -> None:
     """ArduCopter counts heartbeats from MAV_GCS_SYSID only: a companion (the vehicle's own system,
     component 191) or another system's ground station does not keep the GCS failsafe quiet."""
-    v, ep, gcs = setup
+    v, proto, gcs = setup
+    ep = proto.endpoint
     companion = mavlink2.MAVLink(None, 1, 191)
     gcs.raw(companion.heartbeat_encode(mavlink2.MAV_TYPE_ONBOARD_CONTROLLER, mavlink2.MAV_AUTOPILOT_INVALID,
                                        0, 0, 0).pack(companion))

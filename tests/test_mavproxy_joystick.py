@@ -22,8 +22,10 @@ import pytest
 from mavlink_support import ROOT, Gcs, M, SitlProcess, free_port
 from test_mavproxy import Lines, _mavproxy
 
+from taskflight_common.ardupilot import CopterMode
+
 SPEEDUP = 2.0
-LOITER = 5
+LOITER = CopterMode.LOITER
 
 
 class MavProxy:

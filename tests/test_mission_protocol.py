@@ -204,7 +204,7 @@ def test_retries_then_cancel(env):
 
 
 def test_timeouts_count_simulated_time_only(env, monkeypatch):
-    """Issue 8, defect 4: as in ArduCopter SITL (``AP_HAL::millis()`` is simulated time), the request is
+    """As in ArduCopter SITL (``AP_HAL::millis()`` is simulated time), the request is
     repeated and the upload given up on simulated time, whatever the wall does: a sped-up model (the wall
     stands still while simulated time passes) times out, a paused one (the wall runs on) does not."""
     ep, clock, _, proto = env

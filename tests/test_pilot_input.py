@@ -1,4 +1,4 @@
-"""Pilot input on the model (issue 8 item 6), in-process through its MAVLink handlers: the RC channel
+"""Pilot input on the model, in-process through its MAVLink handlers: the RC channel
 semantics of RC_CHANNELS_OVERRIDE and MANUAL_CONTROL, the arming checks on the sticks, each pilot mode's
 response, the RC failsafe and its options, RC_CHANNELS / SERVO_OUTPUT_RAW and their stream group.
 
@@ -80,7 +80,7 @@ def _airborne(s: Sitl, p: Pilot, mode: int) -> None:
     v = s.vehicle
     assert s.modes.set_mode(mode)[0]
     p.rc(1500, 1500, 1000, 1500)
-    assert s.commands.modes.pilot.arm_refusal(mode) is None
+    assert s.link.vehicle_commands.modes.pilot.arm_refusal(mode) is None
     assert v.nav.arm()[0]
     if mode == STABILIZE:
         p.fly(3.0, 1500, 1500, 1700, 1500)
@@ -237,7 +237,7 @@ def test_silence_triggers_the_radio_failsafe_rtl(sitl: Sitl) -> None:
     t0 = sitl.rc.last_input_s
     assert t0 is not None and v.run_until(lambda: sitl.modes.mode == RTL, 5.0)
     assert 1.0 <= v.clock.now() - t0 <= 1.1  # RC_FS_TIMEOUT after the last override
-    assert sitl.rc.failsafe and sitl.telemetry.system_status() == M.MAV_STATE_CRITICAL
+    assert sitl.rc.failsafe and sitl.link.telemetry.system_status() == M.MAV_STATE_CRITICAL
     assert v.run_until(lambda: not v.nav.armed, 120.0)  # RTL lands at home and disarms
     p.rc(1500, 1500, 1000, 1500)
     assert not sitl.rc.failsafe
@@ -304,7 +304,7 @@ def test_failsafe_continues_landing_with_its_option(sitl: Sitl) -> None:
 
 # --- telemetry -----------------------------------------------------------------------------------------
 def test_rc_channels_and_servo_output_raw(sitl: Sitl) -> None:
-    link = sitl.pilot_link
+    link = sitl.link.pilot
     m = link.rc_channels()
     assert m.chancount == 0 and m.chan1_raw == 0 and m.rssi == 255  # nothing before any RC
     p = Pilot(sitl)
@@ -324,5 +324,5 @@ def test_rc_stream_group(sitl: Sitl) -> None:
     from autopilot_model.mavlink.streams import STREAM_GROUPS
 
     assert STREAM_GROUPS[M.MAV_DATA_STREAM_RC_CHANNELS] == ("RC_CHANNELS", "SERVO_OUTPUT_RAW")
-    streams = sitl.endpoint.streams
+    streams = sitl.link.streams
     assert streams.supports("RC_CHANNELS") and streams.supports("SERVO_OUTPUT_RAW")

@@ -108,7 +108,7 @@ class CommandDispatcher:
     table: dict[int, CommandHandler] = field(default_factory=dict)
     no_dedup: set[int] = field(default_factory=set)
     _recent: dict[tuple[Any, ...], _Recent] = field(default_factory=dict)
-    _after_ack: list[Callable[[], None]] = field(default_factory=list)
+    _after_ack: list[Callable[[], object]] = field(default_factory=list)
 
     def __post_init__(self) -> None:
         self.endpoint.add_handler("COMMAND_LONG", self._on_command_long)
@@ -120,7 +120,7 @@ class CommandDispatcher:
         if not dedup:
             self.no_dedup.add(command)
 
-    def after_ack(self, fn: Callable[[], None]) -> None:
+    def after_ack(self, fn: Callable[[], object]) -> None:
         """Run ``fn`` right after the ACK of the command being handled has been sent."""
         self._after_ack.append(fn)
 

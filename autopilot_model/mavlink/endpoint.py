@@ -2,20 +2,23 @@
 
 Seed 002 (Sec. 3.2, Fig. 4) puts the datalink among the *event* functions, polled every main-loop
 iteration, and the telemetry in its own task group at the end of the iteration. Accordingly the
-endpoint registers two functions with the vehicle:
+endpoint has two functions, which the wiring (:mod:`.wiring`) registers with the vehicle:
 
 * ``mavlink.poll`` (event, every iteration): one ``epoll`` call; when data is waiting, read it, parse
   it (:mod:`.framing`), check signatures (:mod:`.signing`) and target ids, and dispatch each message to
   its handler from :attr:`MavlinkEndpoint.handlers`.
-* ``mavlink.telemetry`` (periodic, telemetry group): heartbeat and the streams whose interval has
-  elapsed on each link (:mod:`.streams`), the paced parameter list (:mod:`.params_protocol`).
+* ``mavlink.telemetry`` (periodic, telemetry group): the functions in :attr:`MavlinkEndpoint.periodic`
+  (the streams whose interval has elapsed on each link, the paced parameter list).
 
-Other pieces plug in with :meth:`MavlinkEndpoint.add_handler` (messages),
-``endpoint.commands.add`` (MAV_CMDs) and ``endpoint.streams.add_builder`` (telemetry messages).
+This module is the endpoint's core: links, framing, signing, dispatch, sending, the heartbeat and
+TIMESYNC. It imports no protocol piece. The pieces (streams, commands, parameters, missions, the
+vehicle's telemetry ...) install themselves with :meth:`MavlinkEndpoint.add_handler` (messages),
+:attr:`MavlinkEndpoint.link_opened` (per-link set-up) and :attr:`MavlinkEndpoint.periodic` (the
+telemetry group); :mod:`.wiring` is the one place that builds them and hands each the others it needs.
 
 Every handler runs inside a guard: whatever a packet contains, the endpoint neither raises nor lets a
 half-applied change through; malformed input is counted in :attr:`MavlinkEndpoint.stats`.
-All MAVLink time fields are simulated time (``vehicle.clock``).
+All MAVLink time fields are simulated time (the vehicle's clock).
 """
 
 from __future__ import annotations
@@ -24,13 +27,17 @@ import logging
 import math
 from collections import Counter
 from collections.abc import Callable, Iterable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from .framing import FrameParser
 from .signing import Signing
 from .transport import Peer, Poller, Transport, open_transport
+
+if TYPE_CHECKING:
+    from autopilot_model.params import ParamStore
+    from taskflight_common.clock import SimClock
 
 log = logging.getLogger(__name__)
 
@@ -56,7 +63,7 @@ class LinkState:
         self.param_next_us = 0
 
 
-def define_endpoint_params(params: Any, instance: int = 0) -> None:
+def define_endpoint_params(params: ParamStore, instance: int = 0) -> None:
     """Parameters the endpoint itself owns."""
     params.define("MAV_SYSID", instance + 1, 1, 255, "int",
                   "MAVLink system id of this vehicle (SYSID_THISMAV in older ArduPilot)")
@@ -68,18 +75,21 @@ def define_endpoint_params(params: Any, instance: int = 0) -> None:
 class MavlinkEndpoint:
     """MAVLink 2 endpoint of one vehicle (ArduCopter dialect): links, dispatch, stats."""
 
-    def __init__(self, vehicle: Any, urls: Iterable[str], sysid: int | None = None, compid: int = 1,
-                 signing_key: bytes | None = None, register: bool = True) -> None:
-        self.vehicle = vehicle
-        self.clock = vehicle.clock
-        self.params = vehicle.params
-        define_endpoint_params(self.params, getattr(vehicle, "instance", 0))
-        self.sysid = int(sysid if sysid is not None else self.params.get("MAV_SYSID"))
+    def __init__(self, clock: SimClock, params: ParamStore, urls: Iterable[str], sysid: int | None = None,
+                 compid: int = 1, signing_key: bytes | None = None, instance: int = 0) -> None:
+        self.clock = clock
+        self.params = params
+        define_endpoint_params(params, instance)
+        self.sysid = int(sysid if sysid is not None else params.get("MAV_SYSID"))
         self.compid = compid
         self.stats: Counter[str] = Counter()
         self.signing = Signing(signing_key)
         self.mav = mavlink2.MAVLink(None, self.sysid, self.compid)
         self.handlers: dict[str, Handler] = {}
+        self.link_opened: list[Callable[[Peer], None]] = []
+        """Called with each new link once its :class:`LinkState` exists (e.g. default stream rates)."""
+        self.periodic: list[Callable[[], None]] = []
+        """Called, in order, by :meth:`telemetry` (the telemetry task group)."""
         self.last_gcs_heartbeat_s: float | None = None
         self._statustext_id = 0
         self.poller = Poller()
@@ -87,22 +97,8 @@ class MavlinkEndpoint:
         self.transports: list[Transport] = []
         for url in urls:
             self.transports.append(open_transport(url, self.stats, self.poller))
-        # protocol pieces (imported here to keep the module graph one-way)
-        from .commands import CommandDispatcher
-        from .params_protocol import ParamsProtocol
-        from .signing_setup import SigningSetup
-        from .stream_requests import StreamRequests
-        from .streams import StreamScheduler
-        self.streams = StreamScheduler(self)
-        self.commands = CommandDispatcher(self)
-        self.params_protocol = ParamsProtocol(self)
-        self.stream_requests = StreamRequests(self)
-        self.signing_setup = SigningSetup(self)
         self.add_handler("HEARTBEAT", self._on_heartbeat)
         self.add_handler("TIMESYNC", self._on_timesync)
-        if register and hasattr(vehicle, "register"):
-            vehicle.register("mavlink.poll", self.poll)
-            vehicle.register("mavlink.telemetry", self.telemetry)
         log.info("MAVLink endpoint sysid %d on %s", self.sysid,
                  ", ".join(str(t.url) for t in self.transports))
 
@@ -122,13 +118,19 @@ class MavlinkEndpoint:
 
     def link_state(self, peer: Peer) -> LinkState:
         if peer.state is None:
-            peer.state = LinkState(self)
-            self.streams.init_link(peer)
-        return peer.state
+            state = peer.state = LinkState(self)
+            for fn in self.link_opened:
+                fn(peer)
+            return state
+        state = peer.state
+        assert isinstance(state, LinkState)
+        return state
 
-    def set_signing_key(self, key: bytes | None) -> None:
-        """Enable (32-byte key) or disable (None) signing, for incoming checks and outgoing packets."""
+    def set_signing_key(self, key: bytes | None, initial_timestamp: int = 0) -> None:
+        """Enable (32-byte key) or disable (None) signing, for incoming checks and outgoing packets on
+        every link at once; the signing timestamp moves forward to ``initial_timestamp`` if later."""
         self.signing.set_key(key)
+        self.signing.raise_timestamp(initial_timestamp)
         self.signing.configure_encoder(self.mav)
         for t in self.transports:
             for p in t.peers():
@@ -210,7 +212,7 @@ class MavlinkEndpoint:
         """Like ArduCopter (GCS_MAVLINK::handle_heartbeat), only heartbeats from the system id
         MAV_GCS_SYSID (SYSID_MYGCS) count as the ground station's: a companion's heartbeat (another
         component of the vehicle's own system) never keeps the GCS failsafe quiet."""
-        if msg.get_srcSystem() == int(self.vehicle.params.get("MAV_GCS_SYSID")):
+        if msg.get_srcSystem() == int(self.params.get("MAV_GCS_SYSID")):
             self.last_gcs_heartbeat_s = self.clock.now()
             self.stats["gcs_heartbeats"] += 1
 
@@ -221,9 +223,9 @@ class MavlinkEndpoint:
 
     # --- telemetry (periodic) ------------------------------------------------------------------
     def telemetry(self) -> None:
-        """Periodic function (telemetry group): streams due on each link, paced parameter lists."""
-        self.streams.update()
-        self.params_protocol.update()
+        """Periodic function (telemetry group): every function of :attr:`periodic`, in order."""
+        for fn in self.periodic:
+            fn()
 
     def close(self) -> None:
         for t in self.transports:

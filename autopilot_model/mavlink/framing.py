@@ -15,13 +15,14 @@ per-byte state machine, CRC by ``fastcrc`` when installed), which matters for th
 from __future__ import annotations
 
 import struct
-from collections.abc import MutableMapping
+from collections.abc import Callable, MutableMapping
 from typing import Any
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from .signing import SIGNATURE_LEN, Signing
 
+_mcrf4xx: Callable[[bytes, int | None], int] | None
 try:  # pymavlink's own CRC picks fastcrc when present; so do we.
     from fastcrc.crc16 import mcrf4xx as _mcrf4xx
 except Exception:  # pragma: no cover - the pure Python fallback

@@ -39,6 +39,7 @@ from .endpoint import InvalidFieldError, require_finite
 
 if TYPE_CHECKING:
     from .endpoint import MavlinkEndpoint
+    from .streams import StreamScheduler
     from .transport import Peer
 
 log = logging.getLogger(__name__)
@@ -68,13 +69,13 @@ def _rot(x: float, y: float, yaw: float) -> tuple[float, float]:
 class GuidedTargetsProtocol:
     """Installs the two SET_POSITION_TARGET handlers and the POSITION_TARGET_LOCAL_NED builder."""
 
-    def __init__(self, endpoint: MavlinkEndpoint, modes: FlightModes) -> None:
+    def __init__(self, endpoint: MavlinkEndpoint, streams: StreamScheduler, modes: FlightModes) -> None:
         self.endpoint = endpoint
         self.modes = modes
         self.v = modes.v
         endpoint.add_handler("SET_POSITION_TARGET_LOCAL_NED", self._on_local)
         endpoint.add_handler("SET_POSITION_TARGET_GLOBAL_INT", self._on_global)
-        endpoint.streams.add_builder("POSITION_TARGET_LOCAL_NED", self.position_target_message)
+        streams.add_builder("POSITION_TARGET_LOCAL_NED", self.position_target_message)
 
     # --- helpers -------------------------------------------------------------------------------
     def _flags(self, msg: Any) -> tuple[bool, bool, bool, bool, bool] | None:
@@ -134,7 +135,7 @@ class GuidedTargetsProtocol:
         if flags is None:
             return
         pos_i, vel_i, acc_i, yaw_i, rate_i = flags
-        heading = self.v.state.heading if hasattr(self.v.state, "heading") else self.v.state.euler[2]
+        heading = self.v.state.heading
         body = frame in BODY_FRAMES
         pos = vel = acc = None
         if not pos_i:

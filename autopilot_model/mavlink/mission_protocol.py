@@ -23,7 +23,7 @@ Also: MISSION_CLEAR_ALL, MISSION_SET_CURRENT (answered with MISSION_CURRENT), MI
 on every change and streamed by the endpoint's telemetry (its builder is registered here). Mission
 types MISSION, FENCE and RALLY are kept separately.
 
-Time base (issue 8, defect 4): every timeout here is simulated time (the vehicle clock), as in
+Time base: every timeout here is simulated time (the vehicle clock), as in
 ArduCopter SITL, where ``MissionItemProtocol::update`` measures the request timeout with
 ``AP_HAL::millis()`` and SITL's ``millis()`` is the simulation's stopped clock. So the protocol keeps
 the same rule as the GCS failsafe and every other vehicle timer: a model sped up N times repeats an
@@ -36,9 +36,9 @@ from __future__ import annotations
 
 import logging
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
@@ -54,6 +54,10 @@ from autopilot_model.modules.mission import (
     validate_item,
     validate_plan,
 )
+
+if TYPE_CHECKING:
+    from .commands import CommandDispatcher
+    from .streams import StreamScheduler
 
 log = logging.getLogger(__name__)
 
@@ -116,24 +120,20 @@ class _Upload:
 class MissionProtocol:
     """Upload/download/clear/set-current handlers on an endpoint, plus :meth:`periodic` for timeouts.
 
-    ``now`` gives simulated seconds (default: the endpoint's vehicle clock); ``home`` gives the home
-    position (lat deg, lon deg, alt m AMSL) or None (default: the endpoint's vehicle, if it has one).
+    ``now`` gives simulated seconds; ``home`` gives the home position (lat deg, lon deg, alt m AMSL) or
+    None. With ``commands``, MAV_CMD_DO_SET_MISSION_CURRENT is handled; with ``streams``, MISSION_CURRENT
+    is streamed at the rates the links ask for (default 1 Hz).
     """
 
-    def __init__(self, endpoint: Endpoint, store: MissionStore, *,
-                 now: Callable[[], float] | None = None,
-                 home: Callable[[], tuple[float, float, float] | None] | None = None) -> None:
+    def __init__(self, endpoint: Endpoint, store: MissionStore, *, now: Callable[[], float],
+                 home: Callable[[], tuple[float, float, float] | None],
+                 commands: CommandDispatcher | None = None, streams: StreamScheduler | None = None) -> None:
         self.endpoint = endpoint
         self.store = store
         self.status: MissionStatus | None = None
         """Set by the wiring to the :class:`MissionRunner` so MISSION_CURRENT carries the state."""
-        vehicle = getattr(endpoint, "vehicle", None)
-        if now is None:
-            if vehicle is None:
-                raise ValueError("MissionProtocol needs a clock: pass now= or an endpoint with .vehicle")
-            now = vehicle.clock.now
         self._now = now
-        self._home = home if home is not None else (lambda: _vehicle_home(vehicle))
+        self._home = home
         self._uploads: dict[int, _Upload] = {}
         self._finished: dict[int, tuple[tuple[int, int], int, float]] = {}
         self.stats = {"uploads": 0, "upload_errors": 0, "retries": 0, "downloads": 0}
@@ -145,11 +145,9 @@ class MissionProtocol:
                          ("MISSION_WRITE_PARTIAL_LIST", self._on_write_partial)):
             endpoint.add_handler(name, fn)
         store.on_current(lambda _seq: self.send_current())
-        commands = getattr(endpoint, "commands", None)
         if commands is not None:
             commands.add(mavlink.MAV_CMD_DO_SET_MISSION_CURRENT, self._cmd_set_current)
-        streams = getattr(endpoint, "streams", None)
-        if streams is not None:  # MISSION_CURRENT at the rates the links ask for (default 1 Hz)
+        if streams is not None:
             streams.add_builder("MISSION_CURRENT", self.mission_current_msg)
 
     # --- helpers --------------------------------------------------------------------------------
@@ -399,18 +397,7 @@ def _result_name(result: int) -> str:
     return entry.name if entry is not None else str(result)
 
 
-def _vehicle_home(vehicle: Any) -> tuple[float, float, float] | None:
-    """Home (lat, lon, alt AMSL) of a vehicle object, whichever attribute it keeps it in."""
-    if vehicle is None:
-        return None
-    home = getattr(vehicle, "home", None)
-    if home is None:
-        return None
-    if callable(home):
-        home = home()
-    try:
-        lat, lon, alt = float(home[0]), float(home[1]), float(home[2])
-    except (TypeError, IndexError, ValueError):
-        return None
+def finite_home(home: Sequence[float]) -> tuple[float, float, float] | None:
+    """Home (lat, lon, alt AMSL) as MISSION item 0 carries it; None unless all three are finite."""
+    lat, lon, alt = float(home[0]), float(home[1]), float(home[2])
     return (lat, lon, alt) if all(map(math.isfinite, (lat, lon, alt))) else None
-

@@ -22,6 +22,7 @@ if TYPE_CHECKING:
     from autopilot_model.modules.rc_input import RcInput
 
     from .endpoint import MavlinkEndpoint
+    from .streams import StreamScheduler
     from .transport import Peer
 
 PWM_MIN = 1000
@@ -31,14 +32,14 @@ PWM_MAX = 2000
 class PilotLink:
     """Installs the pilot-input handlers and the RC / servo builders on an endpoint."""
 
-    def __init__(self, endpoint: MavlinkEndpoint, rc: RcInput) -> None:
+    def __init__(self, endpoint: MavlinkEndpoint, streams: StreamScheduler, rc: RcInput) -> None:
         self.ep = endpoint
         self.rc = rc
-        self.v = endpoint.vehicle
+        self.v = rc.v
         endpoint.add_handler("RC_CHANNELS_OVERRIDE", self._on_override)
         endpoint.add_handler("MANUAL_CONTROL", self._on_manual_control)
-        endpoint.streams.add_builder("RC_CHANNELS", self.rc_channels)
-        endpoint.streams.add_builder("SERVO_OUTPUT_RAW", self.servo_output_raw)
+        streams.add_builder("RC_CHANNELS", self.rc_channels)
+        streams.add_builder("SERVO_OUTPUT_RAW", self.servo_output_raw)
 
     def _from_gcs(self, msg: Any) -> bool:
         if msg.get_srcSystem() != int(self.v.params.get("MAV_GCS_SYSID")):

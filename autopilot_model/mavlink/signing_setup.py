@@ -13,6 +13,7 @@ life (a restart starts with ``--signing-key``, or unsigned).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
@@ -23,16 +24,16 @@ if TYPE_CHECKING:
 
 
 class SigningSetup:
-    """Installs the SETUP_SIGNING handler on an endpoint."""
+    """Installs the SETUP_SIGNING handler on an endpoint; ``armed`` tells whether the vehicle is armed."""
 
-    def __init__(self, endpoint: MavlinkEndpoint) -> None:
+    def __init__(self, endpoint: MavlinkEndpoint, armed: Callable[[], bool]) -> None:
         self.ep = endpoint
+        self._armed = armed
         endpoint.add_handler("SETUP_SIGNING", self._on_setup_signing)
 
     def _on_setup_signing(self, msg: Any, peer: Peer) -> None:
         ep = self.ep
-        nav = getattr(ep.vehicle, "nav", None)
-        if nav is not None and nav.armed:
+        if self._armed():
             ep.statustext(mavlink2.MAV_SEVERITY_WARNING, "ERROR: Won't setup signing when armed")
             return
         key = bytes(msg.secret_key)
@@ -40,10 +41,5 @@ class SigningSetup:
             ep.stats["setup_signing_bad_key"] += 1
             return
         off = msg.initial_timestamp == 0 and not any(key)
-        ep.signing.set_key(None if off else key)
-        ep.signing.raise_timestamp(int(msg.initial_timestamp))
-        ep.signing.configure_encoder(ep.mav)
-        for p in ep.peers():
-            if p.state is not None:
-                ep.signing.configure_encoder(p.state.mav)
+        ep.set_signing_key(None if off else key, int(msg.initial_timestamp))
         ep.stats["setup_signing"] += 1

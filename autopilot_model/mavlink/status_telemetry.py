@@ -28,7 +28,11 @@ from autopilot_model.modules import fence as fm
 from .commands import ACCEPTED, FAILED, Command, CommandResult
 
 if TYPE_CHECKING:
+    from autopilot_model.modules.vehicle_api import VehicleApi
+
+    from .commands import CommandDispatcher
     from .endpoint import MavlinkEndpoint
+    from .streams import StreamScheduler
     from .transport import Peer
 
 M = mavlink2
@@ -36,7 +40,6 @@ EKF_READY_FLAGS = (M.EKF_ATTITUDE | M.EKF_VELOCITY_HORIZ | M.EKF_VELOCITY_VERT |
                    | M.EKF_POS_HORIZ_ABS | M.EKF_POS_VERT_ABS | M.EKF_PRED_POS_HORIZ_REL
                    | M.EKF_PRED_POS_HORIZ_ABS)
 """What ArduCopter's EKF3 reports in a GPS hover (0x33F)."""
-_GUIDANCE_POS = 0  # SetpointGenerator's position mode (guidance._POS)
 
 
 def _i(v: float, lo: int, hi: int) -> int:
@@ -46,11 +49,12 @@ def _i(v: float, lo: int, hi: int) -> int:
 class FenceLink:
     """FENCE_STATUS and MAV_CMD_DO_FENCE_ENABLE for the vehicle's geofence (:class:`.fence.Fence`)."""
 
-    def __init__(self, endpoint: MavlinkEndpoint, fence: fm.Fence) -> None:
+    def __init__(self, endpoint: MavlinkEndpoint, streams: StreamScheduler, commands: CommandDispatcher,
+                 fence: fm.Fence) -> None:
         self.ep = endpoint
         self.fence = fence
-        endpoint.streams.add_builder("FENCE_STATUS", self.fence_status)
-        endpoint.commands.add(M.MAV_CMD_DO_FENCE_ENABLE, self.do_fence_enable)
+        streams.add_builder("FENCE_STATUS", self.fence_status)
+        commands.add(M.MAV_CMD_DO_FENCE_ENABLE, self.do_fence_enable)
 
     def fence_status(self) -> Any:
         f = self.fence
@@ -92,12 +96,12 @@ class FenceLink:
 
 
 class StatusTelemetry:
-    """EKF_STATUS_REPORT, NAV_CONTROLLER_OUTPUT and GPS_GLOBAL_ORIGIN builders on ``endpoint.streams``."""
+    """EKF_STATUS_REPORT, NAV_CONTROLLER_OUTPUT and GPS_GLOBAL_ORIGIN builders on the stream scheduler."""
 
-    def __init__(self, endpoint: MavlinkEndpoint, vehicle: Any) -> None:
+    def __init__(self, endpoint: MavlinkEndpoint, streams: StreamScheduler, vehicle: VehicleApi) -> None:
         self.ep = endpoint
         self.v = vehicle
-        b = endpoint.streams.add_builder
+        b = streams.add_builder
         b("EKF_STATUS_REPORT", self.ekf_status_report)
         b("NAV_CONTROLLER_OUTPUT", self.nav_controller_output)
         b("GPS_GLOBAL_ORIGIN", self.gps_global_origin)
@@ -119,15 +123,15 @@ class StatusTelemetry:
 
     def _position_target(self) -> tuple[float, float, float] | None:
         g = self.v.guidance
-        if getattr(g, "_mode", None) != _GUIDANCE_POS or not self.v.nav.armed:
+        if not self.v.nav.armed:
             return None
-        t = getattr(g, "_t", None)
+        t = g.target
         return None if t is None else (float(t[0]), float(t[1]), float(t[2]))
 
     def nav_controller_output(self) -> Any:
         st = self.v.state
         roll, pitch, _ = st.euler
-        yaw_target = math.degrees(getattr(self.v.guidance, "yaw", st.euler[2]))
+        yaw_target = math.degrees(self.v.guidance.yaw)
         bearing, dist, alt_err = 0, 0, 0.0
         target = self._position_target()
         if target is not None:

@@ -24,6 +24,7 @@ from taskflight_common.geo import ned_to_geodetic
 
 if TYPE_CHECKING:
     from .endpoint import MavlinkEndpoint
+    from .streams import StreamScheduler
 
 M = mavlink2
 S = M  # sensor bit names are long
@@ -63,9 +64,9 @@ def _clamp_int(v: float, lo: int, hi: int) -> int:
 
 
 class VehicleTelemetry:
-    """Registers the state builders on ``endpoint.streams``."""
+    """Registers the state builders on the endpoint's stream scheduler."""
 
-    def __init__(self, endpoint: MavlinkEndpoint, modes: fm.FlightModes) -> None:
+    def __init__(self, endpoint: MavlinkEndpoint, streams: StreamScheduler, modes: fm.FlightModes) -> None:
         self.ep = endpoint
         self.mav = endpoint.mav
         self.modes = modes
@@ -75,7 +76,7 @@ class VehicleTelemetry:
         #: (fence present, enabled, breached) as ArduPilot's AC_Fence::sys_status_*, set by the Safety wiring
         self.fence_state: Callable[[], tuple[bool, bool, bool]] = lambda: (False, False, False)
         self.unix0_us = int(time.time() * 1e6)  # wall time at the simulation's t = 0
-        b = endpoint.streams.add_builder
+        b = streams.add_builder
         b("HEARTBEAT", self.heartbeat)
         b("SYS_STATUS", self.sys_status)
         b("BATTERY_STATUS", self.battery_status)
@@ -89,11 +90,10 @@ class VehicleTelemetry:
         b("EXTENDED_SYS_STATE", self.extended_sys_state)
         b("SYSTEM_TIME", self.system_time)
         b("AUTOPILOT_VERSION", self.autopilot_version)
-        if not endpoint.streams.supports("MISSION_CURRENT"):
+        if not streams.supports("MISSION_CURRENT"):
             b("MISSION_CURRENT", lambda: self.mav.mission_current_encode(0, 0, 0, 0))
         modes.on_mode_change(self._announce_mode)
-        if hasattr(self.v.nav, "on_event"):
-            self.v.nav.on_event(lambda text: endpoint.statustext(M.MAV_SEVERITY_INFO, text))
+        self.v.nav.on_event(lambda text: endpoint.statustext(M.MAV_SEVERITY_INFO, text))
 
     def _announce_mode(self, old: int, new: int, reason: str) -> None:
         text = f"Mode {fm.mode_name(new)}" + (f" ({reason})" if reason else "")
@@ -123,10 +123,8 @@ class VehicleTelemetry:
 
     def _battery(self) -> tuple[float, float, float, float]:
         """(voltage V, current A, consumed mAh, remaining %)"""
-        bat = getattr(self.v, "battery", None)
-        if bat is None:
-            return 16.8, 0.0, 0.0, 100.0
-        volt = getattr(self.v, "battery_voltage", 0.0) or bat.voltage
+        bat = self.v.battery
+        volt = self.v.battery_voltage or bat.voltage
         return volt, bat.current_a, bat.consumed_mah, bat.remaining_pct
 
     def sys_status(self) -> Any:
@@ -209,8 +207,7 @@ class VehicleTelemetry:
         lat, lon, alt = ned_to_geodetic(self.v.state.origin, sample[0], sample[1], sample[2])
         vel = math.hypot(sample[3], sample[4])
         cog = round(math.degrees(math.atan2(sample[4], sample[3])) * 100) % 36000 if vel > 0.2 else 0
-        eph = getattr(gps, "eph_m", 1.0)
-        epv = getattr(gps, "epv_m", 1.5)
+        eph, epv = gps.eph_m, gps.epv_m
         return self.mav.gps_raw_int_encode(
             self.v.clock.time_usec, gps.fix_type, _clamp_int(lat * 1e7, -900000000, 900000000),
             _clamp_int(lon * 1e7, -1800000000, 1800000000), _clamp_int(alt * 1000, -2**31, 2**31 - 1),
@@ -223,13 +220,8 @@ class VehicleTelemetry:
         vn, ve, vd = st.velocity_ned
         gs = math.hypot(vn, ve)
         thr = 0
-        ctl = getattr(self.v, "control", None)
-        af = getattr(self.v, "airframe", None)
-        if self.v.nav.armed and ctl is not None and af is not None:
-            try:
-                thr = _clamp_int(100 * ctl.out[0] / (4 * af.thrust_max), 0, 100)
-            except (AttributeError, TypeError, ZeroDivisionError):
-                thr = 0
+        if self.v.nav.armed:
+            thr = _clamp_int(100 * self.v.control.out[0] / (4 * self.v.airframe.thrust_max), 0, 100)
         return self.mav.vfr_hud_encode(gs, gs, self._heading_cdeg() // 100, thr, st.position_geodetic[2], -vd)
 
     def home_position(self) -> Any:

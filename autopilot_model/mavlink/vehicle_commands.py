@@ -28,7 +28,9 @@ from taskflight_common.geo import geodetic_to_ned
 from .commands import ACCEPTED, DENIED, FAILED, UNSUPPORTED, Command, CommandResult
 
 if TYPE_CHECKING:
+    from .commands import CommandDispatcher
     from .endpoint import MavlinkEndpoint
+    from .streams import StreamScheduler
     from .transport import Peer
 
 log = logging.getLogger(__name__)
@@ -46,11 +48,14 @@ def _result(ok_why: tuple[bool, str]) -> CommandResult:
 class VehicleCommands:
     """Registers the vehicle's MAV_CMD handlers (and SET_MODE) on an endpoint."""
 
-    def __init__(self, endpoint: MavlinkEndpoint, modes: fm.FlightModes) -> None:
+    def __init__(self, endpoint: MavlinkEndpoint, streams: StreamScheduler, commands: CommandDispatcher,
+                 modes: fm.FlightModes) -> None:
         self.ep = endpoint
+        self.streams = streams
+        self.commands = commands
         self.modes = modes
         self.v = modes.v
-        add = endpoint.commands.add
+        add = commands.add
         add(M.MAV_CMD_COMPONENT_ARM_DISARM, self.arm_disarm)
         add(M.MAV_CMD_NAV_TAKEOFF, self.takeoff)
         add(M.MAV_CMD_NAV_LAND, lambda c, p: self._mode(fm.LAND, "GCS land"))
@@ -117,6 +122,7 @@ class VehicleCommands:
         if msg.target_system != self.ep.sysid:
             self.ep.stats["wrong_target"] += 1
             return
+        reason: str | None
         if not msg.base_mode & M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED:
             result, reason = DENIED, "Mode: only custom modes are supported"
         elif msg.custom_mode not in fm.MODE_NAMES:
@@ -188,7 +194,7 @@ class VehicleCommands:
             if self.modes.mode == fm.GUIDED and self.modes.guided.target.pos is not None:
                 self.modes.guided.set(self.modes.guided.target)
             runner = self.modes.mission_runner
-            if self.modes.mode == fm.AUTO and runner is not None and hasattr(runner, "change_speed"):
+            if self.modes.mode == fm.AUTO and runner is not None:
                 runner.speed = speed
                 runner.change_speed_now()
             elif self.modes.mode == fm.RTL and self.modes.in_air():
@@ -234,7 +240,7 @@ class VehicleCommands:
             return FAILED, None
         if cmd.p(1) not in (1.0, 3.0):
             return UNSUPPORTED, None
-        self.ep.commands.after_ack(self.soft_reboot)
+        self.commands.after_ack(self.soft_reboot)
         return ACCEPTED, None
 
     def soft_reboot(self) -> None:
@@ -258,10 +264,10 @@ class VehicleCommands:
         first_item = int(first) if math.isfinite(first) and first >= 1 else 0
         result = self._mode(fm.AUTO, "mission start")
         runner = self.modes.mission_runner
-        if result[0] == ACCEPTED and runner is not None and hasattr(runner, "mission_start"):
-            started = runner.mission_start(first_item)
-            if isinstance(started, tuple) and not started[0]:
-                return DENIED, started[1]
+        if result[0] == ACCEPTED and runner is not None:
+            ok, why = runner.mission_start(first_item)
+            if not ok:
+                return DENIED, why
         return result
 
     def pause_continue(self, cmd: Command, peer: Peer) -> CommandResult:
@@ -274,7 +280,7 @@ class VehicleCommands:
 
     # --- home ----------------------------------------------------------------------------------
     def get_home(self, cmd: Command, peer: Peer) -> CommandResult:
-        self.ep.commands.after_ack(lambda: self.ep.streams.send_now("HOME_POSITION", peer))
+        self.commands.after_ack(lambda: self.streams.send_now("HOME_POSITION", peer))
         return ACCEPTED, None
 
     def set_home(self, cmd: Command, peer: Peer) -> CommandResult:
@@ -299,5 +305,5 @@ class VehicleCommands:
         self.v.home = (float(lat), float(lon), float(alt))
         self.v.nav.home_locked = True  # GCS_MAVLINK::handle_command_do_set_home: set_home(loc, lock=true)
         self.ep.statustext(M.MAV_SEVERITY_INFO, "Home position set")
-        self.ep.commands.after_ack(lambda: self.ep.streams.send_now("HOME_POSITION", None))
+        self.commands.after_ack(lambda: self.streams.send_now("HOME_POSITION", None))
         return ACCEPTED, None

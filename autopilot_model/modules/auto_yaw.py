@@ -15,9 +15,12 @@ asks for the long way round (its setpoint generator has one yaw law); see ``docs
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import TYPE_CHECKING
 
 from taskflight_common.geo import geodetic_to_ned
+
+if TYPE_CHECKING:
+    from autopilot_model.modules.vehicle_api import VehicleApi
 
 #: ArduCopter's ``reached_fixed_yaw_target``: within 2 degrees
 REACHED_RAD = math.radians(2.0)
@@ -34,7 +37,7 @@ def _wrap(a: float) -> float:
 class AutoYaw:
     """The heading the autonomous modes fly: none (their own), fixed (CONDITION_YAW) or ROI."""
 
-    def __init__(self, vehicle: Any) -> None:
+    def __init__(self, vehicle: VehicleApi) -> None:
         self.v = vehicle
         self.mode = NONE
         self.yaw = 0.0  # fixed target (rad)

@@ -16,12 +16,16 @@ input in CIRCLE (ArduCopter: the pitch stick changes the radius, roll the rate).
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from autopilot_model.modules.vehicle_api import VehicleApi
+    from autopilot_model.params import ParamStore
 
 _PULL = 1.0  # 1/s: velocity per metre of error onto the point on the circle
 
 
-def define_circle_params(params: Any) -> None:
+def define_circle_params(params: ParamStore) -> None:
     params.define("CIRCLE_RADIUS", 1000.0, 0.0, 200000.0, doc="CIRCLE mode radius (cm)")
     params.define("CIRCLE_RATE", 20.0, -90.0, 90.0, doc="CIRCLE mode turn rate (deg/s, negative: "
                   "counter-clockwise)")
@@ -30,7 +34,7 @@ def define_circle_params(params: Any) -> None:
 class CircleNav:
     """One circle being flown: centre (NED), radius (m), rate (rad/s, + clockwise), total angle."""
 
-    def __init__(self, vehicle: Any) -> None:
+    def __init__(self, vehicle: VehicleApi) -> None:
         self.v = vehicle
         self.centre: tuple[float, float, float] = (0.0, 0.0, 0.0)
         self.radius = 0.0

@@ -11,7 +11,7 @@ position -> velocity -> acceleration -> attitude -> body rate -> commands [thrus
   ``calc_lowpass_alpha_dt``: alpha = dt / (dt + 1 / (2 pi f)), 1 (no filter) for f = 0. Both default to
   5 Hz as in ArduCopter (POSCONTROL_VEL_XY_FILT_HZ, POSCONTROL_VEL_XY_FILT_D_HZ). After a reset the filter
   starts at the raw error and a zero derivative, as ArduPilot's ``reset_filter``; 0 Hz on both gives the
-  unfiltered loop. Measured by ``bench/bench_hover.py`` (issue 8 item 10): the filter does not lower the
+  unfiltered loop. Measured by ``bench/bench_hover.py``: the filter does not lower the
   true speed in a GPS hover (about 0.32 m/s median without, 0.36 with), whose power lies below 1 Hz,
   where the position loop follows the wander of the GPS-aided position estimate; see the README.
 * Acceleration to attitude: the specific force f = a_cmd - g gives the desired body z axis

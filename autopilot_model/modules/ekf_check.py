@@ -21,11 +21,15 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
-from autopilot_model.modules.flight_modes import ALT_HOLD, AUTO, BRAKE, GUIDED, LAND, LOITER, RTL
+from autopilot_model.modules.flight_modes import ALT_HOLD, AUTO, BRAKE, GUIDED, LAND, LOITER, RTL, FlightModes
+
+if TYPE_CHECKING:
+    from autopilot_model.modules.vehicle_api import VehicleApi
+    from autopilot_model.params import ParamStore
 
 log = logging.getLogger(__name__)
 
@@ -42,7 +46,7 @@ FS_EKF_ACTION_ALTHOLD = 2
 FS_EKF_ACTION_LAND_EVEN_STABILIZE = 3
 
 
-def define_ekf_params(params: Any) -> None:
+def define_ekf_params(params: ParamStore) -> None:
     """FS_EKF_ACTION and FS_EKF_THRESH (ArduCopter names, values and defaults)."""
     params.define("FS_EKF_ACTION", FS_EKF_ACTION_LAND, 1, 3, "int",
                   "EKF failsafe action: 1 LAND, 2 ALT_HOLD, 3 LAND even in STABILIZE")
@@ -53,7 +57,7 @@ def define_ekf_params(params: Any) -> None:
 class EkfCheck:
     """ArduCopter's EKF check and failsafe for one vehicle; see the module docstring."""
 
-    def __init__(self, vehicle: Any, modes: Any, announce: Callable[[int, str], None]) -> None:
+    def __init__(self, vehicle: VehicleApi, modes: FlightModes, announce: Callable[[int, str], None]) -> None:
         self.vehicle = vehicle
         self.modes = modes
         self.params = vehicle.params

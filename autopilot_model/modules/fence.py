@@ -25,7 +25,7 @@ The failsafe's response (RTL, LAND, BRAKE; LAND when more than 100 m outside) is
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import TYPE_CHECKING
 
 from shapely.geometry import Point, Polygon
 
@@ -40,6 +40,10 @@ from autopilot_model.modules.mission import (
     vehicle_frames,
 )
 from taskflight_common.geo import geodetic_to_ned
+
+if TYPE_CHECKING:
+    from autopilot_model.modules.vehicle_api import VehicleApi
+    from autopilot_model.params import ParamStore
 
 ALT_MAX = 1
 CIRCLE = 2
@@ -71,7 +75,7 @@ def fence_names(bits: int) -> str:
     return text + (" fences" if len(names) > 1 else " fence")
 
 
-def define_fence_params(params: Any) -> None:
+def define_fence_params(params: ParamStore) -> None:
     """The FENCE_ parameters (ArduCopter names, ranges and defaults)."""
     params.define("FENCE_ENABLE", 0, 0, 1, "int", "geofence on (DO_FENCE_ENABLE does not change it)")
     params.define("FENCE_TYPE", 7, 0, 15, "int",
@@ -145,7 +149,7 @@ class FenceShapes:
 class Fence:
     """One vehicle's geofence state (see the module docstring). ``store`` gives the FENCE plan."""
 
-    def __init__(self, vehicle: Any, store: MissionStore | None = None) -> None:
+    def __init__(self, vehicle: VehicleApi, store: MissionStore | None = None) -> None:
         self.vehicle = vehicle
         self.params = p = vehicle.params
         define_fence_params(p)

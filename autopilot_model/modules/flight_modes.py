@@ -36,7 +36,7 @@ from __future__ import annotations
 import logging
 import math
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 from autopilot_model.modules import navigation as navmod
 from autopilot_model.modules import rally
@@ -55,28 +55,33 @@ from autopilot_model.modules.guided_targets import (  # noqa: F401 - re-exported
 )
 from autopilot_model.modules.shared_params import define_rtl_alt
 from autopilot_model.modules.smart_rtl import SmartRtl
+from taskflight_common.ardupilot import CopterMode
 from taskflight_common.geo import geodetic_to_ned
 
 if TYPE_CHECKING:
-    from autopilot_model.vehicle import Vehicle
+    from autopilot_model.modules.fence import Fence
+    from autopilot_model.modules.mission_store import MissionStore
+    from autopilot_model.modules.pilot_modes import PilotModes
+    from autopilot_model.modules.vehicle_api import VehicleApi
+    from autopilot_model.params import ParamStore
 
 log = logging.getLogger(__name__)
 
-STABILIZE = 0
-ALT_HOLD = 2
-AUTO = 3
-GUIDED = 4
-LOITER = 5
-RTL = 6
-CIRCLE = 7
-LAND = 9
-POSHOLD = 16
-BRAKE = 17
-SMART_RTL = 21
+STABILIZE = CopterMode.STABILIZE
+ALT_HOLD = CopterMode.ALT_HOLD
+AUTO = CopterMode.AUTO
+GUIDED = CopterMode.GUIDED
+LOITER = CopterMode.LOITER
+RTL = CopterMode.RTL
+CIRCLE = CopterMode.CIRCLE
+LAND = CopterMode.LAND
+POSHOLD = CopterMode.POSHOLD
+BRAKE = CopterMode.BRAKE
+SMART_RTL = CopterMode.SMART_RTL
 
-MODE_NAMES: dict[int, str] = {STABILIZE: "STABILIZE", ALT_HOLD: "ALT_HOLD", AUTO: "AUTO", GUIDED: "GUIDED",
-                              LOITER: "LOITER", RTL: "RTL", CIRCLE: "CIRCLE", LAND: "LAND",
-                              POSHOLD: "POSHOLD", BRAKE: "BRAKE", SMART_RTL: "SMART_RTL"}
+#: The ArduCopter modes the model flies: number -> name.
+MODE_NAMES: dict[int, str] = {m.value: m.name for m in (
+    STABILIZE, ALT_HOLD, AUTO, GUIDED, LOITER, RTL, CIRCLE, LAND, POSHOLD, BRAKE, SMART_RTL)}
 MODE_NUMBERS: dict[str, int] = {v: k for k, v in MODE_NAMES.items()}
 #: Modes ArduCopter lets a ground station arm in (AUTO, RTL, LAND, BRAKE refuse arming).
 ARMABLE = frozenset({STABILIZE, ALT_HOLD, GUIDED, LOITER, POSHOLD})
@@ -101,7 +106,7 @@ RTL_LAND = "land"
 _home_cache: dict[int, tuple[Any, Vec3]] = {}
 
 
-def home_ned(vehicle: Any) -> Vec3:
+def home_ned(vehicle: VehicleApi) -> Vec3:
     """Home (``vehicle.home``: lat, lon, alt AMSL) in the local NED frame of the state's origin."""
     key = (tuple(vehicle.home[:3]), tuple(vehicle.state.origin))
     cached = _home_cache.get(id(vehicle))
@@ -116,7 +121,7 @@ def mode_name(mode: int) -> str:
     return MODE_NAMES.get(mode, f"MODE{mode}")
 
 
-def define_mode_params(params: Any) -> None:
+def define_mode_params(params: ParamStore) -> None:
     params.define("GUID_TIMEOUT", 3.0, 0.1, 5.0,
                   doc="GUIDED: stop if no new velocity/acceleration target for this long (s)")
     define_rtl_alt(params)
@@ -125,25 +130,39 @@ def define_mode_params(params: Any) -> None:
     rally.define_rally_params(params)
 
 
+class AutoRunner(Protocol):
+    """What AUTO and the mission's MAV_CMDs ask of the mission runner (:class:`.mission.MissionRunner`)."""
+
+    speed: float | None
+
+    def start(self) -> tuple[bool, str]: ...
+    def mission_start(self, first: int = 0) -> tuple[bool, str]: ...
+    def stop(self) -> None: ...
+    def change_speed_now(self) -> None: ...
+    def update(self) -> None: ...
+    def resume(self) -> None: ...
+    def can_pause(self) -> bool: ...
+
+
 class FlightModes:
     """The ArduCopter mode machine of one vehicle; the only writer of ``mode``."""
 
-    def __init__(self, vehicle: Vehicle) -> None:
+    def __init__(self, vehicle: VehicleApi) -> None:
         self.v = vehicle
         define_mode_params(vehicle.params)
-        self.mode = STABILIZE
-        self.mission_runner: Any = None  # set by the Sitl wiring (issue 3, missions)
+        self.mode: int = STABILIZE
+        self.mission_runner: AutoRunner | None = None  # the mission runner (AUTO), set by the wiring
         self.guided = GuidedTargets(self)
         self.paused = False
         self.speed_override_h: float | None = None  # DO_CHANGE_SPEED (m/s), until the next mode change
         self._rtl_stage = RTL_CLIMB
         self._listeners: list[ModeListener] = []
-        self.pilot: Any = None  # the pilot-driven modes (pilot_modes.PilotModes), set by the Sitl wiring
-        self.fence: Any = None  # the geofence (fence.Fence): GUIDED destinations outside it are refused
+        self.pilot: PilotModes | None = None  # the pilot-driven modes, set by the wiring
+        self.fence: Fence | None = None  # the geofence: GUIDED destinations outside it are refused
         self.auto_yaw = AutoYaw(vehicle)
         self.circle = CircleNav(vehicle)
         self.smart_rtl = SmartRtl(vehicle)
-        self.missions: Any = None  # the MissionStore (rally points for RTL), set by the Sitl wiring
+        self.missions: MissionStore | None = None  # rally points for RTL, set by the wiring
 
     # --- listeners -----------------------------------------------------------------------------
     def on_mode_change(self, callback: ModeListener) -> None:
@@ -238,14 +257,8 @@ class FlightModes:
         runner = self.mission_runner
         if runner is None:
             return False, "Auto: no mission runner"
-        result = runner.start()
-        if isinstance(result, tuple):
-            ok, why = result
-            if not ok:
-                return False, why
-        elif result is False:
-            return False, "Auto: mission cannot start"
-        return True, ""
+        ok, why = runner.start()
+        return (True, "") if ok else (False, why)
 
     # --- pause / continue (MAV_CMD_DO_PAUSE_CONTINUE) -----------------------------------------
     def pause(self) -> tuple[bool, str]:
@@ -268,7 +281,7 @@ class FlightModes:
         self.paused = False
         if not self.in_air():
             return True, ""
-        if self.mode == AUTO and self.mission_runner is not None and hasattr(self.mission_runner, "resume"):
+        if self.mode == AUTO and self.mission_runner is not None:
             self.mission_runner.resume()
         elif self.mode == GUIDED:
             self.guided.resume()

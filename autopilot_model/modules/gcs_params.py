@@ -20,7 +20,10 @@ ArduCopter's names and units, in two kinds:
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from autopilot_model.params import ParamStore
 
 #: name -> fixed value (the model flies only this)
 FIXED: dict[str, float] = {
@@ -52,7 +55,7 @@ STORED: dict[str, tuple[float, float, float, str, str]] = {
 }
 
 
-def define_gcs_params(params: Any) -> None:
+def define_gcs_params(params: ParamStore) -> None:
     """Declare every parameter above (idempotent: one a module already declared keeps its definition)."""
     for name, value in FIXED.items():
         params.define(name, value, value, value, "int" if name in _INT_FIXED else "float",

@@ -153,7 +153,7 @@ class SetpointGenerator(PolygonWalls):
         self._snap_v = self._av * dt * dt + _SNAP_EPS
         self._poly = env.shape is not None
         if self._poly:
-            self._setup_polygon(env.shape)  # type: ignore[arg-type]
+            self._setup_polygon(env.shape)
         else:
             # Box walls: both axes may brake at once, so each brakes with a_h / sqrt(2) (|dv_h| <= a_h dt).
             self._ae = self._ah / math.sqrt(2.0)

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import logging
 import math
+from collections.abc import Callable
 
 from shapely.geometry import Polygon
 
@@ -32,6 +33,7 @@ class PolygonWalls:
     _ahdt: float
     _ae: float
     _reach_h: float
+    _note_clamp: Callable[[float], None]
 
     def _setup_polygon(self, poly: Polygon) -> None:
         """Pre-compute the polygon edges for the pure-math per-step queries."""

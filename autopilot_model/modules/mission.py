@@ -14,9 +14,12 @@ from __future__ import annotations
 
 import logging
 import math
-from typing import Any
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any, Protocol
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
+
+from taskflight_common.ardupilot import CopterMode
 
 from .circle_nav import CircleNav, define_circle_params
 from .mission_do import DoCommands, next_cmd
@@ -59,6 +62,12 @@ from .mission_items import (
 )
 from .mission_store import MissionStore
 from .shared_params import define_rtl_alt
+
+if TYPE_CHECKING:
+    from autopilot_model.params import ParamStore
+
+    from .auto_yaw import AutoYaw
+    from .vehicle_api import GroundLink, VehicleApi
 
 __all__ = [
     "ACCEPTED",
@@ -127,12 +136,22 @@ _SETTLE_S = 2.0
 just outside a (very small) acceptance radius."""
 
 
-def define_mission_params(params: Any) -> None:
+def define_mission_params(params: ParamStore) -> None:
     """ArduCopter parameters the mission runner reads (units as ArduCopter: cm, cm/s)."""
     params.define("WPNAV_RADIUS", 200.0, 5.0, 1000.0, doc="waypoint acceptance radius (cm) when an item's "
                   "param2 is 0")
     define_rtl_alt(params)
     define_circle_params(params)
+
+
+class AutoModeHost(Protocol):
+    """What the runner follows of the mode machine (:class:`.flight_modes.FlightModes`)."""
+
+    mode: int
+    speed_override_h: float | None
+    auto_yaw: AutoYaw
+
+    def on_mode_change(self, callback: Callable[[int, int, str], None]) -> None: ...
 
 
 class MissionRunner:
@@ -153,8 +172,8 @@ class MissionRunner:
     CONDITION_YAW or an ROI holds it.
     """
 
-    def __init__(self, vehicle: Any, store: MissionStore, endpoint: Any = None,
-                 modes: Any = None) -> None:
+    def __init__(self, vehicle: VehicleApi, store: MissionStore, endpoint: GroundLink | None = None,
+                 modes: AutoModeHost | None = None) -> None:
         self.vehicle = vehicle
         self.store = store
         self.endpoint = endpoint
@@ -174,7 +193,7 @@ class MissionRunner:
         self._t_settled: float | None = None
         self._hold_s = 0.0
         self._jumping = False
-        self._modes: Any = None
+        self._modes: AutoModeHost | None = None
         self.do = DoCommands(self)
         self.jumps: dict[int, int] = {}
         """Jumps taken per DO_JUMP item (AP_Mission's jump tracking)."""
@@ -185,7 +204,7 @@ class MissionRunner:
         """Sequence numbers reached so far (also sent as MISSION_ITEM_REACHED)."""
         store.on_current(self._on_current)
         store.on_change(self._on_change)
-        if modes is not None and hasattr(modes, "on_mode_change"):
+        if modes is not None:
             self.attach_modes(modes)
 
     # --- MissionStatus (for MISSION_CURRENT) ------------------------------------------------------
@@ -202,14 +221,13 @@ class MissionRunner:
         return 1 if self.state != IDLE else 2
 
     # --- lifecycle ----------------------------------------------------------------------------------
-    def attach_modes(self, modes: Any, auto_mode: int = 3) -> None:
+    def attach_modes(self, modes: AutoModeHost, auto_mode: int = CopterMode.AUTO) -> None:
         """Follow a FlightModes object: :meth:`stop` whenever the mode leaves AUTO; honour its
         DO_CHANGE_SPEED override (a MAV_CMD_DO_CHANGE_SPEED command while in AUTO)."""
         self._modes = modes
 
         def on_change(*args: Any) -> None:
-            mode = getattr(modes, "mode", None)
-            if mode != auto_mode:
+            if modes.mode != auto_mode:
                 self.stop()
         modes.on_mode_change(on_change)
 
@@ -306,8 +324,8 @@ class MissionRunner:
     def home_alt(self) -> float:
         return self._geo()[1]
 
-    def auto_yaw(self) -> Any:
-        return getattr(self._modes, "auto_yaw", None)
+    def auto_yaw(self) -> AutoYaw | None:
+        return self._modes.auto_yaw if self._modes is not None else None
 
     def change_speed(self, item: MissionItem) -> None:
         """DO_CHANGE_SPEED: also the leg being flown (ArduCopter's set_speed_NE changes it at once)."""
@@ -342,9 +360,10 @@ class MissionRunner:
             self.jumps.clear()
         self.do.reset()
         say = None
-        if self.endpoint is not None:
+        ep = self.endpoint
+        if ep is not None:
             def say(text: str) -> None:
-                self.endpoint.statustext(mavlink.MAV_SEVERITY_INFO, text)
+                ep.statustext(mavlink.MAV_SEVERITY_INFO, text)
         first_do: MissionItem | None = None
         idx = seq
         while True:
@@ -407,13 +426,13 @@ class MissionRunner:
         self._target = target
         self._t_settled = None
         speed = self.speed
-        override = getattr(self._modes, "speed_override_h", None)
+        override = self._modes.speed_override_h if self._modes is not None else None
         if override is not None:
             speed = override
         nav = self.vehicle.nav
         nav.goto(target, speed=speed)
         yaw = self.auto_yaw()
-        if face and yaw is not None and yaw.mode == "none" and hasattr(nav, "yaw"):
+        if face and yaw is not None and yaw.mode == "none":
             n, e, _ = self._pos()
             if math.hypot(target[0] - n, target[1] - e) > 2.0:  # WP_YAW_BEHAVIOR 2: face the next WP
                 nav.yaw(math.atan2(target[1] - e, target[0] - n), None)
@@ -529,8 +548,7 @@ class MissionRunner:
                 self.circle.start_at(self._circle_centre, self._circle_r, self._circle_rate)
             return False
         if phase == "circle":
-            step = getattr(self.vehicle, "step_of", None)
-            self.circle.update(step("flight_modes.update") if step is not None else 0.02)
+            self.circle.update(self.vehicle.step_of("flight_modes.update"))
             if self.circle.turns >= self._turns:
                 self.vehicle.nav.hold()
                 return True

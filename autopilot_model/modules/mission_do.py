@@ -17,7 +17,8 @@ from __future__ import annotations
 
 import logging
 import math
-from typing import Any
+from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 from .mission_items import (
     CONDITION_DELAY,
@@ -33,14 +34,18 @@ from .mission_items import (
     MissionItem,
 )
 
+if TYPE_CHECKING:
+    from .mission import MissionRunner
+    from .mission_store import MissionStore
+
 log = logging.getLogger("autopilot_model.modules.mission")
 
 JUMP_FOREVER = -1
 _MAX_JUMPS = 64  # AP_Mission::get_next_cmd's loop limit
 
 
-def next_cmd(store: Any, start: int, jumps: dict[int, int], increment: bool,
-             say: Any = None) -> MissionItem | None:
+def next_cmd(store: MissionStore, start: int, jumps: dict[int, int], increment: bool,
+             say: Callable[[str], None] | None = None) -> MissionItem | None:
     """The first item at or after ``start`` that is not a DO_JUMP, following jumps (``get_next_cmd``).
 
     ``jumps`` counts the jumps taken per DO_JUMP item; ``increment`` (the navigation walk) counts them,
@@ -82,7 +87,7 @@ def next_cmd(store: Any, start: int, jumps: dict[int, int], increment: bool,
 class DoCommands:
     """The do command beside the navigation command: start, verify, advance."""
 
-    def __init__(self, runner: Any) -> None:
+    def __init__(self, runner: MissionRunner) -> None:
         self.r = runner
         self.item: MissionItem | None = None
         self.last_seq: int | None = None
@@ -129,7 +134,7 @@ class DoCommands:
             return yaw is None or yaw.reached()
         return True
 
-    def advance(self, store: Any, jumps: dict[int, int]) -> None:
+    def advance(self, store: MissionStore, jumps: dict[int, int]) -> None:
         """``advance_current_do_cmd``: the next do command before the next navigation command."""
         if self.all_done:
             return

@@ -9,11 +9,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, fields
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from taskflight_common.geo import geodetic_to_ned
+
+if TYPE_CHECKING:
+    from autopilot_model.modules.vehicle_api import VehicleApi
 
 MISSION = mavlink.MAV_MISSION_TYPE_MISSION
 FENCE = mavlink.MAV_MISSION_TYPE_FENCE
@@ -225,14 +228,13 @@ def item_to_ned(item: MissionItem, origin: tuple[float, float, float], home_alt:
 
 
 
-def vehicle_frames(vehicle: Any) -> tuple[tuple[float, float, float], float, tuple[float, float, float]]:
+Vec3 = tuple[float, float, float]
+
+
+def vehicle_frames(vehicle: VehicleApi) -> tuple[Vec3, float, Vec3]:
     """(origin (lat, lon, alt AMSL) of the local frame, home altitude AMSL, home position NED)."""
-    origin = tuple(float(v) for v in vehicle.state.origin)
-    home = getattr(vehicle, "home", None)
-    if callable(home):
-        home = home()
-    if home is None:
-        return origin, origin[2], (0.0, 0.0, 0.0)  # type: ignore[return-value]
-    lat, lon, alt = float(home[0]), float(home[1]), float(home[2])
+    o = vehicle.state.origin
+    origin = (float(o[0]), float(o[1]), float(o[2]))
+    lat, lon, alt = (float(x) for x in vehicle.home[:3])
     n, e, d = geodetic_to_ned(origin, lat, lon, alt)
-    return origin, alt, (float(n), float(e), float(d))  # type: ignore[return-value]
+    return origin, alt, (float(n), float(e), float(d))

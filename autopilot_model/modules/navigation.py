@@ -2,7 +2,7 @@
 
 Arming with pre-arm checks, take-off, landing with a land detector, and the target setters that feed
 the setpoint generator (seed 000 Fig. 9: the flight command's target parameters P_t). ArduCopter's
-flight modes (issue 3, :mod:`autopilot_model.modules.flight_modes`) are built on these actions.
+flight modes (:mod:`autopilot_model.modules.flight_modes`) are built on these actions.
 Nothing here touches the setpoints directly: every motion goes through the generator, so the envelope
 and the continuity of P_d always hold.
 """
@@ -15,7 +15,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from autopilot_model.vehicle import Vehicle
+    from autopilot_model.modules.vehicle_api import VehicleApi
 
 log = logging.getLogger(__name__)
 
@@ -36,7 +36,7 @@ LANDING = "landing"
 class Navigator:
     """Arming, take-off, landing and targets, for one vehicle. Owner of ``armed`` and ``landed_state``."""
 
-    def __init__(self, vehicle: Vehicle) -> None:
+    def __init__(self, vehicle: VehicleApi) -> None:
         self.v = vehicle
         p = vehicle.params
         p.define("LAND_SPEED", 50.0, 30.0, 200.0, doc="descent speed of the final landing stage (cm/s)")

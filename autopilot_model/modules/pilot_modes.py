@@ -32,22 +32,27 @@ from __future__ import annotations
 
 import logging
 import math
-from typing import TYPE_CHECKING, Any
+from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from autopilot_model.modules import navigation as navmod
+from autopilot_model.modules.guided_targets import sqrt_controller
 from autopilot_model.modules.rc_input import PITCH, ROLL, YAW, RcInput
+from taskflight_common.ardupilot import CopterMode
 
 if TYPE_CHECKING:
     from autopilot_model.modules.flight_modes import FlightModes
+    from autopilot_model.params import ParamStore
 
 log = logging.getLogger(__name__)
 
 GRAVITY = 9.80665
-STABILIZE, ALT_HOLD, AUTO, GUIDED, LOITER, RTL, LAND, POSHOLD, BRAKE = 0, 2, 3, 4, 5, 6, 9, 16, 17
+STABILIZE, ALT_HOLD, AUTO, GUIDED, LOITER, RTL, LAND, POSHOLD, BRAKE, SMART_RTL = (
+    CopterMode.STABILIZE, CopterMode.ALT_HOLD, CopterMode.AUTO, CopterMode.GUIDED, CopterMode.LOITER,
+    CopterMode.RTL, CopterMode.LAND, CopterMode.POSHOLD, CopterMode.BRAKE, CopterMode.SMART_RTL)
 PILOT_MODES = frozenset({STABILIZE, ALT_HOLD, LOITER, POSHOLD})
-SMART_RTL = 21
 #: FS_THR_ENABLE -> failsafe mode (4, 5: SmartRTL first, then this one; the model has no DO_LAND_START: 6 RTL)
 _FS_THR_MODES = {1: RTL, 2: RTL, 3: LAND, 4: RTL, 5: LAND, 6: RTL, 7: BRAKE}
 # FS_OPTIONS bits (Copter::FailsafeOption)
@@ -57,7 +62,7 @@ CONTINUE_IF_LANDING = 8
 LAND_DETECT_S = 1.0
 
 
-def define_pilot_params(params: Any) -> None:
+def define_pilot_params(params: ParamStore) -> None:
     params.define("PILOT_SPEED_UP", 250.0, 50.0, 500.0, doc="pilot's maximum climb rate (cm/s)")
     params.define("PILOT_SPEED_DN", 0.0, 0.0, 500.0,
                   doc="pilot's maximum descent rate (cm/s), 0: PILOT_SPEED_UP")
@@ -74,10 +79,6 @@ def define_pilot_params(params: Any) -> None:
     params.define("LOIT_ANG_MAX", 0.0, 0.0, 45.0, doc="LOITER: maximum lean (deg), 0 = 2/3 of ANGLE_MAX")
 
 
-def sqrt_controller(error: float, p: float, second_ord_lim: float, dt: float) -> float:
-    """ArduPilot's ``sqrt_controller`` for a positive error (see :mod:`.flight_modes`)."""
-    from autopilot_model.modules.flight_modes import sqrt_controller as sc
-    return sc(error, p, second_ord_lim, dt)
 
 
 class PilotModes:
@@ -94,7 +95,7 @@ class PilotModes:
         self._brake_timer = 0.0
         self._brake_accel = 0.0
         self._poshold_braking = False
-        self.announce: Any = None  # (severity, text) -> None, set by the MAVLink wiring
+        self.announce: Callable[[int, str], None] | None = None  # STATUSTEXT, set by the wiring
         rc.on_failsafe.append(self.radio_failsafe)
 
     # --- stick read-outs ---------------------------------------------------------------------------

@@ -11,20 +11,26 @@ ArduCopter warn that the nearest point is far; the model does not warn.
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import TYPE_CHECKING
 
 from taskflight_common.geo import geodetic_to_ned
 
 from .mission_items import RALLY, RALLY_POINT, RELATIVE_FRAMES
 
+if TYPE_CHECKING:
+    from autopilot_model.modules.mission_store import MissionStore
+    from autopilot_model.modules.vehicle_api import VehicleApi
+    from autopilot_model.params import ParamStore
 
-def define_rally_params(params: Any) -> None:
+
+def define_rally_params(params: ParamStore) -> None:
     params.define("RALLY_LIMIT_KM", 0.3, 0.0, 100.0, doc="warn when the nearest rally point is further (km)")
     params.define("RALLY_INCL_HOME", 1.0, 0.0, 1.0, "int", doc="RTL: use home if it is nearer than every "
                   "rally point")
 
 
-def return_target(vehicle: Any, store: Any) -> tuple[tuple[float, float, float], float] | None:
+def return_target(vehicle: VehicleApi, store: MissionStore | None
+                  ) -> tuple[tuple[float, float, float], float] | None:
     """(rally point NED, its altitude above home) when RTL should go there; None: home."""
     if store is None or store.count(RALLY) == 0:
         return None

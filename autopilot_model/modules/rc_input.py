@@ -26,7 +26,11 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from autopilot_model.modules.vehicle_api import VehicleApi
+    from autopilot_model.params import ParamStore
 
 log = logging.getLogger(__name__)
 
@@ -37,7 +41,7 @@ UINT16_MAX = 65535
 INT16_MAX = 32767
 
 
-def define_rc_params(params: Any) -> None:
+def define_rc_params(params: ParamStore) -> None:
     for ch in range(1, 5):
         params.define(f"RC{ch}_MIN", 1100.0, 800.0, 2200.0, "int", f"RC channel {ch} minimum PWM (us)")
         params.define(f"RC{ch}_MAX", 1900.0, 800.0, 2200.0, "int", f"RC channel {ch} maximum PWM (us)")
@@ -57,7 +61,7 @@ def define_rc_params(params: Any) -> None:
 class RcInput:
     """The RC channels of one vehicle (the one writer of ``radio_in``) and the RC failsafe's state."""
 
-    def __init__(self, vehicle: Any) -> None:
+    def __init__(self, vehicle: VehicleApi) -> None:
         self.v = vehicle
         self.params = vehicle.params
         define_rc_params(self.params)
@@ -165,7 +169,7 @@ class RcInput:
 
     def angle(self, ch: int) -> float:
         """``pwm_to_angle_dz_trim``: -4500..4500 (roll right, pitch back, yaw right positive)."""
-        pwm = self.radio_in[ch]
+        pwm: float = self.radio_in[ch]
         if pwm == 0:
             return 0.0
         n = ch + 1
@@ -185,7 +189,7 @@ class RcInput:
 
     def throttle(self) -> float:
         """``pwm_to_range_dz``: the throttle stick 0..1000 (500 with no RC: mid-stick)."""
-        pwm = self.radio_in[THROTTLE]
+        pwm: float = self.radio_in[THROTTLE]
         if pwm == 0:
             return 500.0
         lo, hi = self.params.get("RC3_MIN"), self.params.get("RC3_MAX")

@@ -31,13 +31,19 @@ capacity, which makes battery tests fast.
 from __future__ import annotations
 
 import logging
-from typing import Any
+from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from autopilot_model.modules.ekf_check import EkfCheck
 from autopilot_model.modules.fence import GIVE_UP_DISTANCE_M, Fence, fence_names
 from autopilot_model.modules.mission import MissionStore
+
+if TYPE_CHECKING:
+    from autopilot_model.modules.flight_modes import FlightModes
+    from autopilot_model.modules.vehicle_api import GroundLink, VehicleApi
+    from autopilot_model.params import ParamStore
 
 log = logging.getLogger(__name__)
 
@@ -53,7 +59,7 @@ _LANDED_LANDING = 4
 _LANDING_MODES = (LAND,)
 
 
-def define_safety_params(params: Any, cells: int, capacity_mah: float) -> None:
+def define_safety_params(params: ParamStore, cells: int, capacity_mah: float) -> None:
     """The failsafe parameters (ArduCopter names and units)."""
     params.define("FS_GCS_ENABLE", 0, 0, 7, "int",
                   "GCS failsafe: 0 off, 1 RTL, 2 continue AUTO else RTL, 3 SmartRTL/RTL, 4 SmartRTL/LAND, "
@@ -94,7 +100,8 @@ class Safety:
     the :class:`MissionStore` whose FENCE plan gives the polygon fence.
     """
 
-    def __init__(self, vehicle: Any, endpoint: Any, modes: Any, store: MissionStore | None = None) -> None:
+    def __init__(self, vehicle: VehicleApi, endpoint: GroundLink, modes: FlightModes,
+                 store: MissionStore | None = None) -> None:
         self.vehicle = vehicle
         self.endpoint = endpoint
         self.modes = modes
@@ -112,10 +119,9 @@ class Safety:
         self._low_since: float | None = None
         self._crit_since: float | None = None
         self.fence = Fence(vehicle, store)
-        if hasattr(vehicle.nav, "prearm_checks"):
-            vehicle.nav.prearm_checks.append(self.fence.prearm_failure)
+        vehicle.nav.prearm_checks.append(self.fence.prearm_failure)
         self.ekf = EkfCheck(vehicle, modes, self._announce)
-        self.on_fence_breach: Any = None
+        self.on_fence_breach: Callable[[], None] | None = None
         """Called on a new breach while armed (the endpoint sends FENCE_STATUS at once, as ArduPilot)."""
 
     @property
@@ -134,7 +140,7 @@ class Safety:
 
     # --- GCS heartbeat ----------------------------------------------------------------------------
     def _check_gcs(self, now: float) -> None:
-        last = getattr(self.endpoint, "last_gcs_heartbeat_s", None)
+        last = self.endpoint.last_gcs_heartbeat_s
         enable = int(self.params.get("FS_GCS_ENABLE"))
         if last is None:
             return
@@ -155,7 +161,7 @@ class Safety:
     # --- battery ----------------------------------------------------------------------------------
     def _check_battery(self, now: float) -> None:
         p = self.params
-        voltage = float(getattr(self.vehicle, "battery_voltage", 0.0) or self.vehicle.battery.voltage)
+        voltage = float(self.vehicle.battery_voltage or self.vehicle.battery.voltage)
         consumed = float(self.vehicle.battery.consumed_mah)
         remaining = p.get("BATT_CAPACITY") - consumed
         timer = p.get("BATT_LOW_TIMER")

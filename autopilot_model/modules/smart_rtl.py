@@ -17,13 +17,17 @@ every point it recorded, so it flies back over the same track with a few more co
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from autopilot_model.modules.vehicle_api import VehicleApi
+    from autopilot_model.params import ParamStore
 
 _PRELAND_UP_M = 2.0
 _REACHED_M = 1.0
 
 
-def define_smart_rtl_params(params: Any) -> None:
+def define_smart_rtl_params(params: ParamStore) -> None:
     params.define("SRTL_ACCURACY", 2.0, 0.0, 10.0, doc="SmartRTL: distance between recorded points (m)")
     params.define("SRTL_POINTS", 300.0, 0.0, 500.0, "int", doc="SmartRTL: maximum number of points")
 
@@ -31,7 +35,7 @@ def define_smart_rtl_params(params: Any) -> None:
 class SmartRtl:
     """The recorded path and the return along it."""
 
-    def __init__(self, vehicle: Any) -> None:
+    def __init__(self, vehicle: VehicleApi) -> None:
         self.v = vehicle
         define_smart_rtl_params(vehicle.params)
         self.path: list[tuple[float, float, float]] = []

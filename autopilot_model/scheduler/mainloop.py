@@ -34,7 +34,7 @@ log = logging.getLogger(__name__)
 
 _Phase = tuple[tuple[Callable[[int], None], tuple[Callable[[], Any], ...]], ...]
 
-_FLUSH_EVERY = 1000   # iterations between two statistics flushes
+FLUSH_EVERY = 1000   # iterations between two statistics flushes
 
 
 class LoopClock(Protocol):
@@ -72,8 +72,13 @@ class MainLoop:
         self._ev_append = self.stats.appender(EVENTS_GROUP)
         self._world_append = self.stats.appender(WORLD)
         self._phases = self._build_phases()
-        self._next_flush = _FLUSH_EVERY
+        self._next_flush = FLUSH_EVERY
         self._initialised = False
+
+    def stagger_flush(self, i: int, n: int) -> None:
+        """Move the first statistics flush by ``i``/``n`` of the flush interval (vehicle ``i`` of a fleet of
+        ``n`` started together, so that their flushes fall in different periods)."""
+        self._next_flush += (i * FLUSH_EVERY) // n
 
     @property
     def iteration(self) -> int:
@@ -157,7 +162,7 @@ class MainLoop:
             clock.advance(self.period_us)
             n = self._n = self._n + 1
             if n >= self._next_flush:          # before pacing: the sleep absorbs it in real time
-                self._next_flush = n + _FLUSH_EVERY
+                self._next_flush = n + FLUSH_EVERY
                 st.flush()
             if clock.speedup > 0:
                 clock.pace()

@@ -73,18 +73,22 @@ class Schedule:
     heuristic: str
     resolution: Resolution
 
+    def functions(self) -> tuple[FunctionRef | PeriodicCall, ...]:
+        """Every function of the schedule: init, events, periodic."""
+        return (*self.init, *self.events, *self.periodic)
+
     @property
     def bound(self) -> bool:
         """True when every function has its callable (see :meth:`bind`)."""
-        return all(f.fn is not None for f in (*self.init, *self.events, *self.periodic))
+        return all(f.fn is not None for f in self.functions())
 
     def bind(self, registry: Registry) -> Schedule:
         """Return a copy whose functions are looked up in ``registry``; SchedulerError lists the missing."""
         missing = sorted({f"'{f.name}' of module '{f.module}' ({f.where})"
-                          for f in (*self.init, *self.events, *self.periodic) if f.name not in registry})
+                          for f in self.functions() if f.name not in registry})
         if missing:
             raise SchedulerError("functions not in the registry: " + "; ".join(missing))
-        for f in (*self.init, *self.events, *self.periodic):
+        for f in self.functions():
             if not callable(registry[f.name]):
                 raise SchedulerError(f"registry entry '{f.name}' of module '{f.module}' is not callable")
         return replace(

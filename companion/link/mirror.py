@@ -18,19 +18,16 @@ from typing import Any
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from companion.flight.setpoint import VehicleState
+from taskflight_common.ardupilot import COPTER_MODE_NAMES, CopterMode
 
 M = mavlink
 Vec3 = tuple[float, float, float]
 
 LANDED_STATE_NAMES = {0: "UNDEFINED", 1: "ON_GROUND", 2: "IN_AIR", 3: "TAKEOFF", 4: "LANDING"}
 #: ArduCopter custom_mode numbers -> names (the companion uses GUIDED and LAND; the rest for status).
-COPTER_MODES = {0: "STABILIZE", 1: "ACRO", 2: "ALT_HOLD", 3: "AUTO", 4: "GUIDED", 5: "LOITER", 6: "RTL",
-                7: "CIRCLE", 9: "LAND", 11: "DRIFT", 13: "SPORT", 14: "FLIP", 15: "AUTOTUNE", 16: "POSHOLD",
-                17: "BRAKE", 18: "THROW", 19: "AVOID_ADSB", 20: "GUIDED_NOGPS", 21: "SMART_RTL",
-                22: "FLOWHOLD", 23: "FOLLOW", 24: "ZIGZAG", 25: "SYSTEMID", 26: "AUTOROTATE",
-                27: "AUTO_RTL"}
-GUIDED = 4
-LAND = 9
+COPTER_MODES = COPTER_MODE_NAMES
+GUIDED = CopterMode.GUIDED
+LAND = CopterMode.LAND
 
 
 @dataclass(frozen=True)
