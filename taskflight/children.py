@@ -1,4 +1,4 @@
-"""Child processes of ``taskflight up`` (issue 12 item 8): started, logged, watched and stopped together.
+"""Child processes of ``taskflight up``: started, logged, watched and stopped together.
 
 Each child runs in a process group of its own (in the session of ``taskflight up``: one scheduler
 autogroup for the whole fleet, so the models' process competes with its own companions, whose niceness

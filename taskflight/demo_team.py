@@ -1,4 +1,4 @@
-"""The team demo (``scripts/demo``; issue 12 item 8): three vehicles, one mission, team tasks, a report.
+"""The team demo (``scripts/demo``): three vehicles, one mission, team tasks, a report.
 
 ``taskflight demo-team [--keep]`` starts a fleet as ``taskflight up --vehicles 3`` does
 (:class:`taskflight.up.Up`: the models in one process, a companion per vehicle on one team link, the

@@ -1,4 +1,4 @@
-"""``taskflight mission check FILE``: delegation of a mission file, offline (seed 000 Sec. III-A; issue 10).
+"""``taskflight mission check FILE``: delegation of a mission file, offline (seed 000 Sec. III-A).
 
 Runs :func:`companion.tst.delegation.delegate` against a platform configuration (``--platform YAML``, or
 the bundled ``--profile indoor | outdoor``, default indoor; ``--battery PERCENT`` sets the charge left)

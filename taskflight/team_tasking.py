@@ -1,4 +1,4 @@
-"""Giving a running team its tasks from a script (the team demo, issue 12 item 8; seed 003 Sec. II).
+"""Giving a running team its tasks from a script (the team demo; seed 003 Sec. II).
 
 Two ways with one interface (:class:`Tasking`): :class:`GroundTasking` through the ground service's REST
 API (``POST /api/tasks``, ``GET /api/tasks``, ``DELETE /api/tasks/{id}`` with an operator token), and

@@ -1,6 +1,6 @@
 """One ground-station scenario, run against any autopilot, recording what a ground station observes.
 
-Issue 7 item 2: the same pymavlink scenario is flown against the bundled model and against ArduPilot's
+The same pymavlink scenario is flown against the bundled model and against ArduPilot's
 own copter SITL (:mod:`autopilot_support`), and :func:`observe` returns what a ground station sees:
 ACK results, the mode and landed-state sequences, HOME_POSITION, parameter names and values, the
 GUID_TIMEOUT stop, the mission protocol's answers. ``tests/test_differential.py`` compares them;

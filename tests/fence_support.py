@@ -1,4 +1,4 @@
-"""One ground station's fence-and-status scenario (issue 8 item 9), run against any autopilot.
+"""One ground station's fence-and-status scenario, run against any autopilot.
 
 :func:`observe_fence` drives the autopilot with pymavlink, as QGroundControl or MAVProxy would, and returns
 what the ground station sees: the ACK results, the STATUSTEXTs of the refusals, FENCE_STATUS fields, the

@@ -1,4 +1,4 @@
-"""The ground service over loopback for the tests (issue 12): in-process or as ``taskflight ground``.
+"""The ground service over loopback for the tests: in-process or as ``taskflight ground``.
 
 * :class:`InProcessGround`: :class:`~groundstation.service.GroundService` + uvicorn in a thread on a free
   port (unit-ish API tests);

@@ -1,4 +1,4 @@
-"""Airframe YAML validation (issue 2): errors name the file, the line and the field."""
+"""Airframe YAML validation: errors name the file, the line and the field."""
 
 from __future__ import annotations
 

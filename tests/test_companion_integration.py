@@ -1,4 +1,4 @@
-"""The companion flying each autopilot over loopback UDP (issue 4 "done means", issue 7 conformance).
+"""The companion flying each autopilot over loopback UDP.
 
 Parametrised over the bundled model and ArduPilot's own copter SITL (``TASKFLIGHT_ARDUCOPTER``; the
 ArduCopter half skips, saying why, without it). Per autopilot one process for the module, reached

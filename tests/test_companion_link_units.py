@@ -1,4 +1,4 @@
-"""Unit tests of the companion's link pieces without an autopilot (issue 4 items 5-6)."""
+"""Unit tests of the companion's link pieces without an autopilot."""
 
 from __future__ import annotations
 

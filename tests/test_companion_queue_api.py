@@ -1,4 +1,4 @@
-"""The queue's API for the layers above (issue 7 item 4) and "stopped if allowed" during a take-off.
+"""The queue's API for the layers above and "stopped if allowed" during a take-off.
 
 Ids unique for the life of the process, command events to wait on or subscribe to, atomic batches,
 in-flight retarget (seed 000 Sec. IV-D) with a continuous stream, the deferred stop of a climbing

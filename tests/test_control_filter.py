@@ -1,4 +1,4 @@
-"""The horizontal velocity error filter (PSC_VELXY_FLTE / PSC_VELXY_FLTD, issue 8 item 10).
+"""The horizontal velocity error filter (PSC_VELXY_FLTE / PSC_VELXY_FLTD).
 
 Held against a plain transcription of ArduPilot's ``AC_PID_2D::update_all`` (error low-pass with
 ``calc_lowpass_alpha_dt``, derivative of the filtered error low-passed again, a reset that starts the

@@ -1,4 +1,4 @@
-"""The team demo (``scripts/demo`` = ``taskflight demo-team``; issue 12 item 8) runs to its report.
+"""The team demo (``scripts/demo`` = ``taskflight demo-team``) runs to its report.
 
 Three vehicles started as ``taskflight up`` starts them, on a free block of instance numbers; vehicle 1
 flies the scan-and-search mission, the team a visit and a patrol line; the demo exits 0 with a report

@@ -1,6 +1,6 @@
 """Differential conformance: one ground-station scenario against the model and against ArduCopter SITL.
 
-Issue 7 item 2. :func:`differential_support.observe` flies the same pymavlink scenario on each
+:func:`differential_support.observe` flies the same pymavlink scenario on each
 autopilot; every check below states what ArduCopter does (measured on ArduCopter V4.7.0-dev SITL,
 see ``docs/conformance.md``) and holds it against each autopilot in turn: the model's half runs
 everywhere, ArduCopter's half with ``TASKFLIGHT_ARDUCOPTER`` (else it skips, saying why). A check

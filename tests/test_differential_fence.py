@@ -1,4 +1,4 @@
-"""Differential conformance of the fence and the status messages (issue 8 item 9): model vs ArduCopter SITL.
+"""Differential conformance of the fence and the status messages: model vs ArduCopter SITL.
 
 :func:`fence_support.observe_fence` runs one ground station's scenario on each autopilot: DO_FENCE_ENABLE,
 FENCE_STATUS, the pre-arm fence checks, GUIDED targets beyond the fence, a breach (the circle pulled in

@@ -1,4 +1,4 @@
-"""Differential conformance of pilot input (issue 8 item 6): sticks over MAVLink, model vs ArduCopter SITL.
+"""Differential conformance of pilot input: sticks over MAVLink, model vs ArduCopter SITL.
 
 :func:`pilot_support.observe_pilot` flies one pilot's scenario (RC_CHANNELS_OVERRIDE and MANUAL_CONTROL
 in STABILIZE, LOITER, ALT_HOLD and POSHOLD, then silence: the RC failsafe) on each autopilot; every

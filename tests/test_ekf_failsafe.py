@@ -1,4 +1,4 @@
-"""The estimator's divergence and consistency checks and ArduCopter's EKF failsafe (issue 8, defect 2).
+"""The estimator's divergence and consistency checks and ArduCopter's EKF failsafe.
 
 A non-finite estimate or persistently rejected position samples make the estimate unhealthy; the
 failsafe (ArduCopter ``Copter::ekf_check`` at 10 Hz, 1 s of bad variance) announces "EKF variance",

@@ -1,4 +1,4 @@
-"""Closed-loop flights of the model on its Python API (issue 2 'Done means').
+"""Closed-loop flights of the model on its Python API.
 
 Hover, a climb to 10 m, a 50 m square at 5 m/s and a landing, with the estimator (not the truth) in the
 loop, sensor noise and gusts on; disarmed, the vehicle rests on the ground.

@@ -1,4 +1,4 @@
-"""The ground service without vehicles (issue 12 items 2-7): database round trips, tokens and roles, the
+"""The ground service without vehicles: database round trips, tokens and roles, the
 task ledger's restore, the REST errors, the offer of a smaller N, access on every route, the WebSocket
 (auth, snapshots >= 5 Hz, malformed messages), and schemathesis against the OpenAPI document.
 

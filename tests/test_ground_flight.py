@@ -1,4 +1,4 @@
-"""The ground service flying a team over loopback (issue 12 "Done means"): ``taskflight up --vehicles 3``
+"""The ground service flying a team over loopback: ``taskflight up --vehicles 3``
 (3 models in one process, 3 companion processes on a team link, ``taskflight ground`` as the team's
 station; tests/up_support.UpRig adds a pymavlink ground station per vehicle).
 

@@ -1,5 +1,5 @@
-"""The ground service killed with SIGKILL mid-mission and restarted on its database (issue 12 "Done
-means"): every task, assignment and audit entry is back, and the vehicles never stopped (their MAVLink
+"""The ground service killed with SIGKILL mid-mission and restarted on its database: every task, assignment
+and audit entry is back, and the vehicles never stopped (their MAVLink
 tracks kept moving while it was down: the team needs no ground station to go on).
 
 A fleet of 3 models, 3 companion processes on a team link and ``taskflight ground`` started by the test

@@ -1,4 +1,4 @@
-"""Every step follows the schedule's main loop rate (issue 8, defect 3).
+"""Every step follows the schedule's main loop rate.
 
 The physics, the estimator, the setpoint generator, the controller and the navigator take their step
 from the schedule (main loop period times the function's prescaler), and the simulated clock advances by

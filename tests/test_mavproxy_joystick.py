@@ -1,4 +1,4 @@
-"""MAVProxy drives a joystick flight in LOITER (issue 8 item 6): its ``rc`` command is the pilot's sticks.
+"""MAVProxy drives a joystick flight in LOITER: its ``rc`` command is the pilot's sticks.
 
 MAVProxy (pip package) runs as a pilot types at it: commands on its standard input. ``rc N PWM`` makes
 it send RC_CHANNELS_OVERRIDE at 10 Hz (wall time), so the model runs at speedup 2: the override stays

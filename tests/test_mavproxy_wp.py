@@ -1,4 +1,4 @@
-"""MAVProxy edits a mission in part (issue 8 item 8): ``wp param`` and ``wp changealt`` send one item with
+"""MAVProxy edits a mission in part: ``wp param`` and ``wp changealt`` send one item with
 MISSION_WRITE_PARTIAL_LIST.
 
 MAVProxy (pip package) runs as a user types at it: ``wp load FILE`` uploads a plan (MISSION_COUNT), then

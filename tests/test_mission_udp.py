@@ -128,7 +128,7 @@ def test_upload_download_equal_and_bad_upload_changes_nothing(gcs: Gcs) -> None:
 
 
 def test_upload_abandoned_is_cancelled_after_retries(gcs: Gcs) -> None:
-    """Issue 8, defect 4: the requests are repeated 1 s apart and the upload given up in *simulated* time,
+    """The requests are repeated 1 s apart and the upload given up in *simulated* time,
     as ArduCopter SITL does (its ``AP_HAL::millis()`` is the simulation's clock): at SPEEDUP the whole
     exchange takes a tenth of its simulated duration on the wall. Each MISSION_* message is stamped with
     the vehicle's time_boot_ms of the latest ATTITUDE (4 Hz by default) heard before it."""

@@ -1,4 +1,4 @@
-"""The module resolver chooses the position source and sets its rate (issue 8 item 5, seed 002 Sec. 3.2).
+"""The module resolver chooses the position source and sets its rate (seed 002 Sec. 3.2).
 
 ``gps`` and ``mocap`` both provide ``@position_source`` and conflict (Fig. 3); the sensor profile is a
 module of the library that depends on one of them, so the resolver (Algorithms 1-2), not the vehicle's

@@ -1,4 +1,4 @@
-"""The 500 Hz control chain reads the state interface, not the estimator (issue 8 item 5, seed 002 Sec. 3.1).
+"""The 500 Hz control chain reads the state interface, not the estimator (seed 002 Sec. 3.1).
 
 Seed 002 Sec. 3.1 and Fig. 2: the estimation filters push their result to one blackboard, the state
 interface, and every other component reads it from there. The controller's kernel reads the interface's

@@ -1,4 +1,4 @@
-"""Parameters a ground station sets take effect, at start (persisted) and in flight (issue 8, defect 1).
+"""Parameters a ground station sets take effect, at start (persisted) and in flight.
 
 Judged by what the vehicle does, never by the echoed value: the same flight (same seed, so the model is
 deterministic) is flown with a parameter at its default, set before take-off, loaded from the saved

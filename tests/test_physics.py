@@ -1,4 +1,4 @@
-"""Physics of the world (issue 2 item 2): ground contact, motor lag, hover equilibrium, drag, wind."""
+"""Physics of the world: ground contact, motor lag, hover equilibrium, drag, wind."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The operator's web UI end to end in headless Chromium (issue 13 "Done means").
+"""The operator's web UI end to end in headless Chromium.
 
 ``taskflight up --vehicles 3`` (3 models in one process, 3 companion processes on one team link and
 ``taskflight ground``; tests/up_support.UpRig, with a pymavlink ground station per vehicle);

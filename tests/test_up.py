@@ -1,4 +1,4 @@
-"""``taskflight up`` (issue 12 item 8): the whole simulated fleet in one command, as a user runs it.
+"""``taskflight up``: the whole simulated fleet in one command, as a user runs it.
 
 ``taskflight up --vehicles 3 --speedup 3`` in a child process, on a free block of instance numbers
 (``--base-instance``): READY within a deadline; each vehicle's MAVLink TCP port answers with its system id
@@ -34,7 +34,7 @@ READY_S = 120.0
 
 
 def has_ground() -> bool:
-    """``taskflight ground`` exists (the ground service, issue 12 items 1-7)."""
+    """``taskflight ground`` exists (the ground service)."""
     from taskflight.cli import build_parser
 
     return "ground" in build_parser().get_default("_handlers")

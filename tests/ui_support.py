@@ -1,4 +1,4 @@
-"""Debian's headless Chromium driven by selenium for the web UI's tests and bench (issue 13).
+"""Debian's headless Chromium driven by selenium for the web UI's tests and bench.
 
 No browser is downloaded: ``/usr/bin/chromium`` and ``/usr/bin/chromedriver`` (``apt-get install chromium
 chromium-driver``, done by ``scripts/test`` when missing). The performance log records every request the

@@ -1,4 +1,4 @@
-"""``taskflight up`` as a subprocess for the tests and the bench (issue 12 item 8).
+"""``taskflight up`` as a subprocess for the tests and the bench.
 
 :class:`UpProcess` starts ``python -m taskflight.cli up ...`` on a free block of instance numbers (its
 MAVLink ports, as :mod:`fleet_support` picks them), reads its output in a thread, and parses the summary
