@@ -150,10 +150,6 @@ class Database:
     def tasks(self) -> list[dict[str, Any]]:
         return self._read("SELECT id, grp, kind, state, holder, cost, version, name FROM tasks ORDER BY id")
 
-    def group_defn(self, gid: int) -> TaskDef | None:
-        rows = self._read("SELECT defn FROM task_groups WHERE id = ?", (gid,))
-        return defn_from_json(rows[0]["defn"]) if rows else None
-
     # --- histories ------------------------------------------------------------------------------------
     def add_assignment(self, task: int, state: str, holder: int | None, t: float | None = None) -> None:
         self._write("INSERT INTO assignments (t, task, state, holder) VALUES (?,?,?,?)",

@@ -13,8 +13,8 @@ never more than ``max_lag_s`` of wall time (0.1 s, as ArduPilot's SITL bounds it
 simulation runs slower than its speed-up instead of racing through seconds of simulated time in a
 burst that its companions, pacing themselves on its clock, could not follow.
 
-Other layers (the companion) follow the autopilot's reported time instead; against a real autopilot
-both are the wall clock (:class:`WallClock`).
+Other layers (the companion) follow the autopilot's reported time instead
+(``companion.link.clock.AutopilotClock``): against a real autopilot that is the autopilot's own clock.
 """
 
 from __future__ import annotations
@@ -37,16 +37,6 @@ class Clock(Protocol):
     def now(self) -> float:
         """Seconds since the clock's epoch (boot)."""
         ...
-
-
-class WallClock:
-    """Monotonic wall time since construction."""
-
-    def __init__(self) -> None:
-        self._t0 = time.monotonic()
-
-    def now(self) -> float:
-        return time.monotonic() - self._t0
 
 
 class SimClock:
