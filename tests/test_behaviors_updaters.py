@@ -15,9 +15,9 @@ from companion.behaviors.updaters import (
     BeliefUpdaterRunner,
     CommonBeliefUpdater,
     charge_level,
-    flight_state,
 )
 from companion.link.mirror import GUIDED, LAND, MirrorState, VehicleMirror
+from companion.node import VehicleStatus, flight_state
 
 M = mavlink  # the ArduPilot dialect, as the link uses it
 
@@ -56,7 +56,7 @@ class Vehicle:
 
 
 def _updater(v: Vehicle, **kw: Any) -> CommonBeliefUpdater:
-    return CommonBeliefUpdater(v.mirror.snapshot, **kw)
+    return CommonBeliefUpdater(lambda: VehicleStatus.of(v.mirror.snapshot()), **kw)
 
 
 def test_position_time_is_mirrored() -> None:
@@ -157,9 +157,9 @@ def test_update_without_a_time_uses_the_clock() -> None:
     v = Vehicle()
     v.position(5_000, 0.0, 0.0, 0.0)
     m = BeliefMemory()
-    CommonBeliefUpdater(v.mirror.snapshot, lambda: 5.5).update(m)
+    CommonBeliefUpdater(lambda: VehicleStatus.of(v.mirror.snapshot()), lambda: 5.5).update(m)
     assert m.holds("localization(self, healthy)")
-    CommonBeliefUpdater(v.mirror.snapshot, lambda: 9.0).update(m)
+    CommonBeliefUpdater(lambda: VehicleStatus.of(v.mirror.snapshot()), lambda: 9.0).update(m)
     assert m.holds("localization(self, unhealthy)")
 
 

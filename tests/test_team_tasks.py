@@ -274,7 +274,7 @@ def test_every_patrol_line_and_border_piece_is_a_tree_the_platform_accepts(kind:
         result = delegate(mission_for(task, False, 6.0), platform)
         assert result.accepted, result.reasons
         (plan,) = [p for p in result.plans.values() if p.task == "scan-ground"]
-        flown = [(p[1], p[0]) for p in plan.waypoints_neu]  # (north, east, up) -> (x east, y north)
+        flown = [(p[0], p[1]) for p in plan.waypoints_neu]  # (north, east, up): the frame's (x, y)
         drawn = [FRAME.to_local(p)[:2] for p in task.points]
         assert len(flown) == len(drawn)
         assert all(math.dist(a, b) < 0.05 for a, b in zip(flown, drawn, strict=True)), (flown, drawn)

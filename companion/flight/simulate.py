@@ -1,5 +1,8 @@
 """Helpers to fly the queue without an autopilot, and to check the streamed setpoints' continuity.
 
+:class:`PointMass` is the project's one kinematic stand-in for a vehicle: a point in NED metres with
+speed, acceleration and climb limits, steered toward a target (the team simulator's vehicles and the
+tests' stand-in navigator use it).
 :class:`FlightSim` ticks a :class:`~companion.flight.queue.CommandQueue` on simulated time with a
 kinematic stand-in for the vehicle (it follows the setpoint with a one-tick delay and reports
 ``landed`` on the ground). :func:`step_violations` checks a recorded setpoint stream against the
@@ -59,6 +62,51 @@ def step_violations(setpoints: Sequence[Setpoint], limits: Limits, rel_tol: floa
             if value > bound * (1.0 + rel_tol) + abs_tol:
                 out.append(Violation(i, s1.t_s, name, value, bound))
     return out
+
+
+Vec3 = tuple[float, float, float]
+
+
+@dataclass
+class PointMass:
+    """A kinematic vehicle: position ``p`` and velocity ``v`` in NED (m, m/s) under the limits
+    ``speed`` (horizontal), ``accel`` (horizontal) and ``climb_speed`` (vertical)."""
+
+    p: Vec3 = (0.0, 0.0, 0.0)
+    speed: float = 5.0
+    accel: float = 2.5
+    climb_speed: float = 2.5
+    v: Vec3 = (0.0, 0.0, 0.0)
+
+    def fly_toward(self, target: Sequence[float], dt: float) -> float:
+        """One step of ``dt`` s toward ``target``: horizontally under the speed and acceleration limits,
+        braking to stop at it; vertically at up to ``climb_speed``. Returns the horizontal metres moved."""
+        dn, de, dd = target[0] - self.p[0], target[1] - self.p[1], target[2] - self.p[2]
+        dist = math.hypot(dn, de)
+        want_n = want_e = 0.0
+        if dist > 1e-6:
+            k = min(self.speed, math.sqrt(2.0 * self.accel * dist), dist / dt) / dist
+            want_n, want_e = dn * k, de * k
+        dvn, dve = want_n - self.v[0], want_e - self.v[1]
+        n = math.hypot(dvn, dve)
+        if n > self.accel * dt:
+            dvn, dve = dvn * self.accel * dt / n, dve * self.accel * dt / n
+        vd = max(-self.climb_speed, min(self.climb_speed, dd / dt))
+        self.v = (self.v[0] + dvn, self.v[1] + dve, vd)
+        step = (self.v[0] * dt, self.v[1] * dt, self.v[2] * dt)
+        self.p = (self.p[0] + step[0], self.p[1] + step[1], self.p[2] + step[2])
+        return math.hypot(step[0], step[1])
+
+    def straight_toward(self, target: Sequence[float], dt: float) -> bool:
+        """One step of ``dt`` s along the straight line to ``target`` at ``speed`` (no acceleration, no
+        separate climb limit: a navigator's idealisation); True once at it."""
+        d = math.dist(self.p, target)
+        k = min(1.0, self.speed * dt / d) if d > 0 else 1.0
+        step = (k * (target[0] - self.p[0]), k * (target[1] - self.p[1]), k * (target[2] - self.p[2]))
+        self.p = (self.p[0] + step[0], self.p[1] + step[1], self.p[2] + step[2])
+        if dt > 0:
+            self.v = (step[0] / dt, step[1] / dt, step[2] / dt)
+        return k == 1.0
 
 
 @dataclass

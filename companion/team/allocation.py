@@ -311,3 +311,16 @@ class CbbaPolicy(AllocationPolicy):
             path.insert(idx, live[tid])
             excluded.add(tid)
         return (*bundle, *parked)
+
+
+#: the allocation policies by name
+POLICIES = ("greedy", "cbba")
+
+
+def make_policy(name: str, model: CostModel, max_tasks: int = 3) -> AllocationPolicy:
+    """The policy called ``name`` (greedy: seed 003 Sec. III-B; cbba: at most ``max_tasks`` in a path)."""
+    if name == "greedy":
+        return GreedyPolicy()
+    if name == "cbba":
+        return CbbaPolicy(model, max_tasks=max_tasks)
+    raise ValueError(f"policy: unknown allocation policy {name!r} (known: {', '.join(POLICIES)})")
