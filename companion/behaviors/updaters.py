@@ -38,7 +38,7 @@ from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
 
-from companion.behaviors.beliefs import Belief, BeliefMemory
+from companion.behaviors.beliefs import Belief, BeliefMemory, Term
 from companion.node import VehicleStatus
 
 log = logging.getLogger(__name__)
@@ -106,13 +106,13 @@ class CommonBeliefUpdater(BeliefUpdater):
         self.self_id = self_id
         self.battery_id = battery_id
 
-    def beliefs_for(self, s: VehicleStatus, now_s: float) -> tuple[list[Belief], list[tuple[str, object]]]:
+    def beliefs_for(self, s: VehicleStatus, now_s: float) -> tuple[list[Belief], list[tuple[str, Term]]]:
         """(beliefs to hold, (predicate, object) pairs to forget) for one vehicle status."""
         me, bat = self.self_id, self.battery_id
         hold = [Belief("object", (me, "aerial_robot")), Belief("object", (bat, "battery")),
                 Belief("flight_state", (me, s.flight.value)),
                 Belief("armed", (me, "yes" if s.armed else "no"))]
-        forget: list[tuple[str, object]] = []
+        forget: list[tuple[str, Term]] = []
         if s.position is not None:
             n, e, d = s.position
             hold.append(Belief("position", (me, (_r(n, 2), _r(e, 2), _r(-d, 2)))))
@@ -125,7 +125,7 @@ class CommonBeliefUpdater(BeliefUpdater):
         else:
             forget.append(("mode", me))
         level = charge_level(s.battery_remaining)
-        if level is not None:
+        if level is not None and s.battery_remaining is not None:
             hold.append(Belief("charge", (bat, level)))
             hold.append(Belief("battery_percentage", (bat, int(s.battery_remaining))))
         else:

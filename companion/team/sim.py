@@ -264,7 +264,8 @@ class TeamSim:
         """No live task held by two vehicles, and no vehicle idle while a live task is unclaimed and it
         has room for it (the true claims, not a view)."""
         board = self.ledger.board()
-        live = {t.id for t in board.live()}
+        live_tasks = {t.id: t for t in board.live()}
+        live = set(live_tasks)
         holders: dict[int, int] = {}
         for v in self.vehicles:
             for c in v.claims:
@@ -275,7 +276,7 @@ class TeamSim:
         free = live - set(holders)
         room = [v for v in self.vehicles if v.alive and len(
             [c for c in v.claims if c.task in live]) < (1 if self.policy_name == "greedy" else self.max_tasks)
-            and not any(c.task in live and endless(board.get(c.task)) for c in v.claims)]
+            and not any(c.task in live and endless(live_tasks[c.task]) for c in v.claims)]
         return not (free and room)
 
     def step(self) -> None:

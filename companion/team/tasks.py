@@ -65,10 +65,11 @@ class Fence:
 
 @dataclass(frozen=True)
 class TaskDef:
-    """One task as the operator gives it (``n``: the number of vehicles for a divided task)."""
+    """One task as the operator gives it (``n``: the number of vehicles for a divided task; ``points``
+    [lat, lon] or [lat, lon, alt] as given, checked by :func:`validate`)."""
 
     kind: str
-    points: tuple[GeoPoint, ...] = ()
+    points: tuple[Sequence[float], ...] = ()
     n: int = 1
     altitude: float = 0.0
     speed: float = 0.0
