@@ -1,4 +1,4 @@
-"""Bench: distributed allocation quality against the optimum (issue 11, seed 003 Sec. III-B; CBBA).
+"""Bench: distributed allocation quality against the optimum (seed 003 Sec. III-B; CBBA).
 
 Seeded random instances run through the team simulator (:class:`companion.team.sim.TeamSim`: kinematic
 vehicles and a station, each with the real GroupState / TeamLink over a lossy MemoryBus, simulated time)

@@ -1,4 +1,4 @@
-"""Bench: group-state staleness and bandwidth of the team link (issue 11, seed 003 Sec. III-A).
+"""Bench: group-state staleness and bandwidth of the team link (seed 003 Sec. III-A).
 
 ``--members`` vehicles (20) and a team-control station (member 0, publishing a nine-task board) on one
 in-process :class:`~companion.team.transport.MemoryBus`, each receiving through its own seeded
@@ -20,7 +20,7 @@ Figures, after a 10 s warm-up, sampled every 0.5 s:
 The first table sweeps the loss (0, 10, 20, 40 %) at the default period; the second sweeps the period
 at 20 % loss (the choice of the default); the third repeats it with a radio range (``--range``, 700 m)
 shorter than the 2 x 2 km area the vehicles start in, so many rows reach a vehicle only over relays
-(each hop adds up to a period). Targets (issue 11): p95 staleness <= 2 s and <= 5 kB/s per
+(each hop adds up to a period). Targets: p95 staleness <= 2 s and <= 5 kB/s per
 vehicle at 20 % loss with 20 members.
 """
 

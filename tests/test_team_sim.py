@@ -1,4 +1,4 @@
-"""The team simulator (issue 11 item 7): seed 003's nine-task demonstration on simulated time with the
+"""The team simulator: seed 003's nine-task demonstration on simulated time with the
 real GroupState / TeamLink over a lossy MemoryBus, greedy and CBBA, 0 and 30 % loss; a conflict
 declared and resolved; a vehicle that dies has its task re-allocated; the task file and the CLI."""
 

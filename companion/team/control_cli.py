@@ -1,4 +1,4 @@
-"""``taskflight team control``: a team-control station from the command line (issue 11 item 7).
+"""``taskflight team control``: a team-control station from the command line.
 
 ``taskflight team control --team URL --tasks FILE`` joins the team link as the station (seed 003 Fig. 1, the
 top tier), gives the team the tasks of the file at their ``at`` times and cancels those with a

@@ -1,4 +1,4 @@
-"""``taskflight team sim``: the team simulator from the command line (issue 11 item 7).
+"""``taskflight team sim``: the team simulator from the command line.
 
 The parser is light (nothing heavy imported); :func:`run_sim` loads the task file, runs
 :class:`~companion.team.sim.TeamSim` on simulated time, prints each assignment change as it happens and a
