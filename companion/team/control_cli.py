@@ -29,6 +29,7 @@ def add_control_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run_control(args: argparse.Namespace) -> int:
+    # loaded when the command runs: the command line starts without shapely and the team layer
     from companion.team.station import TeamControlStation
     from companion.team.taskfile import load_task_file
     from companion.team.transport import open_transport

@@ -35,6 +35,8 @@ from companion.tst.delegation import delegate
 from companion.tst.status import ExecutionRequestError
 
 from .decision import Choice, DecisionStep
+from .groupstate import GroupState
+from .link import DEFAULT_PERIOD_S, TeamLink
 from .switchboard import Controller, Switchboard
 from .task_tst import mission_for
 from .types import Claim, GeoPoint, MemberEntry, MemberStatus, TaskState, TeamTask
@@ -56,9 +58,6 @@ class TeamMember:
                  cost: Callable[[GeoPoint, TeamTask], float], *, member_id: int, name: str = "",
                  period_s: float | None = None, decide_period_s: float = 0.25, settle_s: float | None = None,
                  voc_max: int | None = None, clock: Callable[[], float] = time.time) -> None:
-        from .groupstate import GroupState
-        from .link import DEFAULT_PERIOD_S, TeamLink
-
         self.missions = missions
         self.node = missions.node
         self.state = GroupState(member_id, **({} if voc_max is None else {"voc_max": voc_max}))

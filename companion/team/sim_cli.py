@@ -24,6 +24,7 @@ def add_sim_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run_sim(args: argparse.Namespace) -> int:
+    # loaded when the command runs: the command line starts without shapely and the team layer
     from companion.team.sim import TeamSim
     from companion.team.taskfile import load_task_file
     from taskflight_common.yamlio import ConfigError
