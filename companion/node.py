@@ -26,6 +26,8 @@ from __future__ import annotations
 import logging
 import threading
 from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass
+from enum import StrEnum
 from typing import Any
 
 from companion.flight import (
@@ -37,10 +39,11 @@ from companion.flight import (
     QueueStatus,
     Retarget,
     Setpoint,
+    VehicleState,
 )
 from companion.flight.external import DEFAULT_MAX_VALIDITY_S
 from companion.link import AutopilotClock, GuidedSupervisor, MavlinkLink, Phase
-from companion.link.mirror import MirrorState
+from companion.link.mirror import LAND, M, MirrorState
 from companion.link.params import ParamClient as AutopilotParams
 from companion.link.params import ParamError as ParamError  # re-exported: upper layers read no link module
 from companion.link.rc import RcMapping, rc_velocity
@@ -52,6 +55,82 @@ MIN_RATE_HZ = 1.0
 MAX_RATE_HZ = 50.0
 #: (setpoint, the fields sent, autopilot time of the tick) for each streamed setpoint
 SetpointListener = Callable[[Setpoint, TargetFields, float], None]
+
+
+#: height above home (m) above which an armed vehicle without a landed_state report is flying
+AIRBORNE_HEIGHT_M = 0.3
+
+
+class FlightState(StrEnum):
+    """Where the vehicle is in its flight (the ``flight_state`` belief of seed 001 Sec. 6.2.5)."""
+
+    LANDED = "landed"
+    TAKING_OFF = "taking_off"
+    FLYING = "flying"
+    LANDING = "landing"
+
+
+@dataclass(frozen=True)
+class VehicleStatus:
+    """What the upper layers (behaviors, missions, team) read of the vehicle: one consistent snapshot.
+
+    ``position`` and ``velocity`` are NED metres (m/s) from home (None before the first estimate);
+    ``position_time_ms`` the estimate's autopilot time; ``global_position`` (lat, lon, alt AMSL, alt above
+    home); ``home`` (lat, lon, alt AMSL); ``mode`` the ArduCopter mode's name; ``on_ground``: disarmed or
+    reported on the ground; ``overridden``: a ground station took the vehicle out of GUIDED;
+    ``battery_remaining`` percent (None when unknown); ``time_s`` the autopilot's clock at the snapshot.
+    """
+
+    time_s: float
+    armed: bool
+    mode: str | None
+    flight: FlightState
+    on_ground: bool
+    overridden: bool
+    position: tuple[float, float, float] | None
+    position_time_ms: int | None
+    velocity: tuple[float, float, float]
+    yaw: float
+    global_position: tuple[float, float, float, float] | None
+    home: tuple[float, float, float] | None
+    battery_remaining: int | None
+    #: what the command queue's tick wants (None before a position)
+    state: VehicleState | None
+
+    @classmethod
+    def of(cls, s: MirrorState, time_s: float = 0.0, overridden: bool = False) -> VehicleStatus:
+        """The status of a link's mirror state ``s``."""
+        return cls(time_s=time_s, armed=s.armed, mode=s.mode_name, flight=flight_state(s),
+                   on_ground=s.landed_state == M.MAV_LANDED_STATE_ON_GROUND or not s.armed,
+                   overridden=overridden, position=s.position, position_time_ms=s.position_time_ms,
+                   velocity=(float(s.velocity[0]), float(s.velocity[1]), float(s.velocity[2])),
+                   yaw=s.yaw, global_position=s.global_position, home=s.home,
+                   battery_remaining=s.battery_remaining, state=s.vehicle_state())
+
+
+def flight_state(state: MirrorState) -> FlightState:
+    """The flight state of a mirror state.
+
+    Disarmed is landed. Armed: EXTENDED_SYS_STATE's landed_state decides (ON_GROUND -> landed,
+    TAKEOFF -> taking_off, LANDING -> landing, IN_AIR -> flying, or landing in mode LAND); when the
+    autopilot does not report it (UNDEFINED), mode LAND is landing and otherwise the vehicle counts as
+    flying once it is :data:`AIRBORNE_HEIGHT_M` up.
+    """
+    if not state.armed:
+        return FlightState.LANDED
+    ls = state.landed_state
+    if ls == M.MAV_LANDED_STATE_ON_GROUND:
+        return FlightState.LANDED
+    if ls == M.MAV_LANDED_STATE_TAKEOFF:
+        return FlightState.TAKING_OFF
+    if ls == M.MAV_LANDED_STATE_LANDING:
+        return FlightState.LANDING
+    if ls == M.MAV_LANDED_STATE_IN_AIR:
+        return FlightState.LANDING if state.mode == LAND else FlightState.FLYING
+    up = -state.position[2] if state.position is not None else 0.0
+    if up < AIRBORNE_HEIGHT_M:
+        return FlightState.LANDED
+    return FlightState.LANDING if state.mode == LAND else FlightState.FLYING
 
 
 class QueueTime:
@@ -172,6 +251,11 @@ class QuadNode:
     def push_external(self, stream: str, values: Sequence[float], validity_s: float) -> bool:
         """An external-data sample (Sec. IV-C), stamped now on the queue's clock."""
         return self.queue.push_external(stream, values, validity_s)
+
+    def vehicle_status(self) -> VehicleStatus:
+        """The vehicle as the upper layers see it (a frozen snapshot; see :class:`VehicleStatus`)."""
+        return VehicleStatus.of(self.link.mirror.snapshot(), self.clock.now(),
+                                self.supervisor.phase is Phase.OVERRIDDEN)
 
     def qapi_status(self) -> QueueStatus:
         return self.queue.status()

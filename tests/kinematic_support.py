@@ -1,5 +1,6 @@
 """Stand-ins shared by the mission and failsafe logic tests (no tests here): a kinematic vehicle whose
-navigator flies straight to its target at a fixed speed, on a clock the test advances, and an endpoint
+navigator flies straight to its target at a fixed speed (the library's
+:class:`~companion.flight.simulate.PointMass`), on a clock the test advances, and an endpoint
 that records what would be sent."""
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from autopilot_model.params import ParamStore
 from autopilot_model.physics.battery import Battery
+from companion.flight.simulate import PointMass
 from taskflight_common.geo import ned_to_geodetic
 
 HOME = (-35.363261, 149.165230, 584.0)
@@ -65,13 +67,12 @@ class KinematicNav:
     def step(self, dt: float) -> None:
         if self.target is None or not self.armed:
             return
-        p = self.v.state.position_ned
-        d = math.dist(p, self.target)
-        k = min(1.0, self.speed * dt / d) if d > 0 else 1.0
-        self.v.state.position_ned = tuple(a + k * (b - a) for a, b in zip(p, self.target, strict=True))
-        if self.landed_state == TAKEOFF and k == 1.0:
+        body = PointMass(self.v.state.position_ned, speed=self.speed)  # the library's stand-in
+        arrived = body.straight_toward(self.target, dt)
+        self.v.state.position_ned = body.p
+        if self.landed_state == TAKEOFF and arrived:
             self.landed_state = IN_AIR
-        if self.landing and k == 1.0:
+        if self.landing and arrived:
             self.landing, self.landed_state, self.armed = False, ON_GROUND, False
 
 

@@ -1,4 +1,4 @@
-"""A team over loopback for the integration tests (issue 11): seed 003's three aircraft, as processes.
+"""A team over loopback for the integration tests: seed 003's three aircraft, as processes.
 
 :class:`TeamRig` starts
 

@@ -1,4 +1,4 @@
-"""A flight driven only by behavior activation requests over HTTP (issue 9 "done means"; seed 001).
+"""A flight driven only by behavior activation requests over HTTP (seed 001).
 
 Per autopilot (the bundled model; ArduCopter SITL with ``TASKFLIGHT_ARDUCOPTER``) one companion with
 its executive layer and control surface, reached over loopback UDP through the wire tap. The

@@ -15,9 +15,9 @@ from companion.behaviors.updaters import (
     BeliefUpdaterRunner,
     CommonBeliefUpdater,
     charge_level,
-    flight_state,
 )
 from companion.link.mirror import GUIDED, LAND, MirrorState, VehicleMirror
+from companion.node import FlightState, VehicleStatus, flight_state
 
 M = mavlink  # the ArduPilot dialect, as the link uses it
 
@@ -56,7 +56,7 @@ class Vehicle:
 
 
 def _updater(v: Vehicle, **kw: Any) -> CommonBeliefUpdater:
-    return CommonBeliefUpdater(v.mirror.snapshot, **kw)
+    return CommonBeliefUpdater(lambda: VehicleStatus.of(v.mirror.snapshot()), **kw)
 
 
 def test_position_time_is_mirrored() -> None:
@@ -157,9 +157,9 @@ def test_update_without_a_time_uses_the_clock() -> None:
     v = Vehicle()
     v.position(5_000, 0.0, 0.0, 0.0)
     m = BeliefMemory()
-    CommonBeliefUpdater(v.mirror.snapshot, lambda: 5.5).update(m)
+    CommonBeliefUpdater(lambda: VehicleStatus.of(v.mirror.snapshot()), lambda: 5.5).update(m)
     assert m.holds("localization(self, healthy)")
-    CommonBeliefUpdater(v.mirror.snapshot, lambda: 9.0).update(m)
+    CommonBeliefUpdater(lambda: VehicleStatus.of(v.mirror.snapshot()), lambda: 9.0).update(m)
     assert m.holds("localization(self, unhealthy)")
 
 
@@ -302,3 +302,17 @@ def test_thread_runs_updaters_on_a_sped_up_clock() -> None:
     assert m.holds(f"ticks(rec, {n})")
     assert not any(t.name == "belief-updaters" for t in threading.enumerate())  # closed and joined
     assert len(rec.times) == n
+
+
+def test_vehicle_status_is_a_typed_snapshot_of_the_mirror() -> None:
+    v = Vehicle()
+    v.heartbeat(armed=True, mode=GUIDED)
+    v.position(2_000, 1.0, 2.0, -3.0)
+    v.landed_state(M.MAV_LANDED_STATE_IN_AIR)
+    s = VehicleStatus.of(v.mirror.snapshot(), time_s=2.5)
+    assert s.armed and s.mode == "GUIDED" and s.flight is FlightState.FLYING and not s.on_ground
+    assert s.position == (1.0, 2.0, -3.0) and s.state is not None and s.time_s == 2.5
+    assert not s.overridden
+    v.heartbeat(armed=False, mode=GUIDED)
+    s = VehicleStatus.of(v.mirror.snapshot())
+    assert s.on_ground and s.flight is FlightState.LANDED

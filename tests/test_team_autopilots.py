@@ -1,4 +1,4 @@
-"""One team member flying each autopilot (issue 11 with the ArduCopter reference): the bundled model, and
+"""One team member flying each autopilot (seed 003 Sec. III): the bundled model, and
 ArduPilot's own copter SITL with ``TASKFLIGHT_ARDUCOPTER`` (skipped, saying why, without it).
 
 A companion process joins a team link (``--team``) with the outdoor platform; the team-control station

@@ -1,4 +1,4 @@
-"""``taskflight team control`` (issue 11 item 7): a station process giving a task file's tasks to a team.
+"""``taskflight team control``: a station process giving a task file's tasks to a team.
 
 The station under test runs as its own process on a real loopback multicast team link; the team is one
 scripted member in the test process (a real GroupState and TeamLink, a collaborator not under test): it

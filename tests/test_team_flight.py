@@ -1,4 +1,4 @@
-"""Seed 003's flight demonstration over loopback (issue 11, "Done means"): three bundled models (one
+"""Seed 003's flight demonstration over loopback (seed 003 Sec. V): three bundled models (one
 fleet process), three companions (processes) on one team link, a team-control station.
 
 Nine tasks of every type (visits, a patrol line, a border patrol divided among two, an area scan divided

@@ -1,4 +1,4 @@
-"""The consensus-based bundle algorithm flying (issue 11 item 3: CBBA as a selectable policy).
+"""The consensus-based bundle algorithm flying (CBBA as a selectable allocation policy).
 
 Three companions run ``--team-policy cbba``: each builds a bundle of several tasks by marginal flight time
 and flies it in its path's order; consensus comes from the flooded rows. Five visits for three vehicles:

@@ -1,4 +1,4 @@
-"""Seed 003's flight demonstration with 30 % of the team packets dropped (issue 11, "Done means").
+"""Seed 003's flight demonstration with 30 % of the team packets dropped (seed 003 Sec. V).
 
 The same nine tasks as :mod:`test_team_flight`, every member (companions and station) dropping 30 % of what
 it receives on the team link: the flooding of the group state carries each vehicle's row and the board

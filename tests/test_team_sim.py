@@ -1,4 +1,4 @@
-"""The team simulator (issue 11 item 7): seed 003's nine-task demonstration on simulated time with the
+"""The team simulator: seed 003's nine-task demonstration on simulated time with the
 real GroupState / TeamLink over a lossy MemoryBus, greedy and CBBA, 0 and 30 % loss; a conflict
 declared and resolved; a vehicle that dies has its task re-allocated; the task file and the CLI."""
 
@@ -42,7 +42,7 @@ tasks:
   - {kind: visit, points: [[-35.3645, 149.1652]], altitude: 20}
 """)
     # two vehicles side by side, both nearest the first visit: both claim it before hearing the other
-    sim = TeamSim(script, 2, policy="greedy", seed=0, starts=[(0.0, 10.0, 20.0), (0.0, 6.0, 20.0)])
+    sim = TeamSim(script, 2, policy="greedy", seed=0, starts=[(10.0, 0.0, 20.0), (6.0, 0.0, 20.0)])
     sim._next_decide = {1: 0.25, 2: 0.25}
     sim.step()
     assert [c.task for c in sim.vehicles[0].claims] == [c.task for c in sim.vehicles[1].claims] == [101]
@@ -57,7 +57,7 @@ home: [-35.363261, 149.165230]
 tasks:
   - {kind: patrol_line, points: [[-35.3620, 149.1652], [-35.3620, 149.1665]], altitude: 20}
 """)
-    sim = TeamSim(script, 2, loss=0.0, seed=1, voc_max=6, starts=[(0.0, 10.0, 20.0), (0.0, -300.0, 20.0)])
+    sim = TeamSim(script, 2, loss=0.0, seed=1, voc_max=6, starts=[(10.0, 0.0, 20.0), (-300.0, 0.0, 20.0)])
     sim.run(20.0)
     assert [c.task for c in sim.vehicles[0].claims] == [101] and not sim.vehicles[1].claims
     sim.vehicles[0].alive = False  # it stops flying and broadcasting

@@ -274,7 +274,28 @@ def test_every_patrol_line_and_border_piece_is_a_tree_the_platform_accepts(kind:
         result = delegate(mission_for(task, False, 6.0), platform)
         assert result.accepted, result.reasons
         (plan,) = [p for p in result.plans.values() if p.task == "scan-ground"]
-        flown = [(p[1], p[0]) for p in plan.waypoints_neu]  # (north, east, up) -> (x east, y north)
+        flown = [(p[0], p[1]) for p in plan.waypoints_neu]  # (north, east, up): the frame's (x, y)
         drawn = [FRAME.to_local(p)[:2] for p in task.points]
         assert len(flown) == len(drawn)
         assert all(math.dist(a, b) < 0.05 for a, b in zip(flown, drawn, strict=True)), (flown, drawn)
+
+
+def test_the_kind_registry_names_each_kind_once_and_checks_directed_tasks() -> None:
+    from companion.team import kinds
+    from companion.team.kinds.visit import Visit
+    from companion.team.types import TaskKind
+
+    assert kinds.names() == ("visit", "patrol_line", "border_patrol", "area_scan", "tst")
+    assert kinds.for_task(TaskKind.BORDER_PIECE) is kinds.by_name("border_patrol")
+    assert kinds.divided_by_n("area_scan") and not kinds.divided_by_n("visit")
+    assert not kinds.divided_by_n("nonsense")
+    assert sorted(kinds.wire_codes().values()) == [0, 1, 2, 3, 4]
+    with pytest.raises(ValueError, match="registered already"):
+        kinds.register(Visit())
+    with pytest.raises(ValueError, match="kind: must be one of visit, patrol_line"):
+        kinds.by_name("orbit")
+    kinds.check_directed(TaskKind.VISIT, 1)
+    with pytest.raises(ValueError, match="points: a area_part task needs at least 3 points"):
+        kinds.check_directed(TaskKind.AREA_PART, 2)
+    with pytest.raises(ValueError, match="kind: give a tree through POST /mission"):
+        kinds.check_directed(TaskKind.TST, 1)

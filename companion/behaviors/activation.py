@@ -135,7 +135,8 @@ def parse_activation(text: str, requester: str = "operator") -> ActivationReques
         if key_tok[1] in params:
             raise ActivationError(key_tok[1], "given twice")
         params[key_tok[1]] = p.value()
-        if p.peek() is not None and p.peek()[0] == ",":  # tolerate "a: 1, b: 2"
+        nxt = p.peek()
+        if nxt is not None and nxt[0] == ",":  # tolerate "a: 1, b: 2"
             p.i += 1
     return ActivationRequest(requester, name, params)
 

@@ -213,10 +213,10 @@ def _tokens(text: str, what: str) -> list[_Token]:
                     end += 1
                 raise BeliefError(f"{what}: column {col}: bad number {text[i:end]!r}")
             s = m.group()
-            value: Any = float(s) if any(ch in s for ch in ".eE") else int(s)
-            if isinstance(value, float) and not math.isfinite(value):
+            number: float | int = float(s) if any(ch in s for ch in ".eE") else int(s)
+            if isinstance(number, float) and not math.isfinite(number):
                 raise BeliefError(f"{what}: column {col}: number {s!r} is out of range")
-            out.append(_Token("number", s, value, col))
+            out.append(_Token("number", s, number, col))
             i = m.end()
         else:
             m = _IDENT.match(text, i)

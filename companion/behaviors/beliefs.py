@@ -90,9 +90,10 @@ def _match(pattern: Any, term: Term, env: Bindings) -> Bindings | None:
         if not isinstance(term, tuple) or len(term) != len(pattern):
             return None
         for p, t in zip(pattern, term, strict=True):
-            env = _match(p, t, env)
-            if env is None:
+            sub = _match(p, t, env)
+            if sub is None:
                 return None
+            env = sub
         return env
     return env if _same(pattern, term) else None
 
@@ -232,11 +233,15 @@ class BeliefMemory:
 
     def _remove_locked(self, b: Belief) -> None:
         del self._all[b]
-        for index, key in ((self._by_pred, b.predicate), (self._by_obj, (b.predicate, b.obj))):
-            bucket = index[key]
-            del bucket[b]
-            if not bucket:
-                del index[key]
+        bucket = self._by_pred[b.predicate]
+        del bucket[b]
+        if not bucket:
+            del self._by_pred[b.predicate]
+        key = (b.predicate, b.obj)
+        bucket = self._by_obj[key]
+        del bucket[b]
+        if not bucket:
+            del self._by_obj[key]
 
     # --- consulting belief ------------------------------------------------------------------------------
     def consult(self, query: Query | Belief | str) -> list[Bindings]:
@@ -250,7 +255,7 @@ class BeliefMemory:
         q = _as_query(query)
         with self._lock:
             env = next(self._solve(q.patterns, 0, {}), None)
-        return None if env is None else dict(env) is not None
+        return env is not None
 
     def first(self, query: Query | Belief | str) -> Bindings | None:
         """The first answer, or None."""
@@ -278,7 +283,7 @@ class BeliefMemory:
                 continue
             e: Bindings | None = env
             for p, t in zip(pat.args, b.args, strict=True):
-                e = _match(p, t, e)
+                e = _match(p, t, e) if e is not None else None
                 if e is None:
                     break
             if e is not None:

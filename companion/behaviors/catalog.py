@@ -281,7 +281,7 @@ def _descriptor(f: Fields) -> BehaviorDescriptor:
     params_raw = f.raw("parameters", [])
     if not isinstance(params_raw, list):
         raise f.error("parameters", "expected a list of parameter descriptors")
-    params = []
+    params: list[ParameterDescriptor] = []
     for i, item in enumerate(params_raw):
         line = params_raw.line_of(i) if hasattr(params_raw, "line_of") else f.line("parameters")
         p = _parameter(Fields(item, f"{f.path('parameters')}[{i}]", f.file, line))

@@ -3,7 +3,7 @@
 :class:`ExecutiveLayer` assembles, over a :class:`~companion.node.QuadNode` (or any queue with a
 clock and a vehicle-state source, for tests):
 
-* the belief memory and its updaters (the common belief updater reads the link's mirror; the
+* the belief memory and its updaters (the common belief updater reads the node's vehicle status; the
   :class:`QueueBeliefUpdater` says who controls the vehicle),
 * the process manager with the bundled execution processes (:mod:`.services`) and the simulated
   downward camera (:mod:`companion.sensing.camera`; a ``scenario`` of objects to see, none by default),
@@ -120,10 +120,9 @@ class ExecutiveLayer:
 
     @classmethod
     def for_node(cls, node: QuadNode, **kw: Any) -> ExecutiveLayer:
-        """The executive layer over a running companion node (its queue, clock and mirror)."""
-        mirror = node.link.mirror
-        common = CommonBeliefUpdater(mirror.snapshot, node.clock.now, period_s=0.2)
-        return cls(node.queue, node.clock.now, lambda: mirror.snapshot().vehicle_state(),
+        """The executive layer over a running companion node (its queue, clock and vehicle status)."""
+        common = CommonBeliefUpdater(node.vehicle_status, node.clock.now, period_s=0.2)
+        return cls(node.queue, node.clock.now, lambda: node.vehicle_status().state,
                    updaters=[common], wall_until=node.clock.wall_until, ready=lambda: node.clock.synced, **kw)
 
     # --- lifecycle -------------------------------------------------------------------------------------

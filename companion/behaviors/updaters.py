@@ -8,14 +8,14 @@ own (low) rate on the autopilot's clock.
 
 The :class:`CommonBeliefUpdater` ("a special belief updater ... maintaining an updated number of basic
 beliefs that are common for most robots, such as beliefs related to the position and battery
-charge") derives from the link's :class:`~companion.link.mirror.MirrorState`:
+charge") derives from the node's :class:`~companion.node.VehicleStatus` (what the link mirrors):
 
 ==========================================  ===================================================
 belief                                      source
 ==========================================  ===================================================
 ``object(self, aerial_robot)``              always
 ``position(self, (north, east, up))``       LOCAL_POSITION_NED (m from home, up = -z, 0.01 m)
-``flight_state(self, X)``                   armed, EXTENDED_SYS_STATE landed_state, mode LAND
+``flight_state(self, X)``                   :func:`companion.node.flight_state` (armed, landed_state, mode)
 ``armed(self, yes|no)``                     HEARTBEAT base_mode
 ``mode(self, GUIDED)``                      HEARTBEAT custom_mode as the ArduCopter mode name
 ``object(1, battery)``                      always
@@ -38,8 +38,8 @@ from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
 
-from companion.behaviors.beliefs import Belief, BeliefMemory
-from companion.link.mirror import LAND, M, MirrorState
+from companion.behaviors.beliefs import Belief, BeliefMemory, Term
+from companion.node import VehicleStatus
 
 log = logging.getLogger(__name__)
 
@@ -53,10 +53,6 @@ CHARGE_LEVELS: tuple[tuple[int, str], ...] = (
 )
 
 
-#: Height above home (m) above which an armed vehicle without a landed_state report is flying.
-AIRBORNE_HEIGHT_M = 0.3
-
-
 def charge_level(percent: int | float | None) -> str | None:
     """``full`` >= 90 %, ``high`` >= 60, ``medium`` >= 30, ``low`` >= 10, ``empty`` below 10;
     None when unknown (None or negative: MAVLink's -1)."""
@@ -66,32 +62,6 @@ def charge_level(percent: int | float | None) -> str | None:
         if percent >= bound:
             return name
     return "empty"
-
-
-def flight_state(state: MirrorState) -> str:
-    """``landed`` / ``taking_off`` / ``flying`` / ``landing`` from the mirror.
-
-    Disarmed is landed. Armed: EXTENDED_SYS_STATE's landed_state decides (ON_GROUND -> landed,
-    TAKEOFF -> taking_off, LANDING -> landing, IN_AIR -> flying, or landing in mode LAND); when the
-    autopilot does not report it (UNDEFINED), mode LAND is landing and otherwise the vehicle counts as
-    flying once it is ``airborne_height_m`` up.
-    """
-    if not state.armed:
-        return "landed"
-    ls = state.landed_state
-    if ls == M.MAV_LANDED_STATE_ON_GROUND:
-        return "landed"
-    if ls == M.MAV_LANDED_STATE_TAKEOFF:
-        return "taking_off"
-    if ls == M.MAV_LANDED_STATE_LANDING:
-        return "landing"
-    if ls == M.MAV_LANDED_STATE_IN_AIR:
-        return "landing" if state.mode == LAND else "flying"
-    # landed_state UNDEFINED: judge by mode and height
-    up = -state.position[2] if state.position is not None else 0.0
-    if up < AIRBORNE_HEIGHT_M:
-        return "landed"
-    return "landing" if state.mode == LAND else "flying"
 
 
 @runtime_checkable
@@ -118,13 +88,13 @@ class BeliefUpdater(ABC):
 class CommonBeliefUpdater(BeliefUpdater):
     """The common belief updater (Sec. 6.2.5): position, flight state, battery, mode, home, localization.
 
-    ``state`` returns the link's current :class:`MirrorState` (e.g. ``link.mirror.snapshot``); ``now``
+    ``state`` returns the vehicle's current status (e.g. ``QuadNode.vehicle_status``); ``now``
     is the autopilot's clock in seconds, used when :meth:`update` is called without a time.
     """
 
     name = "common"
 
-    def __init__(self, state: Callable[[], MirrorState], now: Callable[[], float] | None = None, *,
+    def __init__(self, state: Callable[[], VehicleStatus], now: Callable[[], float] | None = None, *,
                  period_s: float = 0.5, max_position_age_s: float = 1.0, self_id: str = "self",
                  battery_id: int = 1) -> None:
         if period_s <= 0 or max_position_age_s <= 0:
@@ -136,26 +106,26 @@ class CommonBeliefUpdater(BeliefUpdater):
         self.self_id = self_id
         self.battery_id = battery_id
 
-    def beliefs_for(self, s: MirrorState, now_s: float) -> tuple[list[Belief], list[tuple[str, object]]]:
-        """(beliefs to hold, (predicate, object) pairs to forget) for one mirror state."""
+    def beliefs_for(self, s: VehicleStatus, now_s: float) -> tuple[list[Belief], list[tuple[str, Term]]]:
+        """(beliefs to hold, (predicate, object) pairs to forget) for one vehicle status."""
         me, bat = self.self_id, self.battery_id
         hold = [Belief("object", (me, "aerial_robot")), Belief("object", (bat, "battery")),
-                Belief("flight_state", (me, flight_state(s))),
+                Belief("flight_state", (me, s.flight.value)),
                 Belief("armed", (me, "yes" if s.armed else "no"))]
-        forget: list[tuple[str, object]] = []
+        forget: list[tuple[str, Term]] = []
         if s.position is not None:
             n, e, d = s.position
             hold.append(Belief("position", (me, (_r(n, 2), _r(e, 2), _r(-d, 2)))))
         fresh = (s.position_time_ms is not None
                  and abs(now_s - s.position_time_ms * 1e-3) <= self.max_position_age_s)
         hold.append(Belief("localization", (me, "healthy" if fresh else "unhealthy")))
-        mode = s.mode_name
+        mode = s.mode
         if mode is not None:
             hold.append(Belief("mode", (me, mode)))
         else:
             forget.append(("mode", me))
         level = charge_level(s.battery_remaining)
-        if level is not None:
+        if level is not None and s.battery_remaining is not None:
             hold.append(Belief("charge", (bat, level)))
             hold.append(Belief("battery_percentage", (bat, int(s.battery_remaining))))
         else:

@@ -1,10 +1,13 @@
 """Helpers to fly the queue without an autopilot, and to check the streamed setpoints' continuity.
 
-:class:`FlightSim` ticks a :class:`~companion.flight.queue.CommandQueue` on simulated time with a
-kinematic stand-in for the vehicle (it follows the setpoint with a one-tick delay and reports
-``landed`` on the ground). :func:`step_violations` checks a recorded setpoint stream against the
-step bounds of seed 000 Sec. IV-D as :mod:`companion.flight.reference` states them; the link's
-integration tests can apply it to what was really streamed.
+:class:`PointMass` is the project's one kinematic stand-in for a vehicle: a point in NED metres with
+speed, acceleration and climb limits, steered toward a target or tracking a setpoint (the team
+simulator's vehicles, :class:`FlightSim` and the tests' stand-in navigator use it).
+:class:`FlightSim` ticks a :class:`~companion.flight.queue.CommandQueue` on simulated time with the
+point mass tracking the setpoint with a one-tick delay (``landed`` on the ground).
+:func:`step_violations` checks a recorded setpoint stream against the step bounds of seed 000
+Sec. IV-D as :mod:`companion.flight.reference` states them; the link's integration tests can apply it
+to what was really streamed.
 """
 
 from __future__ import annotations
@@ -61,6 +64,57 @@ def step_violations(setpoints: Sequence[Setpoint], limits: Limits, rel_tol: floa
     return out
 
 
+Vec3 = tuple[float, float, float]
+
+
+@dataclass
+class PointMass:
+    """A kinematic vehicle: position ``p`` and velocity ``v`` in NED (m, m/s) under the limits
+    ``speed`` (horizontal), ``accel`` (horizontal) and ``climb_speed`` (vertical)."""
+
+    p: Vec3 = (0.0, 0.0, 0.0)
+    speed: float = 5.0
+    accel: float = 2.5
+    climb_speed: float = 2.5
+    v: Vec3 = (0.0, 0.0, 0.0)
+
+    def fly_toward(self, target: Sequence[float], dt: float) -> float:
+        """One step of ``dt`` s toward ``target``: horizontally under the speed and acceleration limits,
+        braking to stop at it; vertically at up to ``climb_speed``. Returns the horizontal metres moved."""
+        dn, de, dd = target[0] - self.p[0], target[1] - self.p[1], target[2] - self.p[2]
+        dist = math.hypot(dn, de)
+        want_n = want_e = 0.0
+        if dist > 1e-6:
+            k = min(self.speed, math.sqrt(2.0 * self.accel * dist), dist / dt) / dist
+            want_n, want_e = dn * k, de * k
+        dvn, dve = want_n - self.v[0], want_e - self.v[1]
+        n = math.hypot(dvn, dve)
+        if n > self.accel * dt:
+            dvn, dve = dvn * self.accel * dt / n, dve * self.accel * dt / n
+        vd = max(-self.climb_speed, min(self.climb_speed, dd / dt))
+        self.v = (self.v[0] + dvn, self.v[1] + dve, vd)
+        step = (self.v[0] * dt, self.v[1] * dt, self.v[2] * dt)
+        self.p = (self.p[0] + step[0], self.p[1] + step[1], self.p[2] + step[2])
+        return math.hypot(step[0], step[1])
+
+    def straight_toward(self, target: Sequence[float], dt: float) -> bool:
+        """One step of ``dt`` s along the straight line to ``target`` at ``speed`` (no acceleration, no
+        separate climb limit: a navigator's idealisation); True once at it."""
+        d = math.dist(self.p, target)
+        k = min(1.0, self.speed * dt / d) if d > 0 else 1.0
+        step = (k * (target[0] - self.p[0]), k * (target[1] - self.p[1]), k * (target[2] - self.p[2]))
+        self.p = (self.p[0] + step[0], self.p[1] + step[1], self.p[2] + step[2])
+        if dt > 0:
+            self.v = (step[0] / dt, step[1] / dt, step[2] / dt)
+        return k == 1.0
+
+    def track(self, p: Sequence[float], v: Sequence[float], ground_down: float = 0.0) -> None:
+        """Be at ``p`` with velocity ``v`` (a perfect tracker of a setpoint; the ground, at NED down
+        ``ground_down``, stops it)."""
+        self.p = (float(p[0]), float(p[1]), min(float(p[2]), ground_down))
+        self.v = (float(v[0]), float(v[1]), float(v[2]))
+
+
 @dataclass
 class FlightSim:
     """Tick ``queue`` every ``dt`` seconds of simulated time; the vehicle follows one tick behind.
@@ -73,19 +127,27 @@ class FlightSim:
     queue: CommandQueue
     dt: float = 0.05
     t: float = 0.0
-    p: tuple[float, float, float] = (0.0, 0.0, 0.0)
     yaw: float = 0.0
     ground_altitude: float = 0.0
     setpoints: list[Setpoint] = field(default_factory=list)
     on_tick: list[Callable[[FlightSim], None]] = field(default_factory=list)
-    _v: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    #: the vehicle, tracking each setpoint exactly one tick later
+    body: PointMass = field(default_factory=PointMass)
+
+    @property
+    def p(self) -> Vec3:
+        return self.body.p
+
+    @p.setter
+    def p(self, value: Vec3) -> None:
+        self.body.p = value  # a teleport (a vehicle moved by someone else)
 
     @property
     def landed(self) -> bool:
         return -self.p[2] <= self.ground_altitude + 0.02
 
     def state(self) -> VehicleState:
-        return VehicleState(self.p, self._v, self.yaw, self.landed)
+        return VehicleState(self.body.p, self.body.v, self.yaw, self.landed)
 
     def tick(self) -> Setpoint | None:
         for cb in self.on_tick:
@@ -93,9 +155,7 @@ class FlightSim:
         sp = self.queue.tick(self.t, self.state())
         if sp is not None:
             self.setpoints.append(sp)
-            alt = max(-sp.p[2], self.ground_altitude)  # the ground stops the vehicle
-            self.p = (sp.p[0], sp.p[1], -alt)
-            self._v = sp.v
+            self.body.track(sp.p, sp.v, -self.ground_altitude)
             self.yaw = sp.yaw
         self.t = round(self.t + self.dt, 9)
         return sp

@@ -28,6 +28,7 @@ from typing import Any
 from fastapi import APIRouter
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
+from companion.team import kinds
 from companion.team.member import TeamMember
 from companion.team.types import TaskKind, TeamTask
 from taskflight_common.geo import check_point
@@ -85,11 +86,10 @@ def router(member: TeamMember) -> APIRouter:
 
     @app.post("/team/task", response_model=TeamVerb)
     def task(body: DirectedTask) -> TeamVerb:
-        if body.kind in (TaskKind.TST,):
-            raise ApiError(400, "kind: give a tree through POST /mission")
-        need = 1 if body.kind is TaskKind.VISIT else 3 if body.kind is TaskKind.AREA_PART else 2
-        if len(body.points) < need:
-            raise ApiError(400, f"points: a {body.kind.value} task needs at least {need} points")
+        try:
+            kinds.check_directed(body.kind, len(body.points))
+        except ValueError as exc:
+            raise ApiError(400, str(exc)) from exc
         points = tuple((p[0], p[1], p[2] if len(p) > 2 else 0.0) for p in body.points)
         t = TeamTask(next(_directed_ids), 1, body.kind, points, altitude=body.altitude, speed=body.speed,
                      name=f"directed {body.kind.value}")

@@ -70,7 +70,8 @@ def _kept(board: TaskBoard, current: Sequence[Claim]) -> tuple[list[Claim], list
     """Split my claims on live tasks into (held: CLAIMED/ACTIVE, parked: DONE/FAILED kept until the board
     says so); claims on tasks gone, cancelled, done or of an old version are dropped."""
     live = {t.id: t.version for t in board.live()}
-    held, parked = [], []
+    held: list[Claim] = []
+    parked: list[Claim] = []
     for c in current:
         if live.get(c.task) != c.version:
             continue
@@ -155,13 +156,13 @@ class GreedyPolicy(AllocationPolicy):
             now = costs.get(mine.task, mine.cost)
             mine = replace(mine, cost=now)
         best: tuple[float, int] | None = None
-        for tid, c in costs.items():
+        for tid, bid in costs.items():
             if mine is not None and tid == mine.task:
                 continue
-            if not self._winnable(me, c, riv.get(tid, [])):
+            if not self._winnable(me, bid, riv.get(tid, [])):
                 continue
-            if best is None or (c, tid) < best:
-                best = (c, tid)
+            if best is None or (bid, tid) < best:
+                best = (bid, tid)
         if mine is not None and (best is None or best[0] >= mine.cost - self._margin(mine.cost)):
             return (mine, *parked)
         if best is None:
@@ -311,3 +312,16 @@ class CbbaPolicy(AllocationPolicy):
             path.insert(idx, live[tid])
             excluded.add(tid)
         return (*bundle, *parked)
+
+
+#: the allocation policies by name
+POLICIES = ("greedy", "cbba")
+
+
+def make_policy(name: str, model: CostModel, max_tasks: int = 3) -> AllocationPolicy:
+    """The policy called ``name`` (greedy: seed 003 Sec. III-B; cbba: at most ``max_tasks`` in a path)."""
+    if name == "greedy":
+        return GreedyPolicy()
+    if name == "cbba":
+        return CbbaPolicy(model, max_tasks=max_tasks)
+    raise ValueError(f"policy: unknown allocation policy {name!r} (known: {', '.join(POLICIES)})")

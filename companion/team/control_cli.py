@@ -1,4 +1,4 @@
-"""``taskflight team control``: a team-control station from the command line (issue 11 item 7).
+"""``taskflight team control``: a team-control station from the command line.
 
 ``taskflight team control --team URL --tasks FILE`` joins the team link as the station (seed 003 Fig. 1, the
 top tier), gives the team the tasks of the file at their ``at`` times and cancels those with a
@@ -29,6 +29,7 @@ def add_control_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run_control(args: argparse.Namespace) -> int:
+    # loaded when the command runs: the command line starts without shapely and the team layer
     from companion.team.station import TeamControlStation
     from companion.team.taskfile import load_task_file
     from companion.team.transport import open_transport

@@ -11,7 +11,8 @@ cost (m); :class:`CostModel` is the better one, the flight time (s) under the ve
   copter that climbs to the task altitude then flies level; it keeps the Euclidean lower bound
   ``max(speed, climb_speed) * time >= euclidean distance``, tested).
 
-The characteristic point (:func:`entry_point`): a visit's point; a patrol line's or border piece's nearer
+Each kind (:mod:`companion.team.kinds`) gives its characteristic point (:func:`entry_point`): a
+visit's point; a patrol line's or border piece's nearer
 end; an area part's nearest boundary point. For CBBA paths of several tasks, :meth:`CostModel.path_time`
 adds each task's own flight (:func:`work_length`): a visit is instantaneous, an area part is flown along
 its boundary-parallel scan (its scan length at scan speed), a patrol (endless) counts one pass and ends
@@ -20,101 +21,33 @@ at its far end; patrols can only be the last task of a path (:func:`endless`).
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from shapely.geometry import Point
-from shapely.ops import nearest_points
-
-from companion.team.geometry import LocalFrame, distance_m
-from companion.team.types import GeoPoint, TaskKind, TeamTask
-
-#: spacing (m) of the scan lines of an area part (its flight length = area / spacing + perimeter)
-SCAN_SPACING_M = 10.0
+from companion.team import kinds
+from companion.team.geometry import distance_m
+from companion.team.types import GeoPoint, TeamTask
 
 
 def endless(task: TeamTask) -> bool:
     """A patrol (line or border piece) is flown back and forth until cancelled."""
-    return task.kind in (TaskKind.PATROL_LINE, TaskKind.BORDER_PIECE)
-
-
-def tst_points(tst_json: str | None) -> list[GeoPoint]:
-    """The geopoints of a TST in preorder: fly-to ``position`` and scan-ground ``area`` vertices."""
-    if not tst_json:
-        return []
-    out: list[GeoPoint] = []
-
-    def walk(node: object) -> None:
-        if not isinstance(node, dict):
-            return
-        params = node.get("params") or {}
-        pos = params.get("position") if isinstance(params, dict) else None
-        if isinstance(pos, list | tuple) and len(pos) >= 2:
-            out.append((float(pos[0]), float(pos[1]), float(pos[2]) if len(pos) > 2 else 0.0))
-        area = params.get("area") if isinstance(params, dict) else None
-        if isinstance(area, list | tuple):
-            out.extend((float(p[0]), float(p[1]), 0.0) for p in area if isinstance(p, list | tuple))
-        for key in ("children",):
-            for child in node.get(key) or []:
-                walk(child)
-        for key in ("then", "else", "body"):
-            walk(node.get(key))
-
-    walk(json.loads(tst_json))
-    return out
-
-
-def _points(task: TeamTask) -> Sequence[GeoPoint]:
-    if task.kind is TaskKind.TST and not task.points:
-        return tst_points(task.tst)
-    return task.points
-
-
-def _alt(task: TeamTask, p: GeoPoint) -> GeoPoint:
-    return (p[0], p[1], task.altitude if task.altitude else p[2])
+    return kinds.for_task(task.kind).endless
 
 
 def entry_point(task: TeamTask, at: GeoPoint) -> GeoPoint:
     """Seed 003: "the point where the UAV will first reach" ``task`` when it comes from ``at``."""
-    pts = _points(task)
-    if not pts:
-        return at
-    if task.kind is TaskKind.AREA_PART and len(pts) >= 3:
-        frame = LocalFrame(at[0], at[1])
-        poly = frame.polygon(pts)
-        here = Point(0.0, 0.0)
-        if poly.contains(here):
-            return _alt(task, (at[0], at[1], pts[0][2]))
-        q = nearest_points(poly.exterior, here)[0]
-        return _alt(task, frame.to_geo(q.x, q.y, pts[0][2]))
-    if endless(task) and len(pts) >= 2:
-        a, b = pts[0], pts[-1]
-        return _alt(task, a if distance_m(at, a)[0] <= distance_m(at, b)[0] else b)
-    return _alt(task, pts[0])
+    return kinds.for_task(task.kind).entry_point(task, at)
 
 
 def exit_point(task: TeamTask, at: GeoPoint) -> GeoPoint:
     """Where the vehicle is after one pass of ``task`` entered from ``at`` (a patrol's far end)."""
-    pts = _points(task)
-    start = entry_point(task, at)
-    if endless(task) and len(pts) >= 2:
-        a, b = _alt(task, pts[0]), _alt(task, pts[-1])
-        return b if distance_m(start, a)[0] <= distance_m(start, b)[0] else a
-    return start
+    return kinds.for_task(task.kind).exit_point(task, at)
 
 
 def work_length(task: TeamTask) -> float:
     """Metres flown on the task itself: 0 for a visit, the polyline for a patrol pass, the scan of an area."""
-    pts = _points(task)
-    if task.kind is TaskKind.VISIT or len(pts) < 2:
-        return 0.0
-    frame = LocalFrame.around(pts)
-    if task.kind is TaskKind.AREA_PART and len(pts) >= 3:
-        poly = frame.polygon(pts)
-        return poly.area / SCAN_SPACING_M + poly.exterior.length
-    return frame.line(pts).length
+    return kinds.for_task(task.kind).work_length(task)
 
 
 def euclidean(at: GeoPoint, task: TeamTask) -> float:

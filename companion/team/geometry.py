@@ -2,7 +2,8 @@
 
 Task points are WGS84 (lat, lon, alt above the team datum); lengths, areas and cuts are computed in a
 local frame of metres around a datum with ArduPilot's flat-earth conversion (:mod:`taskflight_common.geo`, the
-one the whole project uses), x = east, y = north. Shapely does the planar work: polyline lengths,
+one the whole project uses), x = north, y = east as in NED; z is kept as the altitude (m up), since task
+points carry altitudes, not depths. Shapely does the planar work: polyline lengths,
 ``substring`` pieces of a border, polygon areas and the equal-area cut of a scan area.
 """
 
@@ -24,7 +25,7 @@ AREA_TOL = 1e-6
 
 
 class LocalFrame:
-    """Metres east (x) and north (y) of a datum (lat, lon), altitude kept as z (m above the datum)."""
+    """Metres north (x) and east (y) of a datum (lat, lon), altitude kept as z (m above the datum)."""
 
     def __init__(self, lat: float, lon: float) -> None:
         self.lat = float(lat)
@@ -39,10 +40,10 @@ class LocalFrame:
 
     def to_local(self, p: GeoPoint) -> tuple[float, float, float]:
         n, e, _ = geodetic_to_ned((self.lat, self.lon, 0.0), p[0], p[1], 0.0)
-        return (e, n, float(p[2]) if len(p) > 2 else 0.0)
+        return (n, e, float(p[2]) if len(p) > 2 else 0.0)
 
     def to_geo(self, x: float, y: float, z: float = 0.0) -> GeoPoint:
-        lat, lon, _ = ned_to_geodetic((self.lat, self.lon, 0.0), y, x, 0.0)
+        lat, lon, _ = ned_to_geodetic((self.lat, self.lon, 0.0), x, y, 0.0)
         return (lat, lon, float(z))
 
     def line(self, points: Sequence[GeoPoint]) -> LineString:
@@ -59,11 +60,6 @@ def distance_m(a: GeoPoint, b: GeoPoint) -> tuple[float, float]:
     """(horizontal, vertical) distance in metres between two geopoints (flat earth around ``a``)."""
     n, e, _ = geodetic_to_ned((a[0], a[1], 0.0), b[0], b[1], 0.0)
     return math.hypot(n, e), abs(float(b[2]) - float(a[2]))
-
-
-def polyline_length(frame: LocalFrame, points: Sequence[GeoPoint]) -> float:
-    """Length (m) of a polyline of geopoints, horizontal."""
-    return frame.line(points).length if len(points) >= 2 else 0.0
 
 
 def split_line_equal(line: LineString, n: int) -> list[LineString]:

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from .allocation import AllocationPolicy, CbbaPolicy, GreedyPolicy
+from .allocation import make_policy
 from .cost import CostModel
 from .member import TeamMember
 from .transport import open_transport
@@ -21,24 +21,12 @@ from .transport import open_transport
 if TYPE_CHECKING:
     from companion.mission_service import MissionService
 
-#: the allocation policies by name
-POLICIES = ("greedy", "cbba")
-
-
 def cost_model_for(missions: MissionService) -> CostModel:
     """Flight time under the platform's standard speed and its acceleration and climb limits."""
     p = missions.platform()
     return CostModel(speed=float(p.speeds.get("standard", p.limits.horizontal_speed)),
                      accel=float(p.limits.horizontal_acceleration),
                      climb_speed=float(p.limits.vertical_speed))
-
-
-def make_policy(name: str, model: CostModel) -> AllocationPolicy:
-    if name == "greedy":
-        return GreedyPolicy()
-    if name == "cbba":
-        return CbbaPolicy(model)
-    raise ValueError(f"unknown allocation policy {name!r} (known: {', '.join(POLICIES)})")
 
 
 def join_team(missions: MissionService, url: str, member_id: int, *, policy: str = "greedy", name: str = "",

@@ -71,15 +71,6 @@ class LinkStats:
     last_send: float | None = None
     max_packet: int = 0
 
-    @property
-    def bytes_per_s_sent(self) -> float:
-        """Bytes sent per second between the first broadcast and the last one (0 before two)."""
-        if self.first_send is None or self.last_send is None or self.last_send <= self.first_send:
-            return 0.0
-        # n broadcasts span n-1 periods: count the bytes of all but the last
-        return self.bytes_sent * (self.broadcasts - 1) / max(1, self.broadcasts) / (
-            self.last_send - self.first_send)
-
 
 @dataclass(frozen=True)
 class LinkEvent:

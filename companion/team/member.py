@@ -3,12 +3,12 @@
 :class:`TeamMember` joins, on one companion,
 
 * the team link (:mod:`companion.team.link`): the group state flooded over a lossy radio-like link, the
-  vehicle's own row refreshed from its MAVLink mirror (position, velocity), its status and its claims;
+  vehicle's own row refreshed from the node's vehicle status (position, velocity), its status and its claims;
 * the allocation policy (:mod:`companion.team.allocation`, greedy as in seed 003 Sec. III-B or CBBA),
   asked every decision period for the claims this vehicle makes given the task board and everyone's rows;
 * the interface hierarchy of seed 003 Fig. 1: the team (broadcast tasks) < the process monitor (a directed
   command: :meth:`take`, :meth:`release`, :meth:`assign`) < the autopilot's own ground station (a mode
-  change seen by the node's :class:`~companion.link.guided.GuidedSupervisor` as an override). "A lower
+  change the node reports as ``overridden`` in its vehicle status). "A lower
   interface overrides a higher one": a taken or overridden vehicle publishes no claims and says so in its
   row, so the others re-allocate its task; released (or put back into GUIDED), it rejoins;
 * the :class:`~companion.team.switchboard.Switchboard`, the one writer of which tree flies the vehicle.
@@ -18,27 +18,28 @@ out-bid, so that most conflicts are declared and resolved before the vehicle tur
 three occasions, conflicts were declared when two UAVs claimed the same task. These conflicts were
 resolved"). A task whose tree succeeded is reported DONE in the row until the board says it is done; a task
 whose tree failed (rejected by delegation, or failed in flight) is reported FAILED and not claimed again by
-this vehicle for :data:`RETRY_FAILED_S`. A vehicle bids only once it is localized (seed 001's
-SELF_LOCALIZE active: ArduCopter's EKF takes tens of seconds after boot).
+this vehicle for :data:`~companion.team.decision.RETRY_FAILED_S`. A vehicle bids only once it is
+localized (seed 001's SELF_LOCALIZE active: ArduCopter's EKF takes tens of seconds after boot).
 """
 
 from __future__ import annotations
 
 import logging
-import math
 import threading
 import time
-from collections.abc import Callable, Mapping
-from dataclasses import replace
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
-from companion.link.guided import Phase
+from companion.node import VehicleStatus
 from companion.tst.delegation import delegate
 from companion.tst.status import ExecutionRequestError
 
+from .decision import Choice, DecisionStep
+from .groupstate import GroupState
+from .link import DEFAULT_PERIOD_S, TeamLink
 from .switchboard import Controller, Switchboard
 from .task_tst import mission_for
-from .types import Claim, ClaimState, GeoPoint, MemberEntry, MemberStatus, TaskBoard, TaskState, TeamTask
+from .types import Claim, GeoPoint, MemberEntry, MemberStatus, TaskState, TeamTask
 
 if TYPE_CHECKING:
     from companion.mission_service import MissionService
@@ -47,9 +48,6 @@ if TYPE_CHECKING:
     from .transport import Transport
 
 log = logging.getLogger(__name__)
-
-#: seconds after which a task this vehicle failed may be bid for again
-RETRY_FAILED_S = 30.0
 
 
 
@@ -60,9 +58,6 @@ class TeamMember:
                  cost: Callable[[GeoPoint, TeamTask], float], *, member_id: int, name: str = "",
                  period_s: float | None = None, decide_period_s: float = 0.25, settle_s: float | None = None,
                  voc_max: int | None = None, clock: Callable[[], float] = time.time) -> None:
-        from .groupstate import GroupState
-        from .link import DEFAULT_PERIOD_S, TeamLink
-
         self.missions = missions
         self.node = missions.node
         self.state = GroupState(member_id, **({} if voc_max is None else {"voc_max": voc_max}))
@@ -80,14 +75,11 @@ class TeamMember:
         self.switchboard = Switchboard(missions, float(platform.altitudes.get("standard", 10.0)))
         self.status = MemberStatus.IDLE
         self.taken_reason: str | None = None
-        self.claims: tuple[Claim, ...] = ()
         self.position: GeoPoint | None = None
         self.velocity: tuple[float, float, float] = (0.0, 0.0, 0.0)
-        self.done: dict[int, int] = {}      # task id -> version this vehicle finished
-        self.failed: dict[int, str] = {}    # task id -> why this vehicle could not fly it
-        self._failed_at: dict[int, float] = {}
         self.events: list[dict[str, Any]] = []
-        self._claimed_at: dict[int, float] = {}
+        self.decision = DecisionStep(member_id, policy, cost, clock=clock, settle_s=self.settle_s,
+                                     acceptable=self._acceptable, on_event=self._event)
         self._verdicts: dict[tuple[int, int], str] = {}  # (task, version) -> "" (can) or why not
         self._lock = threading.RLock()
         self._stop = threading.Event()
@@ -151,8 +143,19 @@ class TeamMember:
         """A directed task: the vehicle leaves the team and flies ``task`` (False if its tree is refused)."""
         with self._lock:
             self.take(f"directed task {task.id}")
-            s = self.node.link.mirror.snapshot()
-            return self.switchboard.fly(task, _on_ground(s), Controller.DIRECTED)
+            return self.switchboard.fly(task, self.node.vehicle_status().on_ground, Controller.DIRECTED)
+
+    @property
+    def claims(self) -> tuple[Claim, ...]:
+        return self.decision.claims
+
+    @property
+    def done(self) -> dict[int, int]:
+        return self.decision.done
+
+    @property
+    def failed(self) -> dict[int, str]:
+        return self.decision.failed
 
     @property
     def taken(self) -> bool:
@@ -171,7 +174,7 @@ class TeamMember:
 
     # --- one decision (seed 003 Sec. III-B) -----------------------------------------------------------------
     def step(self, now: float) -> None:
-        s = self.node.link.mirror.snapshot()
+        s = self.node.vehicle_status()
         with self._lock:
             self._observe(s)
             if self.position is None:
@@ -181,31 +184,21 @@ class TeamMember:
             if self.switchboard.controller is Controller.TEAM and self._paused():
                 return  # a break-in by the operator: the claims stand until it is resumed
             if not self._ready():
-                self.claims = ()  # no bids before the vehicle knows where it is (its estimate healthy)
+                self.decision.clear()  # no bids before the vehicle knows where it is (its estimate healthy)
                 return
-            self._forget_failures()
             board = self.state.board
             rows = {m: e for m, e in self.state.alive().items() if m != self.id}
-            self._progress(board)
-            candidates = self._candidates(board, rows)
-            current = tuple(c for c in self.claims if c.state in (ClaimState.CLAIMED, ClaimState.ACTIVE))
-            position = self.position
+            self._progress()
+            held = self.switchboard.task
+            flying = held.id if held is not None and self.switchboard.controller is Controller.TEAM else None
+            choice = self.decision.step(now, self.position, board, rows, self.own_row, flying)
+            self._switch(choice, s.on_ground)
 
-            def cost(t: TeamTask) -> float:
-                return self.cost(position, t)
-
-            own = self.own_row()
-            entries = {**rows, self.id: own} if own is not None else rows
-            decided = self.policy.decide(self.id, entries, candidates, cost, current)
-            self._publish(decided, board, now)
-            order = self.policy.order(self.id, entries, candidates, cost, self.claims)
-            self._switch(board, now, _on_ground(s), order)
-
-    def _observe(self, s: Any) -> None:
+    def _observe(self, s: VehicleStatus) -> None:
         if s.global_position is not None:
             lat, lon, _alt, rel = s.global_position
             self.position = (lat, lon, rel)
-        self.velocity = tuple(float(v) for v in s.velocity)  # type: ignore[assignment]
+        self.velocity = s.velocity
 
     def _ready(self) -> bool:
         """The executive layer localizes the vehicle (SELF_LOCALIZE active: a healthy estimate), so the
@@ -216,58 +209,35 @@ class TeamMember:
         status = self.missions.execution.root_status()
         return status is not None and status.state == "paused"
 
-    def _tier(self, s: Any) -> bool:
+    def _tier(self, s: VehicleStatus) -> bool:
         """Set the status from the hierarchy; True if the team may give this vehicle tasks."""
-        if self.node.supervisor.phase is Phase.OVERRIDDEN:
+        if s.overridden:
             if self.status is not MemberStatus.OVERRIDDEN:
                 self.switchboard.hand_to(Controller.NONE)
                 self._set_status(MemberStatus.OVERRIDDEN, "a ground station changed the mode")
-            self.claims = ()
+            self.decision.clear()
             return False
         if self.taken:
-            self.claims = ()
+            self.decision.clear()
             return False
         if self.status is MemberStatus.OVERRIDDEN:
             self.switchboard.hand_to(Controller.LOITER)
             self._set_status(MemberStatus.IDLE, "given back (GUIDED)")
         return True
 
-    def _progress(self, board: TaskBoard) -> None:
-        """The current tree's outcome becomes DONE or FAILED; DONE claims end when the board agrees."""
+    def _progress(self) -> None:
+        """The current tree's outcome becomes DONE or FAILED."""
         out = self.switchboard.outcome()
         task = self.switchboard.task
         if out is not None and task is not None and self.switchboard.controller is Controller.TEAM:
             if out.state == "succeeded":
-                self.done[task.id] = task.version
+                self.decision.finished(task)
                 self._event("done", task=task.id)
                 self.switchboard.loiter()
             elif out.state in ("failed", "aborted"):
-                self._fail(task.id, out.reason or out.state)
+                self.decision.fail(task.id, out.reason or out.state)
                 self._event("failed", task=task.id, reason=out.reason)
                 self.switchboard.loiter()
-        for tid in list(self.done):
-            t = board.get(tid)
-            if t is None or t.state.final:
-                del self.done[tid]
-
-    def _fail(self, task_id: int, reason: str) -> None:
-        self.failed[task_id] = reason
-        self._failed_at[task_id] = self.clock()
-
-    def _forget_failures(self) -> None:
-        """A task this vehicle failed is bid for again after :data:`RETRY_FAILED_S` (what made it fail, a
-        vehicle not yet localized, a busy autopilot, may have passed); the others had it first."""
-        now = self.clock()
-        for tid in [t for t, at in self._failed_at.items() if now - at >= RETRY_FAILED_S]:
-            self.failed.pop(tid, None)
-            del self._failed_at[tid]
-
-    def _candidates(self, board: TaskBoard, rows: Mapping[int, MemberEntry]) -> TaskBoard:
-        """The board without what is over: tasks reported done by anyone, and those this vehicle failed."""
-        reported_done = {c.task for e in rows.values() for c in e.claims if c.state is ClaimState.DONE}
-        live = tuple(t for t in board.tasks if t.live and t.id not in reported_done and t.id not in self.done
-                     and t.id not in self.failed and self._acceptable(t))
-        return replace(board, tasks=live)
 
     def _acceptable(self, task: TeamTask) -> bool:
         """Seed 000 Sec. III across the team: bid only for what this platform's delegation accepts (its
@@ -286,54 +256,25 @@ class TeamMember:
                 self._event("cannot", task=task.id, reason=verdict)
         return not verdict
 
-    def _publish(self, decided: tuple[Claim, ...], board: TaskBoard, now: float) -> None:
-        flying = self.switchboard.task.id if (self.switchboard.task is not None
-                                              and self.switchboard.controller is Controller.TEAM) else None
-        claims = []
-        for c in decided:
-            self._claimed_at.setdefault(c.task, now)
-            cost = c.cost if math.isfinite(c.cost) else 1e9
-            state = ClaimState.ACTIVE if c.task == flying else ClaimState.CLAIMED
-            claims.append(Claim(c.task, c.version, cost, state))
-        held = {c.task for c in claims}
-        for tid in list(self._claimed_at):
-            if tid not in held:
-                del self._claimed_at[tid]
-        for tid, version in self.done.items():
-            claims.append(Claim(tid, version, 0.0, ClaimState.DONE))
-        for tid in self.failed:
-            t = board.get(tid)
-            if t is not None and t.live:
-                claims.append(Claim(tid, t.version, 1e9, ClaimState.FAILED))
-        if [(c.task, c.state) for c in claims] != [(c.task, c.state) for c in self.claims]:
-            self._event("claims", claims=[(c.task, c.state.name) for c in claims])
-        self.claims = tuple(claims)
-
-    def _switch(self, board: TaskBoard, now: float, on_ground: bool, order: tuple[int, ...]) -> None:
-        """Fly the first live claim in the policy's order (CBBA: the path's order) once it has settled;
-        loiter with none."""
-        live = {c.task: c for c in self.claims if c.state in (ClaimState.CLAIMED, ClaimState.ACTIVE)}
-        first = next((live[t] for t in order if t in live), None)
-        if first is None:
+    def _switch(self, choice: Choice, on_ground: bool) -> None:
+        """Fly the decision's task once it has settled; loiter with none."""
+        task = choice.task
+        if task is None:
             if self.switchboard.controller is Controller.TEAM:
                 self.switchboard.loiter()
             self._set_status(MemberStatus.LANDED if on_ground else MemberStatus.IDLE)
             return
         current = self.switchboard.task
-        if (current is not None and current.id == first.task
-                and self.switchboard.controller is Controller.TEAM):
+        if current is not None and current.id == task.id and self.switchboard.controller is Controller.TEAM:
             self._set_status(MemberStatus.BUSY)
             return
-        if now - self._claimed_at.get(first.task, now) < self.settle_s:
-            return
-        task = board.get(first.task)
-        if task is None:
+        if not choice.settled:
             return
         if self.switchboard.fly(task, on_ground):
             self._event("fly", task=task.id, version=task.version)
             self._set_status(MemberStatus.BUSY)
         else:
-            self._fail(task.id, self.switchboard.errors[-1] if self.switchboard.errors else "refused")
+            self.decision.fail(task.id, self.switchboard.errors[-1] if self.switchboard.errors else "refused")
 
     # --- bookkeeping -------------------------------------------------------------------------------------
     def _set_status(self, status: MemberStatus, why: str = "") -> None:
@@ -369,10 +310,6 @@ class TeamMember:
                              "garbage": self.link.stats.garbage,
                              "foreign_version": self.link.stats.foreign_version,
                              "dropped_by_test_loss": getattr(self.link.transport, "dropped_loss", 0)}}
-
-
-def _on_ground(s: Any) -> bool:
-    return s.landed_state == 1 or not s.armed
 
 
 __all__ = ["TaskState", "TeamMember"]

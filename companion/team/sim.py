@@ -1,13 +1,15 @@
 """The team simulator: distributed allocation with kinematic vehicles in one process on simulated time.
 
-Issue 11 item 7, ``taskflight team sim``: N point-mass vehicles (speed, acceleration and climb limits)
+``taskflight team sim``: N point-mass vehicles (speed, acceleration and climb limits)
 and a team-control station, each with its own :class:`~companion.team.groupstate.GroupState` and
 :class:`~companion.team.link.TeamLink` over one :class:`~companion.team.transport.MemoryBus` behind a
 :class:`~companion.team.transport.LossyTransport` (the real flooding, voc and wire format of seed 003
-Sec. III-A). Every period each vehicle runs its allocation policy (Sec. III-B) on its own view and flies
-what it holds: a visit is done on arrival, a patrol (line or border piece) is flown back and forth until
-cancelled, an area part is done after flying its scan length at scan speed, a TST task visits its
-points in order. The station adds and cancels the scripted tasks at their times, follows the rows
+Sec. III-A). Every period each vehicle runs the flying member's decision step (Sec. III-B,
+:class:`~companion.team.decision.DecisionStep`) on its own view and flies what it holds (the route its
+kind gives, :mod:`companion.team.kinds`): a visit is done on arrival, a patrol (line or border piece)
+is flown back and forth until cancelled, an area part is done after flying its scan length at scan
+speed, a TST task visits its points in order. Positions are local metres north, east and up of the
+script's home (``starts``). The station adds and cancels the scripted tasks at their times, follows the rows
 (:func:`~companion.team.tasks.derive_states`) and publishes the board. Nothing sleeps: time is a number.
 """
 
@@ -17,15 +19,17 @@ import logging
 import math
 import random
 from collections.abc import Callable
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Any
 
-import numpy as np
-
-from companion.team.allocation import AllocationPolicy, CbbaPolicy, GreedyPolicy
-from companion.team.cost import CostModel, endless, entry_point, tst_points, work_length
+from companion.flight.simulate import PointMass, Vec3
+from companion.team import kinds
+from companion.team.allocation import make_policy
+from companion.team.cost import CostModel, endless
+from companion.team.decision import DecisionStep
 from companion.team.geometry import LocalFrame
 from companion.team.groupstate import GroupState
+from companion.team.kinds.base import with_altitude
 from companion.team.link import TeamLink
 from companion.team.station import TeamControlStation
 from companion.team.taskfile import TaskScript
@@ -33,10 +37,10 @@ from companion.team.transport import LossyTransport, MemoryBus
 from companion.team.types import (
     Claim,
     ClaimState,
+    GeoPoint,
     MemberEntry,
     MemberStatus,
     TaskBoard,
-    TaskKind,
     TaskState,
     TeamTask,
 )
@@ -47,31 +51,24 @@ log = logging.getLogger(__name__)
 ARRIVE_M = 2.0
 
 
-def make_policy(name: str, model: CostModel, max_tasks: int = 3) -> AllocationPolicy:
-    if name == "greedy":
-        return GreedyPolicy()
-    if name == "cbba":
-        return CbbaPolicy(model, max_tasks=max_tasks)
-    raise ValueError(f"policy: must be greedy or cbba, got {name!r}")
-
-
 @dataclass
 class Work:
-    """What a vehicle does on the task it flies: the waypoints left (local m) and the metres to fly."""
+    """What a vehicle does on the task it flies: the waypoints left (local NED m) and the metres to fly."""
 
-    task: int
-    waypoints: list[np.ndarray]
-    loop: list[np.ndarray] | None = None   #: a patrol's points, flown back and forth
-    scan_left: float = 0.0                 #: an area part: metres still to scan
+    task: TeamTask
+    waypoints: list[Vec3]
+    loop: list[Vec3] | None = None   #: a patrol's points, flown back and forth (an area's ring)
+    scan_left: float = 0.0           #: an area part: metres still to scan
 
 
 class SimVehicle:
-    """One kinematic vehicle with its own group state, link and policy."""
+    """One kinematic vehicle (:class:`~companion.flight.simulate.PointMass`) with its own group state, link
+    and the flying member's decision step (:class:`~companion.team.decision.DecisionStep`)."""
 
-    def __init__(self, member: int, pos: np.ndarray, sim: TeamSim) -> None:
+    def __init__(self, member: int, pos: Vec3, sim: TeamSim) -> None:
         self.member = member
-        self.pos = pos.astype(float)
-        self.vel = np.zeros(3)
+        m = sim.model
+        self.body = PointMass(pos, speed=m.speed, accel=m.accel, climb_speed=m.climb_speed)
         self.sim = sim
         self.state = GroupState(member, voc_max=sim.voc_max)
         inner = sim.bus.attach()
@@ -79,59 +76,52 @@ class SimVehicle:
         self.link = TeamLink(self.state, self.transport, period_s=sim.period_s, clock=lambda: sim.now,
                              own=self._own)
         self.policy = make_policy(sim.policy_name, sim.model, sim.max_tasks)
-        self.claims: tuple[Claim, ...] = ()
+        self.decision = DecisionStep(member, self.policy, sim.model.cost, clock=lambda: sim.now)
         self.work: Work | None = None
         self.alive = True
 
-    def geo(self) -> tuple[float, float, float]:
-        return self.sim.frame.to_geo(self.pos[0], self.pos[1], self.pos[2])
+    @property
+    def claims(self) -> tuple[Claim, ...]:
+        return self.decision.claims
+
+    def geo(self) -> GeoPoint:
+        n, e, d = self.body.p
+        return self.sim.frame.to_geo(n, e, -d)
 
     def _own(self) -> MemberEntry:
         busy = any(c.state in (ClaimState.CLAIMED, ClaimState.ACTIVE) for c in self.claims)
-        v = self.vel
+        v = self.body.v
         return MemberEntry(member=self.member, stamp=0.0, seq=0, position=self.geo(),
-                           velocity=(float(v[1]), float(v[0]), float(-v[2])),
+                           velocity=(float(v[0]), float(v[1]), float(v[2])),
                            status=MemberStatus.BUSY if busy else MemberStatus.IDLE,
-                           task=self.work.task if self.work else 0, claims=self.claims,
+                           task=self.work.task.id if self.work else 0, claims=self.claims,
                            name=f"v{self.member}")
-
-    def cost(self, t: TeamTask) -> float:
-        return self.sim.model.cost(self.geo(), t)
 
     # --- decision -------------------------------------------------------------------------------
     def decide(self) -> None:
         board = self.state.board
-        entries = self.state.alive()
-        entries[self.member] = self._own()
-        self.claims = self.policy.decide(self.member, entries, board, self.cost, self.claims)
-        order = self.policy.order(self.member, entries, board, self.cost, self.claims)
-        live = {t.id: t for t in board.live()}
-        nxt = order[0] if order else None
-        if self.work is not None and self.work.task != nxt:
+        rows = {m: e for m, e in self.state.alive().items() if m != self.member}
+        flying = self.work.task.id if self.work is not None else None
+        choice = self.decision.step(self.sim.now, self.geo(), board, rows, self._own, flying)
+        nxt = choice.task
+        if self.work is not None and (nxt is None or self.work.task.id != nxt.id):
             self.work = None  # dropped, lost or cancelled: the next one (or loiter)
-        if nxt is not None and self.work is None:
-            self.work = self._plan(live[nxt])
+        if nxt is not None and self.work is None and choice.settled:
+            self.work = self._plan(nxt)
+
+    def _local(self, p: GeoPoint) -> Vec3:
+        n, e, up = self.sim.frame.to_local(p)
+        return (n, e, -up)
 
     def _plan(self, t: TeamTask) -> Work:
-        f = self.sim.frame
-        z = lambda p: t.altitude if t.altitude else p[2]  # noqa: E731
-        loc = lambda p: np.array(f.to_local((p[0], p[1], z(p))))  # noqa: E731
-        entry = loc(entry_point(t, self.geo()))
-        if endless(t):
-            pts = [loc(p) for p in t.points]
-            if np.linalg.norm(pts[-1] - entry) < np.linalg.norm(pts[0] - entry):
-                pts.reverse()
-            return Work(t.id, [entry], loop=pts)
-        if t.kind is TaskKind.AREA_PART:
-            ring = [loc(p) for p in t.points]
-            return Work(t.id, [entry], loop=[*ring, ring[0]], scan_left=work_length(t))
-        if t.kind is TaskKind.TST:
-            pts = [loc(p) for p in tst_points(t.tst)] or [entry]
-            return Work(t.id, [entry, *pts[1:]])
-        return Work(t.id, [entry])
+        route = kinds.for_task(t.kind).route(t, self.geo())
+        loop = [self._local(p) for p in route.loop] if route.loop is not None else None
+        return Work(t, [self._local(p) for p in route.waypoints], loop=loop, scan_left=route.scan_m)
 
-    def _mark(self, task: int, state: ClaimState) -> None:
-        self.claims = tuple(replace(c, state=state) if c.task == task else c for c in self.claims)
+    def _finish(self, w: Work) -> None:
+        self.decision.finished(w.task)
+        self.sim.finish(w.task.id, self.member)
+        self.work = None
 
     # --- flight ---------------------------------------------------------------------------------
     def fly(self, dt: float) -> None:
@@ -139,68 +129,40 @@ class SimVehicle:
             return
         w = self.work
         if w is None:
-            self._move_to(self.pos, dt)  # loiter where it is
+            self.body.fly_toward(self.body.p, dt)  # loiter where it is
             return
         target = w.waypoints[0] if w.waypoints else None
         if target is None and w.loop:
             target = w.loop[0]
         if target is None:
             return
-        moved = self._move_to(target, dt)
+        moved = self.body.fly_toward(target, dt)
         if w.scan_left > 0 and not w.waypoints:
             w.scan_left -= moved
             if w.scan_left <= 0:
-                self._mark(w.task, ClaimState.DONE)
-                self.sim.finish(w.task, self.member)
-                self.work = None
+                self._finish(w)
                 return
-        if np.linalg.norm(target - self.pos) > ARRIVE_M:
+        if math.dist(target, self.body.p) > ARRIVE_M:
             return
         if w.waypoints:
             w.waypoints.pop(0)
             if not w.waypoints:
                 if w.loop is None:  # a visit or a TST's last point: done
-                    self._mark(w.task, ClaimState.DONE)
-                    self.sim.finish(w.task, self.member)
-                    self.work = None
+                    self._finish(w)
                 else:
-                    self._mark(w.task, ClaimState.ACTIVE)
-                    self.sim.active_by.setdefault(w.task, self.member)
+                    self.sim.active_by.setdefault(w.task.id, self.member)
         elif w.loop:
             pt = w.loop.pop(0)
             if w.scan_left > 0:
                 w.loop.append(pt)       # the scan goes round its part
             elif not w.loop:
-                w.loop = self._reverse(pt)  # a patrol turns back at its end
+                w.loop = self._reverse(w.task, pt)  # a patrol turns back at its end
 
-    def _reverse(self, last: np.ndarray) -> list[np.ndarray]:
-        t = self.state.board.get(self.work.task) if self.work else None
-        if t is None:
-            return [last]
-        f = self.sim.frame
-        pts = [np.array(f.to_local((p[0], p[1], t.altitude if t.altitude else p[2]))) for p in t.points]
-        if np.linalg.norm(pts[0] - last) < np.linalg.norm(pts[-1] - last):
+    def _reverse(self, t: TeamTask, last: Vec3) -> list[Vec3]:
+        pts = [self._local(with_altitude(t, p)) for p in t.points]
+        if math.dist(pts[0], last) < math.dist(pts[-1], last):
             return pts[1:]
         return list(reversed(pts))[1:]
-
-    def _move_to(self, target: np.ndarray, dt: float) -> float:
-        """Point mass toward ``target``: speed and acceleration limits, stopping at it; metres moved."""
-        m = self.sim.model
-        d = target - self.pos
-        dh = np.array([d[0], d[1], 0.0])
-        dist = float(np.linalg.norm(dh))
-        v_des = np.zeros(3)
-        if dist > 1e-6:
-            v_des = dh / dist * min(m.speed, math.sqrt(2.0 * m.accel * dist), dist / dt)
-        dv = v_des - np.array([self.vel[0], self.vel[1], 0.0])
-        n = float(np.linalg.norm(dv))
-        if n > m.accel * dt:
-            dv *= m.accel * dt / n
-        vz = max(-m.climb_speed, min(m.climb_speed, d[2] / dt))
-        self.vel = np.array([self.vel[0] + dv[0], self.vel[1] + dv[1], vz])
-        step = self.vel * dt
-        self.pos = self.pos + step
-        return float(np.linalg.norm(step[:2]))
 
 
 @dataclass
@@ -252,10 +214,11 @@ class TeamSim:
         self.vehicles: list[SimVehicle] = []
         for i in range(vehicles):
             if starts is not None:
-                pos = np.array(starts[i], dtype=float)
+                n, e, up = starts[i]
             else:
                 a = 2 * math.pi * i / vehicles
-                pos = np.array([15.0 * math.cos(a), 15.0 * math.sin(a), 20.0])
+                n, e, up = 15.0 * math.sin(a), 15.0 * math.cos(a), 20.0
+            pos = (float(n), float(e), -float(up))
             self.vehicles.append(SimVehicle(i + 1, pos, self))
         self._pending = sorted(script.tasks, key=lambda s: s.at)
         self._cancels: list[tuple[float, tuple[int, ...]]] = []
@@ -301,7 +264,8 @@ class TeamSim:
         """No live task held by two vehicles, and no vehicle idle while a live task is unclaimed and it
         has room for it (the true claims, not a view)."""
         board = self.ledger.board()
-        live = {t.id for t in board.live()}
+        live_tasks = {t.id: t for t in board.live()}
+        live = set(live_tasks)
         holders: dict[int, int] = {}
         for v in self.vehicles:
             for c in v.claims:
@@ -312,7 +276,7 @@ class TeamSim:
         free = live - set(holders)
         room = [v for v in self.vehicles if v.alive and len(
             [c for c in v.claims if c.task in live]) < (1 if self.policy_name == "greedy" else self.max_tasks)
-            and not any(c.task in live and endless(board.get(c.task)) for c in v.claims)]
+            and not any(c.task in live and endless(live_tasks[c.task]) for c in v.claims)]
         return not (free and room)
 
     def step(self) -> None:

@@ -1,4 +1,4 @@
-"""``taskflight team sim``: the team simulator from the command line (issue 11 item 7).
+"""``taskflight team sim``: the team simulator from the command line.
 
 The parser is light (nothing heavy imported); :func:`run_sim` loads the task file, runs
 :class:`~companion.team.sim.TeamSim` on simulated time, prints each assignment change as it happens and a
@@ -24,6 +24,7 @@ def add_sim_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run_sim(args: argparse.Namespace) -> int:
+    # loaded when the command runs: the command line starts without shapely and the team layer
     from companion.team.sim import TeamSim
     from companion.team.taskfile import load_task_file
     from taskflight_common.yamlio import ConfigError

@@ -25,6 +25,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
+from . import kinds
 from .groupstate import GroupState
 from .link import DEFAULT_PERIOD_S, LinkEvent, TeamLink
 from .tasks import Fence, LedgerSnapshot, TaskDef, TaskLedger, derive_states, offer_smaller_n, validate
@@ -128,7 +129,7 @@ class TeamControlStation:
         with self._lock:
             validate(defn, self.ledger.fence)  # bad input is refused before any offer is made
             free = self.free_vehicles()
-            if defn.kind in ("border_patrol", "area_scan") and not force:
+            if kinds.divided_by_n(defn.kind) and not force:
                 offer = offer_smaller_n(defn.n, free)
                 if offer is not None:
                     self._record("offer", kind=defn.kind, requested=defn.n, offer=offer, free=free)

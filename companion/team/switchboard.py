@@ -112,11 +112,6 @@ class Switchboard:
                 log.info("switchboard: %s", controller.value)
             self.controller, self.task = controller, None
 
-    def directed_started(self) -> None:
-        """The process monitor started a mission of its own (the tree is not the team's)."""
-        with self._lock:
-            self.controller, self.task = Controller.DIRECTED, None
-
     # --- what the tree does ------------------------------------------------------------------------------
     def outcome(self) -> Outcome | None:
         """The state of the current task's tree (None without a task)."""

@@ -3,7 +3,8 @@
 Seed 003: "the Waypoint controller causes each point to be visited once, whereas the Orbit controller
 provides a continuous orbit of a set of points. Thus, the Waypoint controller is activated for visit
 location tasks and the Orbit controller is activated for patrol tasks." Here both controllers are TSTs
-flown by the vehicle's own mission layer:
+flown by the vehicle's own mission layer, each kind's node built by its module of
+:mod:`companion.team.kinds`:
 
 ==================  ==================================================================================
 visit               ``fly-to`` the point (straight line), at the task's speed
@@ -22,52 +23,17 @@ or with 0, is flown at the task's altitude, else at the platform's standard alti
 
 from __future__ import annotations
 
-import json
 from typing import Any
 
 from companion.tst.spec import Mission, mission_from_dict
 
-from .types import GeoPoint, TaskKind, TeamTask
-
-#: speed name of a task without a speed of its own
-DEFAULT_SPEED = "standard"
-
-
-def _altitude(task: TeamTask, point: GeoPoint, fallback: float) -> float:
-    if len(point) > 2 and point[2] > 0:
-        return float(point[2])
-    return task.altitude if task.altitude > 0 else fallback
-
-
-def _speed_params(task: TeamTask) -> dict[str, Any]:
-    return {"commanded_speed": float(task.speed)} if task.speed > 0 else {"speed": DEFAULT_SPEED}
+from . import kinds
+from .types import TeamTask
 
 
 def task_node(task: TeamTask, standard_altitude: float) -> dict[str, Any]:
-    """The TST node (a dict in the mission-file format) that flies ``task``."""
-    tid = f"task{task.id}"
-    if task.kind is TaskKind.VISIT:
-        p = task.points[0]
-        return {"type": "fly-to", "id": tid,
-                "params": {"position": [p[0], p[1], _altitude(task, p, standard_altitude)],
-                           "fly_straight_line_flag": True, **_speed_params(task)}}
-    if task.kind in (TaskKind.PATROL_LINE, TaskKind.BORDER_PIECE):
-        wps = [[p[0], p[1], _altitude(task, p, standard_altitude)] for p in task.points]
-        return {"type": "scan-ground", "id": tid,
-                "params": {"waypoints_scan_flag": True, "waypoints": wps, "segment_flag": False,
-                           "repeat_flag": True, "loiter_mode": "pass",
-                           "speed": "standard",
-                           "data_uuid": f"team-task-{task.id}"}}
-    if task.kind is TaskKind.AREA_PART:
-        return {"type": "scan-ground", "id": tid,
-                "params": {"area": [[p[0], p[1]] for p in task.points], "speed": "standard",
-                           "altitude": "standard", "data_uuid": f"team-task-{task.id}"}}
-    if task.kind is TaskKind.TST:
-        if not task.tst:
-            raise ValueError(f"team task {task.id}: a TST task without its tree")
-        tree = json.loads(task.tst)
-        return tree.get("tree", tree) if isinstance(tree, dict) else tree
-    raise ValueError(f"team task {task.id}: unknown kind {task.kind!r}")
+    """The TST node (a dict in the mission-file format) that flies ``task`` (its kind builds it)."""
+    return kinds.for_task(task.kind).node(task, standard_altitude)
 
 
 def mission_for(task: TeamTask, on_ground: bool, standard_altitude: float) -> Mission:

@@ -102,8 +102,6 @@ def task_script_from_dict(data: Any, file: str | None = None) -> TaskScript:
         t.unknown(TASK_KEYS)
         kind = t.string("kind", choices=DEF_KINDS)
         tree = t.raw("tree", None)
-        if kind == "tst" and not isinstance(tree, dict):
-            raise t.error("tree", "a tst task needs a tree (a mapping)")
         defn = TaskDef(kind=kind, points=_points(t, "points") if t.has("points") else (),
                        n=t.integer("n", 1, lo=1), altitude=t.number("altitude", 0.0, lo=0.0),
                        speed=t.number("speed", 0.0, lo=0.0), name=t.string("name", ""),

@@ -8,9 +8,10 @@ greater than the number of unassigned UAVs, the user is offered the choice of re
 
 * :class:`TaskDef` is what the operator gives: a visit (a point), a patrol line (a polyline flown back
   and forth until cancelled), a border patrol divided among N (N pieces of equal length), an area scan
-  divided among N (N parts of equal area, :func:`~companion.team.geometry.split_polygon_equal_area`), or a
-  TST (a C root gives one task per child, delegated to different vehicles).
-* :func:`divide` turns a definition into :class:`~companion.team.types.TeamTask` s.
+  divided among N (N parts of equal area), or a TST (a C root gives one task per child, delegated to
+  different vehicles); each kind is one module of :mod:`companion.team.kinds`.
+* :func:`validate` and :func:`divide` turn a definition into :class:`~companion.team.types.TeamTask` s,
+  asking its kind.
 * :class:`TaskLedger` is the team-control station's task list: ids, versions and the state machine
   unassigned -> assigned -> active -> done, any live state -> cancelled, assigned/active -> unassigned
   when the holder drops the task or is gone. :meth:`TaskLedger.board` publishes it.
@@ -21,7 +22,6 @@ Bad input raises :class:`ValueError` naming the field, and the ledger is left as
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
@@ -29,31 +29,26 @@ from typing import Any
 
 from shapely.geometry import Point, Polygon
 
-from companion.team.cost import tst_points
-from companion.team.geometry import LocalFrame, split_line_equal, split_polygon_equal_area
+from companion.team import kinds
+from companion.team.geometry import LocalFrame
 from companion.team.types import (
     ClaimState,
     GeoPoint,
     MemberEntry,
     TaskBoard,
-    TaskKind,
     TaskState,
     TeamTask,
 )
 
 #: the operator's task kinds (divided kinds are split into BORDER_PIECE / AREA_PART team tasks)
-DEF_KINDS = ("visit", "patrol_line", "border_patrol", "area_scan", "tst")
-#: a border piece shorter than this (m) makes no sense to patrol
-MIN_PIECE_M = 10.0
-#: an area part smaller than this (m^2) makes no sense to scan
-MIN_PART_M2 = 100.0
+DEF_KINDS = kinds.names()
 #: the most pieces a task may be divided into
 MAX_PIECES = 64
 
 
 @dataclass(frozen=True)
 class Fence:
-    """The operational envelope: a polygon in local metres of ``frame`` (x east, y north), or in
+    """The operational envelope: a polygon in local metres of ``frame`` (x north, y east), or in
     (lat, lon) degrees when ``frame`` is None. "A task outside the fence must be rejected"."""
 
     polygon: Polygon
@@ -70,10 +65,11 @@ class Fence:
 
 @dataclass(frozen=True)
 class TaskDef:
-    """One task as the operator gives it (``n``: the number of vehicles for a divided task)."""
+    """One task as the operator gives it (``n``: the number of vehicles for a divided task; ``points``
+    [lat, lon] or [lat, lon, alt] as given, checked by :func:`validate`)."""
 
     kind: str
-    points: tuple[GeoPoint, ...] = ()
+    points: tuple[Sequence[float], ...] = ()
     n: int = 1
     altitude: float = 0.0
     speed: float = 0.0
@@ -81,23 +77,9 @@ class TaskDef:
     tree: Mapping[str, Any] | None = None
 
 
-def _check_point(p: Any, where: str) -> GeoPoint:
-    if not isinstance(p, list | tuple) or len(p) not in (2, 3):
-        raise ValueError(f"{where}: expected [lat, lon] or [lat, lon, alt], got {p!r}")
-    vals = []
-    for v in p:
-        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
-            raise ValueError(f"{where}: expected finite numbers, got {p!r}")
-        vals.append(float(v))
-    if not (-90.0 <= vals[0] <= 90.0 and -180.0 <= vals[1] <= 180.0):
-        raise ValueError(f"{where}: latitude/longitude out of range: {p!r}")
-    return (vals[0], vals[1], vals[2] if len(vals) == 3 else 0.0)
-
-
 def validate(defn: TaskDef, fence: Fence | None = None) -> tuple[GeoPoint, ...]:
     """Check a definition; returns its points. Raises ValueError naming the field."""
-    if defn.kind not in DEF_KINDS:
-        raise ValueError(f"kind: must be one of {', '.join(DEF_KINDS)}; got {defn.kind!r}")
+    kind = kinds.by_name(defn.kind)
     for name in ("altitude", "speed"):
         v = getattr(defn, name)
         if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v) or v < 0:
@@ -106,26 +88,11 @@ def validate(defn: TaskDef, fence: Fence | None = None) -> tuple[GeoPoint, ...]:
         raise ValueError(f"n: the number of vehicles must be an integer >= 1, got {defn.n!r}")
     if defn.n > MAX_PIECES:
         raise ValueError(f"n: at most {MAX_PIECES} pieces, got {defn.n}")
-    if defn.n != 1 and defn.kind not in ("border_patrol", "area_scan"):
-        raise ValueError(f"n: only a border_patrol or area_scan is divided, not a {defn.kind}")
-    if defn.kind == "tst":
-        if not isinstance(defn.tree, Mapping):
-            raise ValueError("tree: a tst task needs a tree (a mapping)")
-        pts = tuple(tst_points(json.dumps(defn.tree)))
-    else:
-        pts = tuple(_check_point(p, f"points[{i}]") for i, p in enumerate(defn.points))
-    if defn.kind == "visit" and len(pts) != 1:
-        raise ValueError(f"points: a visit has exactly one point, got {len(pts)}")
-    if defn.kind in ("patrol_line", "border_patrol") and len(pts) < 2:
-        raise ValueError(f"points: a {defn.kind} needs at least 2 points, got {len(pts)}")
-    if defn.kind == "area_scan":
-        if len(pts) < 3:
-            raise ValueError(f"points: an area needs at least 3 points, got {len(pts)}")
-        poly = LocalFrame.around(pts).polygon(pts)
-        if poly.area <= 1e-9:
-            raise ValueError("points: the area polygon has zero area")
-        if not poly.is_valid or not poly.exterior.is_simple:
-            raise ValueError("points: the area polygon is not simple (its edges cross)")
+    if defn.n != 1 and not kind.divided_by_n:
+        divided = " or ".join(k for k in kinds.names() if kinds.divided_by_n(k))
+        raise ValueError(f"n: only a {divided} is divided, not a {defn.kind}")
+    pts = kind.points(defn)
+    kind.check(defn, pts)
     if fence is not None:
         for i, p in enumerate(pts):
             if not fence.contains(p):
@@ -137,54 +104,12 @@ def divide(defn: TaskDef, ids: Iterable[int], fence: Fence | None = None, group:
            ) -> list[TeamTask]:
     """The allocatable TeamTasks of ``defn`` with ids drawn from ``ids`` (``group``: the parent's id).
 
-    Border patrol: the polyline cut into ``n`` pieces of equal length (BORDER_PIECE, group_size n).
-    Area scan: the polygon cut into ``n`` parts of equal area (AREA_PART, points: the part's ring).
-    TST with a C root: one TST task per child (group_size: the number of children).
+    Each kind divides its own (:mod:`companion.team.kinds`): a border patrol into ``n`` pieces of equal
+    length, an area scan into ``n`` parts of equal area, a TST with a C root into one task per child.
     """
     pts = validate(defn, fence)
-    it = iter(ids)
-    alt = float(defn.altitude)
-    z = alt if alt else (pts[0][2] if pts else 0.0)
-    common = {"version": 1, "altitude": alt, "speed": float(defn.speed)}
-    name = defn.name
-    if defn.kind == "visit":
-        return [TeamTask(id=next(it), kind=TaskKind.VISIT, points=pts, name=name, **common)]
-    if defn.kind == "patrol_line":
-        return [TeamTask(id=next(it), kind=TaskKind.PATROL_LINE, points=pts, name=name, **common)]
-    if defn.kind == "border_patrol":
-        frame = LocalFrame.around(pts)
-        line = frame.line(pts)
-        if line.length / defn.n < MIN_PIECE_M:
-            raise ValueError(f"n: {defn.n} pieces of a {line.length:.0f} m border are shorter than "
-                             f"{MIN_PIECE_M:g} m each")
-        pieces = split_line_equal(line, defn.n)
-        return [TeamTask(id=next(it), kind=TaskKind.BORDER_PIECE, points=frame.geo_points(p.coords, z),
-                         group=group, group_size=defn.n, name=f"{name}#{k + 1}" if name else "", **common)
-                for k, p in enumerate(pieces)]
-    if defn.kind == "area_scan":
-        frame = LocalFrame.around(pts)
-        poly = frame.polygon(pts)
-        if poly.area / defn.n < MIN_PART_M2:
-            raise ValueError(f"n: {defn.n} parts of a {poly.area:.0f} m^2 area are smaller than "
-                             f"{MIN_PART_M2:g} m^2 each")
-        parts = split_polygon_equal_area(poly, defn.n)
-        return [TeamTask(id=next(it), kind=TaskKind.AREA_PART,
-                         points=frame.geo_points(list(p.exterior.coords)[:-1], z),
-                         group=group, group_size=defn.n, name=f"{name}#{k + 1}" if name else "", **common)
-                for k, p in enumerate(parts)]
-    # tst
-    tree = dict(defn.tree or {})
-    from companion.tst.spec import mission_from_dict
-
-    mission_from_dict({"mission": name or "team-task", "tree": tree})  # ConfigError (a ValueError)
-    children = tree.get("children") or []
-    if tree.get("type") == "C" and children:
-        return [TeamTask(id=next(it), kind=TaskKind.TST, points=tuple(tst_points(json.dumps(c))[:1]),
-                         group=group, group_size=len(children), tst=json.dumps(c),
-                         name=f"{name}#{k + 1}" if name else "", **common)
-                for k, c in enumerate(children)]
-    return [TeamTask(id=next(it), kind=TaskKind.TST, points=pts[:1], tst=json.dumps(tree), name=name,
-                     **common)]
+    common: dict[str, Any] = {"version": 1, "altitude": float(defn.altitude), "speed": float(defn.speed)}
+    return kinds.by_name(defn.kind).divide(defn, pts, iter(ids), group, common)
 
 
 def offer_smaller_n(requested: int, free: int) -> int | None:
@@ -252,8 +177,7 @@ class TaskLedger:
     # --- operator verbs -----------------------------------------------------------------------------
     def add(self, defn: TaskDef, now: float | None = None) -> tuple[int, ...]:
         """Add an operator task; returns the ids of its allocatable tasks (nothing changes on error)."""
-        divided = defn.kind in ("border_patrol", "area_scan") or (
-            defn.kind == "tst" and isinstance(defn.tree, Mapping) and defn.tree.get("type") == "C")
+        divided = kinds.by_name(defn.kind).is_group(defn)
         start = self._next
         group = start if divided else 0
         counter = iter(range(start + (1 if divided else 0), start + 10_000))

@@ -49,6 +49,7 @@ import zlib
 from collections import OrderedDict
 from dataclasses import dataclass
 
+from companion.team import kinds
 from companion.team.types import (
     Claim,
     ClaimState,
@@ -80,8 +81,7 @@ _TASK = struct.Struct("!IHBBIHdd")
 _POINT = struct.Struct("!iii")
 _NO_TST = 0xFFFFFFFF
 
-_KIND_CODES: dict[TaskKind, int] = {TaskKind.VISIT: 0, TaskKind.PATROL_LINE: 1, TaskKind.BORDER_PIECE: 2,
-                                    TaskKind.AREA_PART: 3, TaskKind.TST: 4}
+_KIND_CODES: dict[TaskKind, int] = kinds.wire_codes()  #: each kind names its own code
 _KINDS = {v: k for k, v in _KIND_CODES.items()}
 _STATE_CODES: dict[TaskState, int] = {TaskState.UNASSIGNED: 0, TaskState.ASSIGNED: 1, TaskState.ACTIVE: 2,
                                       TaskState.DONE: 3, TaskState.CANCELLED: 4}
@@ -377,7 +377,7 @@ def _decode(data: bytes) -> Packet:
     data = bytes(data)
     if len(data) < _OVERHEAD:
         raise WireError(f"truncated: {len(data)} bytes, shorter than a header and CRC ({_OVERHEAD})")
-    magic, version, kind, sender = _HEADER.unpack_from(data)
+    magic, version, code, sender = _HEADER.unpack_from(data)
     if magic != MAGIC:
         raise WireError(f"bad magic {magic!r} (not a team-link packet)")
     if version != VERSION:
@@ -386,19 +386,19 @@ def _decode(data: bytes) -> Packet:
     if zlib.crc32(data[:-_CRC.size]) != crc:
         raise WireError("bad CRC (corrupt or truncated packet)")
     r = _Reader(data, _HEADER.size, len(data) - _CRC.size)
-    if kind == KIND_STATE:
+    if code == KIND_STATE:
         rows = tuple(_read_row(r) for _ in range(r.u8("row count")))
         has_board = r.u8("board flag")
         if has_board not in (0, 1):
             raise WireError(f"board flag {has_board}")
         part = _read_part(r) if has_board else None
-    elif kind == KIND_BOARD:
+    elif code == KIND_BOARD:
         rows, part = (), _read_part(r)
     else:
-        raise WireError(f"unknown packet kind {kind}")
+        raise WireError(f"unknown packet kind {code}")
     if r.pos != r.end:
         raise WireError(f"{r.end - r.pos} trailing bytes")
-    return Packet(sender=sender, kind=kind, rows=rows, board_part=part)
+    return Packet(sender=sender, kind=code, rows=rows, board_part=part)
 
 
 def decode_board_body(body: bytes, stamp: float, seq: int, body_crc: int) -> TaskBoard:
