@@ -158,9 +158,6 @@ class BehaviorCatalog:
         """Definition 1: a and b are in one mutually exclusive set (a behavior with itself: always)."""
         return a == b or b in self._incompatible.get(a, frozenset())
 
-    def incompatible_with(self, name: str) -> frozenset[str]:
-        return self._incompatible.get(name, frozenset())
-
     def required_before(self, name: str) -> frozenset[str]:
         """Definition 2: the behaviors that must be active before ``name`` is activated."""
         return self._required.get(name, frozenset())
