@@ -139,6 +139,12 @@ def _cmd_ground(args: argparse.Namespace) -> int:
     return run_ground(args)
 
 
+def _cmd_docs(args: argparse.Namespace) -> int:
+    from taskflight.apidoc import run_docs
+
+    return run_docs(args)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="taskflight", description=__doc__.splitlines()[0])
     parser.add_argument("-v", "--verbose", action="count", default=0, help="more log output (-vv: debug)")
@@ -201,6 +207,12 @@ def build_parser() -> argparse.ArgumentParser:
 
     add_ground_arguments(gp)
     handlers["ground"] = _cmd_ground
+
+    docp = sub.add_parser("docs", help="generated documentation: docs/http-api.md from the OpenAPI schemas")
+    from taskflight.apidoc import add_docs_arguments
+
+    add_docs_arguments(docp)
+    handlers["docs"] = _cmd_docs
 
     parser.set_defaults(_handlers=handlers)
     return parser
