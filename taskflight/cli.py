@@ -84,6 +84,13 @@ def _cmd_mission_check(args: argparse.Namespace) -> int:
     return run_mission_check(args)
 
 
+def _cmd_mission_list(args: argparse.Namespace) -> int:
+    from taskflight.mission_check import bundled_missions
+
+    print("\n".join(bundled_missions()))
+    return 0
+
+
 def add_mission_arguments(parser: argparse.ArgumentParser) -> None:
     """``taskflight mission SUBCOMMAND``: each sub-command sets ``mission_handler``."""
     msub = parser.add_subparsers(dest="mission_command", required=True, metavar="SUBCOMMAND")
@@ -93,6 +100,8 @@ def add_mission_arguments(parser: argparse.ArgumentParser) -> None:
 
     add_check_arguments(cp)
     cp.set_defaults(mission_handler=_cmd_mission_check)
+    lp = msub.add_parser("list", help="the bundled missions (mission check takes them by name)")
+    lp.set_defaults(mission_handler=_cmd_mission_list)
     from companion.mission_report.cli import add_mission_plot_arguments
     from taskflight.fig16 import add_fig16_arguments
 
@@ -193,7 +202,8 @@ def build_parser() -> argparse.ArgumentParser:
     add_behaviors_arguments(bp)
     handlers["behaviors"] = _cmd_behaviors
 
-    mp = sub.add_parser("mission", help="Task Specification Tree missions: check, plot, fig16 (seed 000)")
+    mp = sub.add_parser("mission",
+                        help="Task Specification Tree missions: check, list, plot, fig16 (seed 000)")
     add_mission_arguments(mp)
     handlers["mission"] = _cmd_mission
 
