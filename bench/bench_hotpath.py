@@ -1,4 +1,5 @@
-"""Costs on the model's hot path, per call: the state interface, the main-loop overhead, the generator.
+"""Costs on hot paths, per call: the model's state interface, main-loop overhead and setpoint generator;
+the companion's belief memory (a two-pattern join over 900 beliefs, a cached text query).
 
     python -m bench.bench_hotpath
 """
@@ -22,6 +23,23 @@ def per_call_us(fn: Callable[[], object], n: int = 50000) -> float:
     for _ in range(n):
         fn()
     return (time.perf_counter() - t0) / n * 1e6
+
+
+def beliefs_rows() -> list[tuple[str, float]]:
+    """The executive layer's memory of beliefs, consulted (seed 001 Sec. 6.2.4) as an IF or a WHILE does."""
+    from companion.behaviors.belief_syntax import parse_query
+    from companion.behaviors.beliefs import BeliefMemory
+
+    m = BeliefMemory()
+    for i in range(300):
+        m.add(f"object({i}, {'battery' if i % 10 == 0 else 'obstacle'})")
+        m.add(f"charge({i}, {'full' if i % 20 == 0 else 'low'})")
+        m.add(f"position({i}, ({i}.0, 1.0, 2.0))")
+    q = parse_query("object(?x, battery), charge(?x, full)")
+    return [("beliefs: consult, 2 patterns joined over 900 beliefs (15 answers)",
+             per_call_us(lambda: m.consult(q), 2000)),
+            ("beliefs: holds, one text belief (parsed once, cached)",
+             per_call_us(lambda: m.holds("charge(150, low)"), 2000))]
 
 
 def main() -> None:
@@ -73,6 +91,7 @@ def main() -> None:
         for _ in range(20000):
             g.update()
         rows.append((f"guidance: update, pressed against the fence, {name}", per_call_us(g.update, 5000)))
+    rows += beliefs_rows()
     print("bench_hotpath: wall cost per call")
     print(f"machine: {machine()}")
     print(table(("operation", "us per call"),

@@ -55,6 +55,10 @@ class SimClock:
         """Times :meth:`pace` found the clock more than ``max_lag_s`` behind and gave time up."""
         self.given_up_s = 0.0
         """Wall seconds given up so far (each slip keeps ``max_lag_s`` to catch up)."""
+        self.sleeps = 0
+        """Times :meth:`pace` slept (one sleep a period when ahead; again if woken early)."""
+        self.spins = 0
+        """Times :meth:`pace` looked at the wall again without sleeping (busy-waits); 0 with ``spin_s=0``."""
         self._warned_wall = -SLIP_WARNING_EVERY_S
         self.speedup = float(speedup)
         self.spin_s = float(spin_s)
@@ -130,8 +134,12 @@ class SimClock:
                 return slept
             if spin == 0.0:
                 time.sleep(remaining)
+                self.sleeps += 1
             elif remaining > spin + 0.0005:
                 time.sleep(remaining - spin)
+                self.sleeps += 1
+            else:
+                self.spins += 1
             after = target_wall - time.perf_counter()
             slept += max(0.0, remaining - max(0.0, after))
             remaining = after

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 import threading
-import time
 
 import pytest
 
@@ -243,7 +242,8 @@ def test_strings_and_numbers_do_not_unify() -> None:
     assert m.consult('code(?x, "92")') == [{"x": 1}]
 
 
-def test_consult_is_fast() -> None:
+def test_consult_joins_in_a_large_memory_and_text_queries_are_cached() -> None:
+    """The answer over 900 beliefs (how fast: ``python -m bench.bench_hotpath``, not a test)."""
     m = BeliefMemory()
     for i in range(300):
         m.add(f"object({i}, {'battery' if i % 10 == 0 else 'obstacle'})")
@@ -251,18 +251,9 @@ def test_consult_is_fast() -> None:
         m.add(f"position({i}, ({i}.0, 1.0, 2.0))")
     assert len(m) == 900
     q = parse_query("object(?x, battery), charge(?x, full)")
-    assert len(m.consult(q)) == 15
-    samples = []
-    for _ in range(200):
-        t0 = time.perf_counter()
-        m.consult(q)
-        samples.append(time.perf_counter() - t0)
-    samples.sort()
-    assert samples[len(samples) // 2] < 1e-3, f"median consult {samples[100] * 1e6:.0f} us"
-    t0 = time.perf_counter()
-    for _ in range(200):
-        m.holds("charge(150, low)")  # text queries are cached after the first parse
-    assert (time.perf_counter() - t0) / 200 < 1e-3
+    assert sorted(b["x"] for b in m.consult(q)) == list(range(0, 300, 20))
+    assert m.holds("charge(150, low)") and not m.holds("charge(160, low)")
+    assert parse_query("charge(150, low)") is parse_query("charge(150, low)")  # parsed once, then cached
 
 
 def test_concurrent_writers_keep_one_value() -> None:

@@ -163,34 +163,39 @@ def test_homes_and_templates() -> None:
 
 
 def test_real_time_fleet_sleeps_instead_of_spinning(tmp_path: Path) -> None:
-    """Paced on the wall (1 s simulated takes 1 s), with one sleep per period and no spinning: the
-    process's CPU stays far below the ~45 % of one core a single spinning vehicle costs."""
+    """Paced on the wall (1 s simulated takes at least 1 s), waiting by sleeping only, never spinning (the
+    clock's own counts of its sleeps and busy-wait looks). What that costs in CPU (a few percent of a core
+    for 3 idle vehicles against ~45 % for one spinning vehicle) and how late periods start are bench
+    figures, not asserted here: ``python -m bench.bench_fleet``."""
     import time
 
     with Fleet(3, speedup=1.0, state_dir=tmp_path, urls=[["udpin:127.0.0.1:0"]] * 3, persist=False) as f:
         f.run(0.1)  # warm-up round and first periods
-        t0, c0 = time.perf_counter(), time.process_time()
+        t0, sleeps0 = time.perf_counter(), f.clock.sleeps
         f.run(1.0)
-        wall, cpu = time.perf_counter() - t0, time.process_time() - c0
-        assert wall >= 0.98, f"not paced: 1 s simulated in {wall:.2f} s"
-        assert cpu / wall < 0.25, f"{100 * cpu / wall:.0f} % of a core for 3 idle vehicles"
-        assert len(f.lateness_s) >= 495 and f.lateness_quantiles((0.5,))[0] < 0.002
+        wall = time.perf_counter() - t0
+        assert wall >= 0.98, f"not paced: 1 s simulated in {wall:.2f} s"  # a loaded machine only adds
+        assert f.clock.spins == 0 and f.clock.sleeps > sleeps0
+        assert len(f.lateness_s) >= 495  # every paced period's lateness is kept for the bench
         assert [s.vehicle.clock.now_us for s in f.vehicles] == [1_100_000] * 3
 
 
 def test_sim_clock_without_spinning_sleeps_to_the_deadline() -> None:
-    """``SimClock(spin_s=0)`` (the fleet's pacing) sleeps out each period, never spins; bad spins refused."""
-    import time
-
+    """``SimClock(spin_s=0)`` (the fleet's pacing) sleeps out each period, never spins; a clock with
+    ``spin_s`` does spin (what the counter would show if the fleet did); bad spins refused."""
     from taskflight_common.clock import SimClock
 
     clock = SimClock(1.0, spin_s=0.0)
-    c0 = time.process_time()
     for _ in range(25):
         clock.advance(2000)
         clock.pace()
         assert clock.wall_lag() >= 0.0  # never returns before the deadline
-    assert time.process_time() - c0 < 0.025  # 50 ms paced; a spinning clock burns about half of it
+    assert clock.spins == 0 and clock.sleeps >= 1
+    spinning = SimClock(1.0, spin_s=0.01)
+    for _ in range(10):  # 20 ms periods: sleeps to 10 ms before each deadline, then spins
+        spinning.advance(20_000)
+        spinning.pace()
+    assert spinning.spins > 0
     for bad in (-0.001, 0.5):
         with pytest.raises(ValueError, match="spin_s"):
             SimClock(1.0, spin_s=bad)

@@ -247,13 +247,19 @@ def test_websocket_auth_snapshots_and_malformed_messages(ground: InProcessGround
         wait_for(lambda: "forbidden" in _recv(ws).get("error", ""), 10, "the observer's stick refused")
     with ground.ws(OPERATOR) as ws:
         assert _recv(ws)["type"] == "hello"
-        t0, stamps = time.monotonic(), []
-        while time.monotonic() - t0 < 2.0:
+        stamps: list[int] = []
+
+        def ten_snapshots() -> bool:
             m = _recv(ws)
             if m["type"] == "snapshot":
                 stamps.append(m["seq"])
                 assert {"vehicles", "tasks", "t"} <= set(m)
-        assert len(stamps) >= 10, stamps  # >= 5 Hz over 2 s
+            return len(stamps) >= 10
+
+        # pushed every period whether or not anything changed (10 Hz by default: how often on a loaded
+        # machine is a bench figure, bench/bench_ground.py's snapshots/s), numbered in order
+        wait_for(ten_snapshots, 20, "ten snapshots pushed")
+        assert stamps == sorted(set(stamps)), stamps
         with ground.http() as c:
             tasks = c.get("/api/tasks").json()
         bad = ["garbage", "[]", json.dumps({"no": "type"}), json.dumps({"type": "fly"}),

@@ -212,9 +212,7 @@ def test_break_in_with_the_joystick_then_resume_and_enough(rig: GroundRig) -> No
     north = moved()
     assert north > 5.0, f"moved {north:.1f} m north under the stick"
     # the samples stopped: the vehicle stops within the validity (0.5 s) plus its braking
-    t_stop = time.monotonic()
     wait_for(lambda: math.hypot(*rig.velocity(i)[:2]) < 0.3, rig.wall(3.0), "stopped after the last sample")
-    assert time.monotonic() - t_stop < rig.wall(3.0)
     held = rig.position(i)
     time.sleep(1.5)
     assert math.dist(local(held), local(rig.position(i))) < 0.5, "drifting without samples"

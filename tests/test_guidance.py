@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import math
 import random
-import time
 
 import numpy as np
 import pytest
@@ -378,18 +377,3 @@ def test_reset_below_floor_climbs_back() -> None:
     c = Checker(g, env)
     fly_to(g, c, (0.0, 0.0, -10.0), 30.0)
     assert g.p == (0.0, 0.0, -10.0)
-
-
-@pytest.mark.parametrize("kind", ["box", "hexagon"])
-def test_update_cost(kind: str) -> None:
-    """update() is cheap: pure math (a generous bound for a shared CI machine)."""
-    env = make_env(kind)
-    g = SetpointGenerator(env, 0.002)
-    g.reset((0.0, 0.0, -10.0))
-    g.set_velocity_target((3.0, 2.0, -0.5))
-    n = 5000
-    t0 = time.perf_counter()
-    for _ in range(n):
-        g.update()
-    per = (time.perf_counter() - t0) / n
-    assert per < 100e-6, per

@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import itertools
 import math
-import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -129,9 +128,10 @@ def test_upload_download_equal_and_bad_upload_changes_nothing(gcs: Gcs) -> None:
 
 def test_upload_abandoned_is_cancelled_after_retries(gcs: Gcs) -> None:
     """The requests are repeated 1 s apart and the upload given up in *simulated* time,
-    as ArduCopter SITL does (its ``AP_HAL::millis()`` is the simulation's clock): at SPEEDUP the whole
-    exchange takes a tenth of its simulated duration on the wall. Each MISSION_* message is stamped with
-    the vehicle's time_boot_ms of the latest ATTITUDE (4 Hz by default) heard before it."""
+    as ArduCopter SITL does (its ``AP_HAL::millis()`` is the simulation's clock). Each MISSION_* message is
+    stamped with the vehicle's time_boot_ms of the latest ATTITUDE (4 Hz by default) heard before it: the
+    repeats are 1 s apart in that time, where repeats timed on the wall would be about SPEEDUP s apart. (How
+    long the exchange takes on the wall is no test: a loaded machine runs the simulation slower.)"""
     before = download(gcs)
     gcs.mission.clear()
     stamped: list[tuple[str, int, float]] = []  # (type, seq or result, simulated seconds)
@@ -146,9 +146,8 @@ def test_upload_abandoned_is_cancelled_after_retries(gcs: Gcs) -> None:
 
     gcs.msg("ATTITUDE")
     gcs.conn.mav.mission_count_send(1, 1, 4, 0)
-    t0 = time.monotonic()
+    assert SPEEDUP >= 2, "at 1x simulated and wall time agree: the repeats' clock could not be told"
     gcs.wait(stamp_until_ack, gcs.wall(10), "MISSION_ACK after the repeated requests")
-    wall_s = time.monotonic() - t0
     requests = [(v, t) for k, v, t in stamped if k == "MISSION_REQUEST_INT"]
     acks = [(v, t) for k, v, t in stamped if k == "MISSION_ACK"]
     assert [v for v, _ in acks] == [M.MAV_MISSION_OPERATION_CANCELLED]
@@ -156,7 +155,6 @@ def test_upload_abandoned_is_cancelled_after_retries(gcs: Gcs) -> None:
     gaps = [b[1] - a[1] for a, b in itertools.pairwise(requests)]
     assert all(0.6 <= g <= 1.5 for g in gaps), gaps  # 1 s apart in simulated time (4 Hz stamps)
     assert 5.5 <= acks[0][1] - requests[0][1] <= 7.0
-    assert wall_s < 6.0 * 3 / SPEEDUP + 1.0  # not paced by the wall: about 0.6 s at SPEEDUP 10
     assert len(download(gcs)) == len(before)
 
 

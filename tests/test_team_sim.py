@@ -27,8 +27,12 @@ def test_demo_every_task_done_or_cancelled_conflict_free(policy: str, loss: floa
     states = {tid: st for tid, (_t, st, _h) in r.tasks.items()}
     assert all(st in (TaskState.DONE, TaskState.CANCELLED) for st in states.values()), states
     assert sum(st is TaskState.DONE for st in states.values()) >= 6  # visits, area parts
-    assert r.held_twice_at_end == 0 and r.conflict_free_at is not None
-    # each done task was done by one vehicle, and the vehicles loiter with no claims at the end
+    assert r.conflict_free_at is not None
+    # sampled every step over the whole run, not at its end (when every task is final, none can be held):
+    # two vehicles may claim one task before hearing each other (seed 003 Sec. III-B), and one lets it go
+    # within a few team-link periods (0.5 s): one to hear the other's row, one to decide, lost rows
+    assert r.held_twice_longest_s <= 4 * sim.period_s, r.held_twice_s
+    # the vehicles loiter with no claims at the end
     for claims in r.claims.values():
         assert not [c for c in claims if c.state.name in ("CLAIMED", "ACTIVE")]
     assert set(r.done_by.values()) <= {1, 2, 3}
@@ -46,8 +50,10 @@ tasks:
     sim._next_decide = {1: 0.25, 2: 0.25}
     sim.step()
     assert [c.task for c in sim.vehicles[0].claims] == [c.task for c in sim.vehicles[1].claims] == [101]
+    assert sim.held_twice() == {101: 2}  # the sampler sees the conflict
     r = sim.run(300.0, stop_when_done=True)
     assert r.conflicts >= 1
+    assert 0 < r.held_twice_s[101] <= r.held_twice_longest_s <= 4 * sim.period_s  # and its end
     assert r.done_by == {101: 1, 102: 2}  # the nearer (1) keeps it, the other takes its next best
 
 

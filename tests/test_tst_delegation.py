@@ -180,12 +180,14 @@ def test_relations_between_parameters_and_platform_quantities() -> None:
     assert not bad.accepted and "unknown name 'fuel'" in bad.reasons[0]
 
 
-def test_waypoint_scan_with_any_order_flies_a_shorter_order() -> None:
+def test_waypoint_scan_with_any_order_is_planned_in_a_shorter_order_and_passes_its_flags_on() -> None:
+    """Delegation orders the waypoints by the shorter path (``any_order_flag``) and passes ``repeat_flag``,
+    ``loiter_mode`` and the data's uuid on to the executor in the plan, as given. Flying ``loiter_mode`` is
+    not checked here: the waypoints planned for ``stop`` are those planned for ``pass``."""
     wps = [geo(10, 0), geo(2, 0), geo(8, 0), geo(4, 0)]
-    m = mission({"type": "scan-ground", "id": "patrol",
-                 "params": {"waypoints_scan_flag": True, "waypoints": wps, "any_order_flag": True,
-                            "repeat_flag": True, "loiter_mode": "stop", "data_uuid": "p1"}})
-    d = delegate(m, INDOOR)
+    params = {"waypoints_scan_flag": True, "waypoints": wps, "any_order_flag": True, "repeat_flag": True,
+              "loiter_mode": "stop", "data_uuid": "p1"}
+    d = delegate(mission({"type": "scan-ground", "id": "patrol", "params": params}), INDOOR)
     assert d.accepted, d.reasons
     plan = d.plans["patrol"]
     norths = [round(w[0]) for w in plan.waypoints_neu]
@@ -193,6 +195,9 @@ def test_waypoint_scan_with_any_order_flies_a_shorter_order() -> None:
     assert plan.extra["repeat"] is True and plan.extra["loiter_mode"] == "stop"
     assert plan.extra["data_uuid"] == "p1"
     assert all(w[2] == INDOOR.altitudes["standard"] for w in plan.waypoints_neu)
+    passing = delegate(mission({"type": "scan-ground", "id": "patrol",
+                                "params": {**params, "loiter_mode": "pass"}}), INDOOR).plans["patrol"]
+    assert passing.waypoints_neu == plan.waypoints_neu and passing.extra["loiter_mode"] == "pass"
 
 
 # --- the five rejections -------------------------------------------------------------------------------

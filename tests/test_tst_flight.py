@@ -6,7 +6,8 @@ break-ins: the first resumed, the second ended by enough. Asserted: the mission 
 scan covers the area (every point within the camera footprint of the scan path); after the resume the
 vehicle went on to the waypoint it was flying to; after enough the rest of the scan was skipped and
 never flown; the landing point is the fly-to's; every streamed setpoint from take-off to landing is
-continuous (seed 000: "the setpoints remained continuous from takeoff to landing").
+continuous (seed 000: "the setpoints remained continuous from takeoff to landing") by the planner's own
+trajectories: within the jerk limits, with the generator's guard never acting.
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ from typing import Any
 import pytest
 from shapely.geometry import LineString, Polygon
 
-from companion.flight.simulate import step_violations
+from companion.flight.simulate import jerk_violations, step_violations
 from companion.flightlog import read_flight_log
 from taskflight.fig16 import DEFAULT_BREAK_INS, reproduce
 
@@ -94,6 +95,10 @@ def test_enough_skips_the_rest_of_the_scan(flight: dict[str, Any]) -> None:
 
 
 def test_every_streamed_setpoint_is_continuous(flight: dict[str, Any]) -> None:
-    streamed = flight["streamed"]
+    """Every setpoint the link streamed, take-off to landing. The step bounds are the ones the generator's
+    guard clamps every step to (:mod:`companion.flight.reference`), so alone they would pass whatever the
+    planner did: the guard never had to act, and the jerk limits, which only the planner keeps, held too."""
+    streamed, queue = flight["streamed"], flight["node"].queue
     assert len(streamed) > 500
-    assert step_violations(streamed, flight["node"].queue.limits) == []
+    assert queue.guard_interventions == 0
+    assert step_violations(streamed, queue.limits) == [] and jerk_violations(streamed, queue.limits) == []

@@ -55,13 +55,10 @@ class Running:
 def running(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Running]:
     state = tmp_path_factory.mktemp("up")
     base = free_base(N)
-    t0 = time.monotonic()
     up = UpProcess(["--vehicles", str(N), "--speedup", str(SPEEDUP), "--base-instance", str(base),
                     "--no-persist", *ground_args()], state)
     try:
-        summary = up.wait_ready(READY_S)
-        summary_s = time.monotonic() - t0
-        assert summary_s < READY_S
+        summary = up.wait_ready(READY_S)  # a deadline; how long start-up takes: bench/bench_up.py
         yield Running(up, summary, base, state)
     finally:
         up.close()

@@ -6,8 +6,9 @@ simulator's vehicles, :class:`FlightSim` and the tests' stand-in navigator use i
 :class:`FlightSim` ticks a :class:`~companion.flight.queue.CommandQueue` on simulated time with the
 point mass tracking the setpoint with a one-tick delay (``landed`` on the ground).
 :func:`step_violations` checks a recorded setpoint stream against the step bounds of seed 000
-Sec. IV-D as :mod:`companion.flight.reference` states them; the link's integration tests can apply it
-to what was really streamed.
+Sec. IV-D as :mod:`companion.flight.reference` states them (the bounds its guard clamps every step to);
+:func:`jerk_violations` checks the jerk limits, which only the planner keeps; the link's integration tests
+can apply both to what was really streamed.
 """
 
 from __future__ import annotations
@@ -60,6 +61,27 @@ def step_violations(setpoints: Sequence[Setpoint], limits: Limits, rel_tol: floa
                        ("dp_v", abs(s1.p[2] - s0.p[2]), L.vertical_speed * dt)]
         for name, value, bound in checks:
             if value > bound * (1.0 + rel_tol) + abs_tol:
+                out.append(Violation(i, s1.t_s, name, value, bound))
+    return out
+
+
+def jerk_violations(setpoints: Sequence[Setpoint], limits: Limits, rel_tol: float = 1e-6) -> list[Violation]:
+    """All changes of the acceleration feed-forward between consecutive position setpoints beyond the jerk
+    limits: |da_h| <= j_h,max*dt (horizontal norm) and |da_v| <= j_v,max*dt.
+
+    The generator's guard does not enforce these (it clamps the steps :func:`step_violations` checks), the
+    planner's jerk-limited trajectories do (seed 000 Sec. IV-D): a stream that passes both was continuous by
+    its plans, not because the guard clamped it."""
+    out: list[Violation] = []
+    for i in range(1, len(setpoints)):
+        s0, s1 = setpoints[i - 1], setpoints[i]
+        dt = s1.t_s - s0.t_s
+        if dt <= 0 or s0.kind is not SetpointKind.POSITION or s1.kind is not SetpointKind.POSITION:
+            continue
+        for name, value, bound in (
+                ("da_h", math.hypot(s1.a[0] - s0.a[0], s1.a[1] - s0.a[1]), limits.horizontal_jerk * dt),
+                ("da_v", abs(s1.a[2] - s0.a[2]), limits.vertical_jerk * dt)):
+            if value > bound * (1.0 + rel_tol):
                 out.append(Violation(i, s1.t_s, name, value, bound))
     return out
 

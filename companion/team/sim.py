@@ -9,7 +9,9 @@ Sec. III-A). Every period each vehicle runs the flying member's decision step (S
 kind gives, :mod:`companion.team.kinds`): a visit is done on arrival, a patrol (line or border piece)
 is flown back and forth until cancelled, an area part is done after flying its scan length at scan
 speed, a TST task visits its points in order. Positions are local metres north, east and up of the
-script's home (``starts``). The station adds and cancels the scripted tasks at their times, follows the rows
+script's home (``starts``). Every step samples the true claims for tasks held by two vehicles at once
+(a conflict, Sec. III-B, until one lets go): :attr:`SimResult.held_twice_s` is over the whole run, not
+only its end. The station adds and cancels the scripted tasks at their times, follows the rows
 (:func:`~companion.team.tasks.derive_states`) and publishes the board. Nothing sleeps: time is a number.
 """
 
@@ -176,6 +178,12 @@ class SimResult:
     duration: float
     done_by: dict[int, int] = field(default_factory=dict)
     held_twice_at_end: int = 0
+    held_twice_s: dict[int, float] = field(default_factory=dict)
+    """Per task ever held by two or more vehicles at once (claimed or active, while live): the simulated
+    seconds it was, summed over the whole run (every step sampled, :meth:`TeamSim.step`)."""
+    held_twice_longest_s: float = 0.0
+    """The longest stretch of simulated seconds any one task was held by two or more vehicles at once:
+    how long a conflict (seed 003 Sec. III-B) lasted before one of them let the task go."""
     claims: dict[int, tuple[Claim, ...]] = field(default_factory=dict)
 
 
@@ -225,6 +233,9 @@ class TeamSim:
         self.changes: list[tuple[float, int, str, int | None]] = []
         self.on_change = on_change
         self._last_bad = 0.0
+        self.held_twice_s: dict[int, float] = {}
+        self.held_twice_longest_s = 0.0
+        self._held_twice_since: dict[int, float] = {}
         self._next_decide = {v.member: self.rng.uniform(0, period_s) for v in self.vehicles}
 
     # --- the station ------------------------------------------------------------------------------
@@ -279,6 +290,26 @@ class TeamSim:
             and not any(c.task in live and endless(live_tasks[c.task]) for c in v.claims)]
         return not (free and room)
 
+    def held_twice(self) -> dict[int, int]:
+        """Live tasks held (claimed or active) by two or more vehicles now (the true claims): how many."""
+        live = {t.id for t in self.ledger.board().live()}
+        count: dict[int, int] = {}
+        for v in self.vehicles:
+            for c in v.claims:
+                if c.task in live and c.state in (ClaimState.CLAIMED, ClaimState.ACTIVE):
+                    count[c.task] = count.get(c.task, 0) + 1
+        return {t: n for t, n in count.items() if n > 1}
+
+    def _sample_held_twice(self) -> None:
+        """Every step: add the step to each task held twice, and time each stretch of it."""
+        twice = self.held_twice()
+        for tid in twice:
+            self.held_twice_s[tid] = self.held_twice_s.get(tid, 0.0) + self.dt
+            since = self._held_twice_since.setdefault(tid, self.now - self.dt)
+            self.held_twice_longest_s = max(self.held_twice_longest_s, self.now - since)
+        for tid in [t for t in self._held_twice_since if t not in twice]:
+            del self._held_twice_since[tid]
+
     def step(self) -> None:
         self.now += self.dt
         self._station()
@@ -293,6 +324,7 @@ class TeamSim:
                 v.decide()
         if not self.conflict_free():
             self._last_bad = self.now
+        self._sample_held_twice()
 
     def run(self, duration: float, stop_when_done: bool = False) -> SimResult:
         while self.now < duration:
@@ -309,18 +341,12 @@ class TeamSim:
     def result(self) -> SimResult:
         led = self.ledger
         tasks = {i: (led.task(i), led.state(i), led.holder(i)) for i in led.ids()}
-        board = self.ledger.board()
-        live = {t.id for t in board.live()}
-        count: dict[int, int] = {}
-        for v in self.vehicles:
-            for c in v.claims:
-                if c.task in live and c.state in (ClaimState.CLAIMED, ClaimState.ACTIVE):
-                    count[c.task] = count.get(c.task, 0) + 1
         return SimResult(tasks=tasks, conflicts=sum(v.policy.conflicts for v in self.vehicles),
                          changes=list(self.changes),
                          conflict_free_at=self._last_bad if self.conflict_free() else None,
                          duration=self.now, done_by=dict(self.done_by),
-                         held_twice_at_end=sum(1 for n in count.values() if n > 1),
+                         held_twice_at_end=len(self.held_twice()),
+                         held_twice_s=dict(self.held_twice_s), held_twice_longest_s=self.held_twice_longest_s,
                          claims={v.member: v.claims for v in self.vehicles})
 
     def board(self) -> TaskBoard:

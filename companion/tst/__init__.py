@@ -16,7 +16,6 @@ Modules, one job each:
 * :mod:`companion.tst.spec`: the mission YAML / JSON format, validated with errors naming file, line, field;
 * :mod:`companion.tst.status`: ``NodeExecutionInfo`` (Fig. 4), ``NodeExecutionStatus`` (Fig. 5) and the
   ``ExecutorLifecycle`` state machine (Fig. 3);
-* :mod:`companion.tst.composite`: the Fig. 5 status of S, C and IF nodes derived from their children;
 * :mod:`companion.tst.constraints` (with :mod:`~companion.tst.linear`, :mod:`~companion.tst.milp`,
   :mod:`~companion.tst.conflict`): the consistency check of a tree's constraints (Sec. III-A) with a MILP
   (scipy's HiGHS), fixing free parameters or naming the constraints in conflict;

@@ -11,7 +11,9 @@ Control nodes (S, C, IF, WHILE) take theirs from the children that are running
 allowed exactly when every running child allows it (S and IF and WHILE have one running child, C may have
 several). With no child running (before start, between children) a control node can be aborted and nothing
 else. This matches Sec. VII: an enough on the running scan ends the scan and the S goes on with fly-to.
-Their Fig. 5 status is derived from the children's by :func:`companion.tst.composite.derived_status`.
+Their Fig. 5 status is an :class:`ExecutorLifecycle` of their own, kept by the execution system
+(:class:`companion.tst.execution.ControlRun`): executing from their start, paused with their running
+children, and finished when the children's outcome ends them (the rules in :mod:`companion.tst.execution`).
 
 Fig. 5, "TST Executor status": ``active``, ``waiting``, ``executing``, ``finished``, ``aborted``,
 ``succeeded``, ``paused`` and ``fail_reason``. :class:`ExecutorLifecycle` moves between them (Fig. 3):
