@@ -10,10 +10,10 @@ from __future__ import annotations
 from collections.abc import Iterator
 
 import pytest
-from mavlink_support import wait_for
-from team_support import TeamRig, geo
 
 from companion.team.tasks import TaskDef
+from harness.team import TeamRig, geo
+from harness.timing import wait_for
 
 SPEEDUP = 3.0
 

@@ -15,8 +15,6 @@
 from __future__ import annotations
 
 import math
-import os
-import random
 import socket
 import subprocess
 import sys
@@ -24,22 +22,23 @@ from pathlib import Path
 from typing import Any
 
 import httpx
-from fleet_support import ports, start_fleet
-from mavlink_support import Gcs, free_ports, wait_for
 
 from companion.flight.limits import Limits
 from companion.flightlog import log_violations, read_flight_log
 from companion.team.station import TeamControlStation
 from companion.team.tasks import TaskDef
 from companion.team.transport import open_transport
+from harness import ROOT
+from harness.fleet import ports, start_fleet
+from harness.observer import Gcs
+from harness.timing import wait_for
 from taskflight.sitlproc import stop_child
 from taskflight_common.geo import ned_to_geodetic
+from taskflight_common.ports import free_ports
 
-ROOT = Path(__file__).resolve().parents[1]
 PLATFORM = ROOT / "mission_specs" / "platform_outdoor.yaml"
 #: the fleet's base home (the model's default, CMAC); vehicle i stands 5 i m east of it
 HOME = (-35.363261, 149.165230, 584.0)
-_rng = random.Random(os.getpid() ^ 0x7EA)
 
 
 def geo(n: float, e: float, alt: float = 0.0) -> tuple[float, float, float]:
@@ -48,16 +47,9 @@ def geo(n: float, e: float, alt: float = 0.0) -> tuple[float, float, float]:
     return (lat, lon, alt)
 
 
-def free_udp_port() -> int:
-    for _ in range(50):
-        port = _rng.randrange(20000, 60000)
-        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-            try:
-                s.bind(("", port))
-            except OSError:
-                continue
-        return port
-    raise RuntimeError("no free UDP port for the team link")
+def new_team_url() -> str:
+    """A team link of its own: the project's multicast group on a UDP port free on every interface."""
+    return f"udp://239.255.70.1:{free_ports(1, socket.SOCK_DGRAM, host='')[0]}"
 
 
 class TeamRig:
@@ -67,7 +59,7 @@ class TeamRig:
                  policy: str = "greedy") -> None:
         self.tmp, self.n, self.speedup, self.loss, self.policy = tmp, n, speedup, loss, policy
         self.fleet, self.base = start_fleet(tmp / "fleet", n, speedup)
-        self.team_url = f"udp://239.255.70.1:{free_udp_port()}"
+        self.team_url = new_team_url()
         self.member_url = self.team_url + (f"?loss={loss}" if loss else "")
         self.control_ports = free_ports(n, socket.SOCK_STREAM)
         self.companions: list[subprocess.Popen[bytes] | None] = [None] * n
