@@ -23,6 +23,8 @@ from harness.flight_session import FlightSession
 from harness.timing import wait_for
 from harness.wire_tap import wire_violations
 
+pytestmark = pytest.mark.integration
+
 SPEEDUP = 5.0
 ENVELOPE = Envelope.box(-40, 40, -40, 40, altitude_ceiling=30.0)
 

@@ -25,6 +25,8 @@ from harness.observer import GUIDED, LAND, LOITER, RTL
 from harness.timing import wait_for
 from harness.wire_tap import wire_violations
 
+pytestmark = pytest.mark.integration
+
 # 5x: the companion, the HTTP surface and the joystick feed run on the wall clock, so a slower
 # autopilot leaves a loaded 2-core CI machine room to keep up
 SPEEDUP = 5.0

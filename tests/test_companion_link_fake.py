@@ -18,6 +18,8 @@ from companion.link.connection import FALLBACK_GROUPS, MavlinkLink, stream_plan
 from harness.fake_autopilot import GUIDED, STABILIZE, FakeAutopilot, M
 from harness.timing import wait_for
 
+pytestmark = pytest.mark.integration
+
 RATE_HZ = 20.0
 
 

@@ -30,6 +30,8 @@ from companion.node import QuadNode
 from harness.fake_autopilot import GUIDED, LAND, FakeAutopilot, M, Received
 from harness.timing import wait_for
 
+pytestmark = pytest.mark.integration
+
 SPEEDUP = 5.0
 ARM = M.MAV_CMD_COMPONENT_ARM_DISARM
 TAKEOFF_CMD = M.MAV_CMD_NAV_TAKEOFF

@@ -20,6 +20,8 @@ from harness.autopilot import AUTOPILOTS, start_autopilot
 from harness.differential.basics import OLD_PARAMS, observe
 from harness.observer import GUIDED, LAND, STABILIZE, M
 
+pytestmark = pytest.mark.integration
+
 SPEEDUP = 5.0
 _cache: dict[str, dict[str, Any]] = {}
 

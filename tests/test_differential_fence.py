@@ -20,6 +20,8 @@ from harness.autopilot import AUTOPILOTS, start_autopilot
 from harness.differential.fence import QGC_PARAMS, RATE_HZ, SYSTEM_TIME_HZ, observe_fence
 from harness.observer import GUIDED, RTL, STABILIZE, M
 
+pytestmark = pytest.mark.integration
+
 SPEEDUP = 5.0
 _cache: dict[str, dict[str, Any]] = {}
 

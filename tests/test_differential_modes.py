@@ -30,6 +30,8 @@ from harness.differential.modes import (
 )
 from harness.observer import M
 
+pytestmark = pytest.mark.integration
+
 SPEEDUP = 8.0
 _cache: dict[tuple[str, str], dict[str, Any]] = {}
 ACCEPTED, DENIED, FAILED, UNSUPPORTED = (M.MAV_RESULT_ACCEPTED, M.MAV_RESULT_DENIED, M.MAV_RESULT_FAILED,

@@ -18,6 +18,8 @@ from harness.autopilot import AUTOPILOTS, start_autopilot
 from harness.differential.pilot import ALT_HOLD, LOITER, POSHOLD, RTL, STABILIZE, observe_pilot
 from harness.observer import M
 
+pytestmark = pytest.mark.integration
+
 SPEEDUP = 2.0
 _cache: dict[str, dict[str, Any]] = {}
 

@@ -21,6 +21,8 @@ from autopilot_model.modules.navigation import LANDED_ON_GROUND
 from autopilot_model.sitl import Sitl
 from taskflight_common.ports import free_ports
 
+pytestmark = pytest.mark.integration
+
 NAN = math.nan
 
 

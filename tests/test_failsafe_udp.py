@@ -16,6 +16,8 @@ from harness.model import sitl_and_gcs
 from harness.observer import BRAKE, GUIDED, LAND, POS_ONLY, RTL, Gcs, M
 from harness.timing import wall
 
+pytestmark = pytest.mark.integration
+
 
 @pytest.fixture(scope="module")
 def gcs(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Gcs]:

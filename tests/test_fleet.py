@@ -22,6 +22,8 @@ from taskflight.sitlproc import ModelProcess
 from taskflight_common.geo import geodetic_to_ned
 from taskflight_common.ports import base_free
 
+pytestmark = pytest.mark.integration
+
 SPEEDUP = 5.0
 N = 3
 

@@ -25,6 +25,8 @@ from harness.ground import OBSERVER, OPERATOR, InProcessGround
 from harness.team import geo
 from harness.timing import wait_for
 
+pytestmark = pytest.mark.integration
+
 BORDER = [list(geo(0, 0, 5)), list(geo(0, 100, 5)), list(geo(50, 100, 5))]
 AREA = [list(geo(10, 10)), list(geo(10, 60)), list(geo(60, 60)), list(geo(60, 10))]
 

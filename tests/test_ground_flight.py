@@ -28,6 +28,8 @@ from harness.team import HOME, geo
 from harness.timing import wait_for
 from harness.up import UpRig
 
+pytestmark = pytest.mark.integration
+
 SCAN_AND_SEARCH = yaml.safe_load((ROOT / "mission_specs" / "scan_and_search.yaml").read_text())
 # the outdoor platform's floor is 3 m: the final fly-to at 5 m
 SCAN_AND_SEARCH["tree"]["children"][2]["params"]["position"][2] = 5.0

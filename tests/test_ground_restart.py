@@ -19,6 +19,8 @@ from harness.ground import GroundRig
 from harness.team import geo
 from harness.timing import wait_for
 
+pytestmark = pytest.mark.integration
+
 
 @pytest.fixture(scope="module")
 def rig(tmp_path_factory: pytest.TempPathFactory) -> Iterator[GroundRig]:

@@ -20,6 +20,8 @@ from harness.observer import ALT_HOLD, GUIDED, LAND, LOITER, STABILIZE, Gcs, M
 from harness.timing import SPEEDUP, wall
 from taskflight_common.ports import free_ports
 
+pytestmark = pytest.mark.integration
+
 IGNORE_VEL_ACC_YAW = 0b110111111000
 IGNORE_POS_ACC_YAW = 0b110111000111
 IGNORE_ACC_YAW = 0b110111000000

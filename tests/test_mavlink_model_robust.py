@@ -19,6 +19,8 @@ from harness.observer import GUIDED, LOITER, POS_ONLY, VEL_ONLY, Gcs, M
 from harness.timing import SPEEDUP
 from taskflight_common.ports import free_ports
 
+pytestmark = pytest.mark.integration
+
 PASSPHRASE = "taskflight-signing-test"
 
 

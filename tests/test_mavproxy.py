@@ -25,6 +25,8 @@ from harness.model import SitlProcess
 from harness.observer import Gcs, M
 from taskflight_common.ports import free_ports
 
+pytestmark = pytest.mark.integration
+
 
 def _mavproxy() -> list[str]:
     exe = shutil.which("mavproxy.py") or str(Path(sys.executable).parent / "mavproxy.py")

@@ -27,6 +27,8 @@ from harness.observer import Gcs, M
 from taskflight_common.ardupilot import CopterMode
 from taskflight_common.ports import free_ports
 
+pytestmark = pytest.mark.integration
+
 SPEEDUP = 2.0
 LOITER = CopterMode.LOITER
 

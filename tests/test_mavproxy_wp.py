@@ -21,6 +21,8 @@ from harness.observer import Gcs, M
 from harness.timing import wait_for
 from taskflight_common.ports import free_ports
 
+pytestmark = pytest.mark.integration
+
 SPEEDUP = 10.0
 HOME = (-35.363261, 149.165230, 584.0)
 

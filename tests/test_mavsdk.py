@@ -28,6 +28,8 @@ from harness.timing import SPEEDUP  # noqa: E402
 from harness.timing import wall as sitl_wall  # noqa: E402
 from taskflight_common.ports import free_ports  # noqa: E402
 
+pytestmark = pytest.mark.integration
+
 wall = functools.partial(sitl_wall, base_s=10.0)  # more slack: MAVSDK discovers and retries on its own
 
 

@@ -19,6 +19,8 @@ from harness.observer import AUTO, GUIDED, Gcs, M
 from harness.timing import SPEEDUP, wall
 from taskflight_common.geo import ned_to_geodetic
 
+pytestmark = pytest.mark.integration
+
 REL = M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT
 
 

@@ -14,6 +14,8 @@ import pytest
 from harness.autopilot import AUTOPILOTS
 from harness.flight_session import FlightSession
 
+pytestmark = pytest.mark.integration
+
 SPEEDUP = 3.0
 
 

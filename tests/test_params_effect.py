@@ -19,6 +19,8 @@ from autopilot_model.modules.flight_modes import GUIDED
 from autopilot_model.sitl import Sitl
 from taskflight_common.ports import free_ports
 
+pytestmark = pytest.mark.integration
+
 
 def _sitl(state_dir: Path) -> Sitl:
     return Sitl(urls=[f"udpin:127.0.0.1:{free_ports(1, socket.SOCK_DGRAM)[0]}"], state_dir=state_dir)

@@ -22,6 +22,8 @@ from autopilot_model.modules.navigation import LANDED_IN_AIR, LANDED_ON_GROUND
 from autopilot_model.sitl import Sitl
 from taskflight_common.ports import free_ports
 
+pytestmark = pytest.mark.integration
+
 M = mavlink
 IGNORE = 65535
 

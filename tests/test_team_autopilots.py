@@ -32,6 +32,8 @@ from harness.timing import wait_for
 from taskflight.sitlproc import stop_child
 from taskflight_common.ports import free_ports
 
+pytestmark = pytest.mark.integration
+
 SPEEDUP = 3.0
 
 

@@ -14,11 +14,15 @@ import sys
 import time
 from pathlib import Path
 
+import pytest
+
 from companion.team.groupstate import GroupState
 from companion.team.link import TeamLink
 from companion.team.transport import open_transport
 from companion.team.types import Claim, ClaimState, MemberEntry, MemberStatus
 from harness.team import geo, new_team_url
+
+pytestmark = pytest.mark.integration
 
 EXE = str(Path(sys.executable).with_name("taskflight"))
 

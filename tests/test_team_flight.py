@@ -22,6 +22,8 @@ from harness.observer import GUIDED, LOITER
 from harness.team import TeamRig, distance_m, fly_nine_tasks, geo
 from harness.timing import wait_for
 
+pytestmark = pytest.mark.integration
+
 SPEEDUP = 3.0
 
 

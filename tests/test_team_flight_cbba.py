@@ -15,6 +15,8 @@ from companion.team.tasks import TaskDef
 from harness.team import TeamRig, geo
 from harness.timing import wait_for
 
+pytestmark = pytest.mark.integration
+
 SPEEDUP = 3.0
 
 

@@ -13,6 +13,8 @@ import pytest
 
 from harness.team import TeamRig, fly_nine_tasks
 
+pytestmark = pytest.mark.integration
+
 SPEEDUP = 3.0
 
 

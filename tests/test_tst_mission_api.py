@@ -19,6 +19,8 @@ from harness.autopilot import AUTOPILOTS
 from harness.flight_session import FlightSession
 from harness.timing import wait_for
 
+pytestmark = pytest.mark.integration
+
 ROOT = Path(__file__).resolve().parents[1]
 SCAN_AND_SEARCH = (ROOT / "mission_specs" / "scan_and_search.yaml").read_text()
 YAML = {"Content-Type": "application/yaml"}

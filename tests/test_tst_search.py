@@ -18,6 +18,8 @@ from companion.sensing.scenario import Scenario
 from harness.flight_session import FlightSession
 from harness.timing import wait_for
 
+pytestmark = pytest.mark.integration
+
 ROOT = Path(__file__).resolve().parents[1]
 
 

@@ -35,6 +35,8 @@ from harness.team import HOME
 from harness.timing import wait_for
 from harness.up import UpRig
 
+pytestmark = pytest.mark.integration
+
 SCAN_AND_SEARCH = yaml.safe_load((ROOT / "mission_specs" / "scan_and_search.yaml").read_text())
 SCAN_AND_SEARCH["tree"]["children"][2]["params"]["position"][2] = 5.0  # the outdoor platform's 3 m floor
 URLS: list[str] = []  # every request of every page in this module

@@ -30,6 +30,8 @@ from companion.team.transport import open_transport
 from companion.team.wire import WireError, decode_packet
 from taskflight.team_tasking import HttpError, http_json
 
+pytestmark = pytest.mark.integration
+
 N = 3
 SPEEDUP = 3.0
 READY_S = 120.0
