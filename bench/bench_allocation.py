@@ -28,21 +28,17 @@ import random
 import statistics
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-
-from bench.common import machine, pct, table  # noqa: E402
-from companion.team.cost import CostModel  # noqa: E402
-from companion.team.geometry import LocalFrame  # noqa: E402
-from companion.team.sim import TeamSim  # noqa: E402
-from companion.team.taskfile import ScriptedTask, TaskScript  # noqa: E402
-from companion.team.tasks import TaskDef  # noqa: E402
-from companion.team.types import TaskKind, TeamTask  # noqa: E402
+from bench.common import machine, pct, table
+from companion.team.cost import CostModel
+from companion.team.geometry import LocalFrame
+from companion.team.sim import TeamSim
+from companion.team.taskfile import ScriptedTask, TaskScript
+from companion.team.tasks import TaskDef
+from companion.team.types import TaskKind, TeamTask
 
 HOME = (-35.363261, 149.165230)
 FRAME = LocalFrame(*HOME)

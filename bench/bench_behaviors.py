@@ -28,16 +28,12 @@ from collections import Counter
 from pathlib import Path
 from typing import Any
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-sys.path.insert(0, str(ROOT / "tests"))
+import httpx
 
-import httpx  # noqa: E402
-from autopilot_support import start_autopilot  # noqa: E402
-from mavlink_support import wait_for  # noqa: E402
-
-from bench.common import add_autopilot_argument, chosen_autopilots, machine, pct, table  # noqa: E402
-from companion.builder import CompanionConfig, build_companion  # noqa: E402
+from bench.common import add_autopilot_argument, chosen_autopilots, machine, pct, table
+from companion.builder import CompanionConfig, build_companion
+from harness.autopilot import start_autopilot
+from harness.timing import wait_for
 
 
 def mission() -> list[str]:

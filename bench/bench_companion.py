@@ -22,19 +22,13 @@ import time
 from pathlib import Path
 from typing import Any
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-sys.path.insert(0, str(ROOT / "tests"))
-
-
-from autopilot_support import start_autopilot  # noqa: E402
-from companion_support import cmd  # noqa: E402
-from mavlink_support import wait_for  # noqa: E402
-
-from bench.common import add_autopilot_argument, chosen_autopilots, machine, pct, table  # noqa: E402
-from companion.builder import CompanionConfig, build_companion  # noqa: E402
-from companion.node import QuadNode  # noqa: E402
-from companion.tracking import StreamRecorder  # noqa: E402
+from bench.common import add_autopilot_argument, chosen_autopilots, machine, pct, table
+from companion.builder import CompanionConfig, build_companion
+from companion.flight import command_from_dict as cmd
+from companion.node import QuadNode
+from companion.tracking import StreamRecorder
+from harness.autopilot import start_autopilot
+from harness.timing import wait_for
 
 
 def sim_wait(node: QuadNode, seconds: float, speedup: float) -> None:

@@ -37,17 +37,13 @@ import random
 import statistics
 import sys
 import time
-from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-
-from bench.common import machine, table  # noqa: E402
-from companion.tst.constraints import ConstraintProblem, Solution  # noqa: E402
-from companion.tst.delegation import Delegation, delegate  # noqa: E402
-from companion.tst.delegation_plan import local_to_geopoint  # noqa: E402
-from companion.tst.platform import Platform, bundled_platform  # noqa: E402
-from companion.tst.spec import Mission, mission_from_dict  # noqa: E402
+from bench.common import machine, table
+from companion.tst.constraints import ConstraintProblem, Solution
+from companion.tst.delegation import Delegation, delegate
+from companion.tst.delegation_plan import local_to_geopoint
+from companion.tst.platform import Platform, bundled_platform
+from companion.tst.spec import Mission, mission_from_dict
 
 SPEEDS = {"slow": 1.0, "standard": 3.0, "fast": 5.0}
 CEILING_M = 30.0

@@ -30,15 +30,15 @@ import sys
 import tempfile
 import threading
 import time
-from pathlib import Path
 from typing import Any
+
+from harness import ROOT
 
 os.environ.setdefault("MAVLINK20", "1")
 
 from bench.common import machine, pct, table
 from taskflight_common.ports import free_base
 
-ROOT = Path(__file__).resolve().parents[1]
 #: (vehicles, speedup) measured by default; speedup 0 = lockstep
 CASES = ((1, 1.0), (3, 1.0), (12, 1.0), (50, 1.0), (12, 0.0), (50, 0.0))
 

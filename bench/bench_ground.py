@@ -21,7 +21,6 @@ import argparse
 import json
 import math
 import os
-import random
 import socket
 import subprocess
 import sys
@@ -34,11 +33,13 @@ import httpx
 import yaml
 from websockets.sync.client import connect
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from bench.common import machine, pct, table
 from companion.team.transport import open_transport
 from companion.team.types import MemberEntry, MemberStatus
 from companion.team.wire import encode_packets
+from harness import ROOT
+from harness.team import new_team_url
+from taskflight_common.ports import free_ports
 
 HOME = (-35.363261, 149.165230)
 WRAP_S = 300.0  # send times ride in the altitude modulo this (cm16 carries up to 327 m)
@@ -78,17 +79,14 @@ def main() -> int:
     ap.add_argument("--rate", type=float, default=10.0, help="rows per member per second")
     ap.add_argument("--seconds", type=float, default=20.0, help="measurement window")
     args = ap.parse_args()
-    root = Path(__file__).resolve().parents[1]
     tmp = Path(tempfile.mkdtemp(prefix="bench_ground"))
     (tmp / "tokens.yaml").write_text(yaml.safe_dump({"operator": ["bench-op"], "observer": ["bench-ob"]}))
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        port = s.getsockname()[1]
-    team = f"udp://239.255.70.1:{random.randrange(20000, 60000)}"
+    port = free_ports(1, socket.SOCK_STREAM)[0]
+    team = new_team_url()
     out = open(tmp / "ground.out", "wb")  # noqa: SIM115
     proc = subprocess.Popen([sys.executable, "-m", "taskflight.cli", "ground", "--team", team, "--db",
                              str(tmp / "g.db"), "--port", str(port), "--tokens", str(tmp / "tokens.yaml")],
-                            stdout=out, stderr=subprocess.STDOUT, cwd=root)
+                            stdout=out, stderr=subprocess.STDOUT, cwd=ROOT)
     base = f"http://127.0.0.1:{port}"
     http = httpx.Client(base_url=base, headers={"Authorization": "Bearer bench-op"}, timeout=10)
     stop = threading.Event()

@@ -16,7 +16,6 @@ from __future__ import annotations
 import argparse
 import logging
 import os
-import sys
 import tempfile
 import time
 from pathlib import Path
@@ -28,9 +27,8 @@ from bench.common import machine, table
 
 def arducopter_rates(window_s: float = 8.0) -> list[tuple[str, float, float, float]]:
     """(state, simulated s, wall s, ratio) of ArduCopter SITL at its top speed: on the ground, hovering."""
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
-    from autopilot_support import start_autopilot
-    from mavlink_support import GUIDED, M
+    from harness.autopilot import start_autopilot
+    from harness.observer import GUIDED, M
 
     rows = []
     with tempfile.TemporaryDirectory() as tmp:

@@ -18,9 +18,8 @@ import socket
 import sys
 import tempfile
 import time
-from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from taskflight_common.ports import free_ports
 
 
 def flooder(port: int, stop_at: float, counter: mp.Value) -> None:  # type: ignore[type-arg]
@@ -55,10 +54,7 @@ def main() -> int:
     logging.basicConfig(level=logging.WARNING)
     from autopilot_model.sitl import Sitl
 
-    probe = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    probe.bind(("127.0.0.1", 0))
-    port = probe.getsockname()[1]
-    probe.close()
+    port = free_ports(1, socket.SOCK_DGRAM)[0]
     sitl = Sitl(urls=[f"udpin:127.0.0.1:{port}"], state_dir=tempfile.mkdtemp(prefix="tf_flood_"),
                 speedup=1.0, persist=False)
     v = sitl.vehicle

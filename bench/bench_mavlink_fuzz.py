@@ -18,12 +18,11 @@ import random
 import socket
 import sys
 import time
-from pathlib import Path
 from typing import Any
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
+
+from taskflight_common.ports import free_ports
 
 log = logging.getLogger("bench_mavlink_fuzz")
 
@@ -136,10 +135,7 @@ def run_fuzz(count: int, seed: int = 1, state_dir: str | None = None) -> dict[st
     from autopilot_model.sitl import Sitl
 
     rng = random.Random(seed)
-    probe = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    probe.bind(("127.0.0.1", 0))
-    port = probe.getsockname()[1]
-    probe.close()
+    port = free_ports(1, socket.SOCK_DGRAM)[0]
     tmp = state_dir or tempfile.mkdtemp(prefix="tf_fuzz_")
     sitl = Sitl(urls=[f"udpin:127.0.0.1:{port}"], state_dir=tmp, persist=False)
     ep = sitl.endpoint

@@ -16,24 +16,15 @@ import subprocess
 import sys
 import tempfile
 import time
-from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-from pymavlink.dialects.v20 import ardupilotmega as mavlink2  # noqa: E402
-
-
-def _port() -> int:
-    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    s.bind(("127.0.0.1", 0))
-    p = s.getsockname()[1]
-    s.close()
-    return p
+from harness import ROOT
+from taskflight_common.ports import free_ports
 
 
 def measure(speedup: float, count: int) -> list[float]:
-    port = _port()
+    port = free_ports(1, socket.SOCK_DGRAM)[0]
     env = dict(os.environ, PYTHONPATH=str(ROOT))
     proc = subprocess.Popen([sys.executable, "-m", "autopilot_model.sitl",
                              "--mavlink", f"udpin:127.0.0.1:{port}",

@@ -31,16 +31,12 @@ import math
 import random
 import sys
 from dataclasses import dataclass
-from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-
-from bench.common import machine, pct, table  # noqa: E402
-from companion.team.groupstate import GroupState  # noqa: E402
-from companion.team.link import DEFAULT_PERIOD_S, LinkEvent, TeamLink  # noqa: E402
-from companion.team.transport import LossyTransport, MemoryBus  # noqa: E402
-from companion.team.types import (  # noqa: E402
+from bench.common import machine, pct, table
+from companion.team.groupstate import GroupState
+from companion.team.link import DEFAULT_PERIOD_S, LinkEvent, TeamLink
+from companion.team.transport import LossyTransport, MemoryBus
+from companion.team.types import (
     STATION_ID,
     Claim,
     MemberEntry,

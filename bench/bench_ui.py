@@ -16,7 +16,6 @@ A screenshot is saved to ``docs/figures/ui.png``. Run: ``python bench/bench_ui.p
 from __future__ import annotations
 
 import argparse
-import random
 import socket
 import subprocess
 import sys
@@ -28,21 +27,18 @@ from pathlib import Path
 import httpx
 import yaml
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-sys.path.insert(0, str(ROOT / "tests"))
-from ui_support import browser, foreign, login, missing, requested_urls  # noqa: E402
-
-from bench.bench_ground import feed  # noqa: E402
-from bench.common import machine, pct, table  # noqa: E402
+from bench.bench_ground import feed
+from bench.common import machine, pct, table
+from harness import ROOT
+from harness.team import new_team_url
+from harness.ui import browser, foreign, login, missing, requested_urls
+from taskflight_common.ports import free_ports
 
 
 def start_ground(tmp: Path) -> tuple[subprocess.Popen[bytes], str, str]:
     (tmp / "tokens.yaml").write_text(yaml.safe_dump({"operator": ["bench-op"], "observer": ["bench-ob"]}))
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        port = s.getsockname()[1]
-    team = f"udp://239.255.70.1:{random.randrange(20000, 60000)}"
+    port = free_ports(1, socket.SOCK_STREAM)[0]
+    team = new_team_url()
     out = open(tmp / "ground.out", "wb")  # noqa: SIM115 - the child owns it
     proc = subprocess.Popen([sys.executable, "-m", "taskflight.cli", "ground", "--team", team, "--db",
                              str(tmp / "g.db"), "--port", str(port), "--tokens", str(tmp / "tokens.yaml")],

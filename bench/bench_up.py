@@ -28,13 +28,10 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-
-from bench.common import machine, table  # noqa: E402
-from taskflight.team_tasking import http_json  # noqa: E402
-from taskflight.up import Up, UpError, UpOptions, ground_available  # noqa: E402
-from taskflight_common.ports import free_base  # noqa: E402
+from bench.common import machine, table
+from taskflight.team_tasking import http_json
+from taskflight.up import Up, UpError, UpOptions, ground_available
+from taskflight_common.ports import free_base, free_ports
 
 TICK = os.sysconf("SC_CLK_TCK")
 PAGE = os.sysconf("SC_PAGE_SIZE")
@@ -82,7 +79,8 @@ def autopilot_time(up: Up) -> float:
 def measure(n: int, speedup: float, settle_s: float, measure_s: float, ground: bool, nice: int = 0) -> Row:
     with tempfile.TemporaryDirectory(prefix="bench-up-") as tmp:
         opts = UpOptions(vehicles=n, state_dir=Path(tmp), speedup=speedup, base_instance=free_base(n),
-                         ground=ground, ground_port=_free_tcp(), persist=False, ready_timeout_s=60 + 6.0 * n,
+                         ground=ground, ground_port=free_ports(1, socket.SOCK_STREAM)[0], persist=False,
+                         ready_timeout_s=60 + 6.0 * n,
                          companion_nice=nice)
         up = Up(opts)
         try:
@@ -109,12 +107,6 @@ def measure(n: int, speedup: float, settle_s: float, measure_s: float, ground: b
                        nice=nice)
         finally:
             up.stop()
-
-
-def _free_tcp() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -41,7 +41,7 @@ def pct(values: Sequence[float], q: float) -> float:
 
 def add_autopilot_argument(p: argparse.ArgumentParser) -> None:
     """``--autopilot model,arducopter`` (ArduCopter SITL by default when ``TASKFLIGHT_ARDUCOPTER`` is set)."""
-    from autopilot_support import arducopter_missing
+    from harness.arducopter import arducopter_missing
 
     default = "model" if arducopter_missing() else "model,arducopter"
     p.add_argument("--autopilot", default=default,
@@ -51,7 +51,7 @@ def add_autopilot_argument(p: argparse.ArgumentParser) -> None:
 
 def chosen_autopilots(p: argparse.ArgumentParser, args: argparse.Namespace) -> list[str]:
     """The autopilots ``--autopilot`` names (an error if ArduCopter SITL is asked for but missing)."""
-    from autopilot_support import arducopter_missing
+    from harness.arducopter import arducopter_missing
 
     kinds = [k.strip() for k in args.autopilot.split(",") if k.strip()]
     if "arducopter" in kinds and arducopter_missing():

@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 import pytest
-from behaviors_support import World, catalog_with
 
 from companion.behaviors.coordinator import BehaviorCoordinator
 from companion.flight import Envelope
 from companion.flight.simulate import step_violations
+from harness.behaviors import World, catalog_with
 
 
 def test_fig6_two_requesters_default_hovering_and_priority() -> None:

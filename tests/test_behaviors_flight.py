@@ -16,12 +16,14 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from autopilot_support import AUTOPILOTS
-from companion_support import wire_violations
-from flight_session_support import FlightSession
-from mavlink_support import wait_for
 
 from companion.flight import Envelope
+from harness.autopilot import AUTOPILOTS
+from harness.flight_session import FlightSession
+from harness.timing import wait_for
+from harness.wire_tap import wire_violations
+
+pytestmark = pytest.mark.integration
 
 SPEEDUP = 5.0
 ENVELOPE = Envelope.box(-40, 40, -40, 40, altitude_ceiling=30.0)

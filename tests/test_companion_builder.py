@@ -4,7 +4,6 @@
 from __future__ import annotations
 
 import argparse
-import socket
 from pathlib import Path
 
 import httpx
@@ -12,20 +11,15 @@ import pytest
 
 from companion.builder import CompanionConfig, build_companion
 from companion.main import add_companion_arguments, config_from_args, run_companion
+from harness.fake_autopilot import unanswered_url
 from taskflight_common.tokens import load_tokens
 from taskflight_common.yamlio import ConfigError
-
-
-def _free_udp_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 def _args(*argv: str) -> argparse.Namespace:
     parser = argparse.ArgumentParser()
     add_companion_arguments(parser)
-    return parser.parse_args(["--autopilot", f"udpout:127.0.0.1:{_free_udp_port()}", *argv])
+    return parser.parse_args(["--autopilot", unanswered_url(), *argv])
 
 
 def test_the_options_become_one_config() -> None:
@@ -49,7 +43,7 @@ def test_bad_options_exit_2(tmp_path: Path) -> None:
 
 
 def test_built_parts_start_and_close_in_order(tmp_path: Path) -> None:
-    companion = build_companion(CompanionConfig(f"udpout:127.0.0.1:{_free_udp_port()}", control_port=0,
+    companion = build_companion(CompanionConfig(unanswered_url(), control_port=0,
                                                 behavior_log=tmp_path / "b.jsonl"))
     assert companion.layer is not None and companion.missions is not None and companion.server is None
     companion.start()
@@ -63,7 +57,7 @@ def test_built_parts_start_and_close_in_order(tmp_path: Path) -> None:
         companion.close()
     with pytest.raises(httpx.HTTPError):
         httpx.get(companion.server.url + "/status", timeout=2.0)
-    bare = build_companion(CompanionConfig(f"udpout:127.0.0.1:{_free_udp_port()}", behaviors=False,
+    bare = build_companion(CompanionConfig(unanswered_url(), behaviors=False,
                                            control_port=None))
     assert bare.layer is None and bare.missions is None
     bare.start()

@@ -15,7 +15,6 @@ from typing import Any
 
 import httpx
 import pytest
-from mavlink_support import free_port, wait_for
 
 import companion.http.events as events_api
 from companion.builder import Companion, CompanionConfig, build_companion
@@ -24,6 +23,8 @@ from companion.flight.external import DEFAULT_MAX_VALIDITY_S
 from companion.http import ControlServer, create_app, is_loopback
 from companion.main import add_companion_arguments, control_token
 from companion.node import QuadNode
+from harness.fake_autopilot import unanswered_url
+from harness.timing import wait_for
 from taskflight_common.tokens import TOKEN_ENV
 
 TAKE_OFF = {"vertical": {"mode": "POS", "altitude": 5, "take_off": True}, "end": {"e_v": True}}
@@ -87,7 +88,7 @@ _built: dict[int, Companion] = {}
 
 
 def new_node(**kw: Any) -> QuadNode:
-    companion = build_companion(CompanionConfig(f"udpout:127.0.0.1:{free_port()}", behaviors=False,
+    companion = build_companion(CompanionConfig(unanswered_url(), behaviors=False,
                                                 control_port=0, **kw))  # nobody answers; never started
     _built[id(companion.node)] = companion
     return companion.node

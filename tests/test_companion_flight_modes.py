@@ -6,7 +6,6 @@ import itertools
 import math
 
 import pytest
-from flight_support import LIMITS, takeoff
 
 from companion.flight import (
     CommandQueue,
@@ -21,6 +20,7 @@ from companion.flight import (
 )
 from companion.flight.reference import wrap_pi
 from companion.flight.simulate import FlightSim, step_violations
+from harness.flight_sim import LIMITS, takeoff
 
 
 def fly(*commands: FlightCommand) -> FlightSim:

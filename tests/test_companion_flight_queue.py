@@ -8,7 +8,6 @@ import math
 import threading
 
 import pytest
-from flight_support import LIMITS, airborne, index_is, make_sim, takeoff, waypoint
 
 from companion.flight import (
     CommandError,
@@ -33,6 +32,7 @@ from companion.flight import (
 )
 from companion.flight.reference import wrap_pi
 from companion.flight.simulate import FlightSim, step_violations
+from harness.flight_sim import LIMITS, airborne, index_is, make_sim, takeoff, waypoint
 
 
 # --- commands used by the tests (the executors of seed 000 Sec. VI; takeoff() from flight_support) ----

@@ -6,7 +6,6 @@ import math
 
 import numpy as np
 import pytest
-from flight_support import LIMITS
 
 from companion.flight import Envelope
 from companion.flight.reference import (
@@ -22,6 +21,7 @@ from companion.flight.reference import (
     YawTarget,
     wrap_pi,
 )
+from harness.flight_sim import LIMITS
 
 DT = 0.02
 

@@ -17,12 +17,15 @@ import math
 from collections.abc import Iterator
 
 import pytest
-from autopilot_support import AUTOPILOTS
-from companion_support import wire_violations
-from flight_session_support import LAND_HERE, TAKEOFF, FlightSession
-from mavlink_support import GUIDED, LAND, LOITER, RTL, wait_for
 
 from companion.flight import Retarget
+from harness.autopilot import AUTOPILOTS
+from harness.flight_session import LAND_HERE, TAKEOFF, FlightSession
+from harness.observer import GUIDED, LAND, LOITER, RTL
+from harness.timing import wait_for
+from harness.wire_tap import wire_violations
+
+pytestmark = pytest.mark.integration
 
 # 5x: the companion, the HTTP surface and the joystick feed run on the wall clock, so a slower
 # autopilot leaves a loaded 2-core CI machine room to keep up

@@ -12,11 +12,13 @@ from itertools import pairwise
 from typing import Any
 
 import pytest
-from fake_autopilot_support import GUIDED, STABILIZE, FakeAutopilot, M
-from mavlink_support import wait_for
 
 from companion.link import CommandState
 from companion.link.connection import FALLBACK_GROUPS, MavlinkLink, stream_plan
+from harness.fake_autopilot import GUIDED, STABILIZE, FakeAutopilot, M
+from harness.timing import wait_for
+
+pytestmark = pytest.mark.integration
 
 RATE_HZ = 20.0
 

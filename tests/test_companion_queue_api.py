@@ -12,7 +12,6 @@ import math
 import threading
 
 import pytest
-from flight_support import LIMITS, airborne, index_is, make_sim, takeoff, waypoint
 
 from companion.flight import (
     CommandError,
@@ -34,6 +33,7 @@ from companion.flight import (
     VerticalMode,
 )
 from companion.flight.simulate import FlightSim, step_violations
+from harness.flight_sim import LIMITS, airborne, index_is, make_sim, takeoff, waypoint
 
 
 def kinds(sim: FlightSim, command_id: int) -> list[EventKind]:

@@ -16,12 +16,10 @@ from itertools import pairwise
 from typing import Any
 
 import pytest
-from companion_support import cmd
-from fake_autopilot_support import GUIDED, LAND, FakeAutopilot, M, Received
-from mavlink_support import wait_for
 
 from companion.builder import CompanionConfig, build_companion
 from companion.flight import Limits
+from companion.flight import command_from_dict as cmd
 from companion.flight.events import EventKind
 from companion.flight.qapi import CommandStatus, QueueState
 from companion.flight.setpoint import Setpoint
@@ -29,6 +27,10 @@ from companion.link import GuidedSupervisor, MavlinkLink, Phase, guided
 from companion.link.rc import RcMapping, rc_velocity
 from companion.link.setpoints import MASK_VELOCITY
 from companion.node import QuadNode
+from harness.fake_autopilot import GUIDED, LAND, FakeAutopilot, M, Received
+from harness.timing import wait_for
+
+pytestmark = pytest.mark.integration
 
 SPEEDUP = 5.0
 ARM = M.MAV_CMD_COMPONENT_ARM_DISARM

@@ -81,6 +81,7 @@ def test_velocity_loop_filters_as_ac_pid_2d(flte: float, fltd: float) -> None:
         assert c.out[9] == pytest.approx(want[1], rel=1e-9, abs=1e-9)  # a_cmd east
 
 
+@pytest.mark.integration
 def test_defaults_are_arducopters_and_a_change_takes_effect_in_flight() -> None:
     store = ParamStore()
     c = CascadedController(store, 1.5, (0.03, 0.03, 0.05), 4 * 9.0, DT)

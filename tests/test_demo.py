@@ -20,6 +20,8 @@ from companion.tracking import StreamRecorder, tracking_error
 from taskflight.cli import main
 from taskflight.sitlproc import ModelProcess
 
+pytestmark = pytest.mark.integration
+
 TRACKING = re.compile(r"tracking: (\d+) streamed position setpoints.*?"
                       r"horizontal RMS (\S+) m, max (\S+) m; vertical RMS (\S+) m, max (\S+) m", re.S)
 

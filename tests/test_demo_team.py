@@ -12,9 +12,14 @@ import subprocess
 import sys
 from pathlib import Path
 
-from up_support import ROOT, child_env, free_base, processes_mentioning
+import pytest
 
+from harness import ROOT
+from harness.up import child_env, processes_mentioning
 from taskflight.up import ground_available
+from taskflight_common.ports import free_base
+
+pytestmark = pytest.mark.integration
 
 
 def test_the_team_demo_flies_its_scenario_and_reports(tmp_path: Path) -> None:

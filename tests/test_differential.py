@@ -15,9 +15,12 @@ from collections.abc import Callable
 from typing import Any
 
 import pytest
-from autopilot_support import AUTOPILOTS, start_autopilot
-from differential_support import OLD_PARAMS, observe
-from mavlink_support import GUIDED, LAND, STABILIZE, M
+
+from harness.autopilot import AUTOPILOTS, start_autopilot
+from harness.differential.basics import OLD_PARAMS, observe
+from harness.observer import GUIDED, LAND, STABILIZE, M
+
+pytestmark = pytest.mark.integration
 
 SPEEDUP = 5.0
 _cache: dict[str, dict[str, Any]] = {}

@@ -15,9 +15,12 @@ from collections.abc import Callable
 from typing import Any
 
 import pytest
-from autopilot_support import AUTOPILOTS, start_autopilot
-from fence_support import QGC_PARAMS, RATE_HZ, SYSTEM_TIME_HZ, observe_fence
-from mavlink_support import GUIDED, RTL, STABILIZE, M
+
+from harness.autopilot import AUTOPILOTS, start_autopilot
+from harness.differential.fence import QGC_PARAMS, RATE_HZ, SYSTEM_TIME_HZ, observe_fence
+from harness.observer import GUIDED, RTL, STABILIZE, M
+
+pytestmark = pytest.mark.integration
 
 SPEEDUP = 5.0
 _cache: dict[str, dict[str, Any]] = {}

@@ -16,11 +16,21 @@ from collections.abc import Callable
 from typing import Any
 
 import pytest
-from autopilot_support import AUTOPILOTS, start_autopilot
-from mavlink_support import M
-from modes_support import AUTO, CIRCLE, RTL, SMART_RTL, STABILIZE, observe_commands, observe_mission
 
 from autopilot_model.modules.flight_modes import GUIDED
+from harness.autopilot import AUTOPILOTS, start_autopilot
+from harness.differential.modes import (
+    AUTO,
+    CIRCLE,
+    RTL,
+    SMART_RTL,
+    STABILIZE,
+    observe_commands,
+    observe_mission,
+)
+from harness.observer import M
+
+pytestmark = pytest.mark.integration
 
 SPEEDUP = 8.0
 _cache: dict[tuple[str, str], dict[str, Any]] = {}

@@ -13,9 +13,12 @@ from collections.abc import Callable
 from typing import Any
 
 import pytest
-from autopilot_support import AUTOPILOTS, start_autopilot
-from mavlink_support import M
-from pilot_support import ALT_HOLD, LOITER, POSHOLD, RTL, STABILIZE, observe_pilot
+
+from harness.autopilot import AUTOPILOTS, start_autopilot
+from harness.differential.pilot import ALT_HOLD, LOITER, POSHOLD, RTL, STABILIZE, observe_pilot
+from harness.observer import M
+
+pytestmark = pytest.mark.integration
 
 SPEEDUP = 2.0
 _cache: dict[str, dict[str, Any]] = {}

@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import pytest
-from kinematic_support import IN_AIR, ON_GROUND, KinematicVehicle, Recorder, geo
 
 from autopilot_model.modules.mission import FENCE, MissionItem, MissionStore
 from autopilot_model.modules.safety import BRAKE, LAND, RTL, Safety
+from harness.kinematic import IN_AIR, ON_GROUND, KinematicVehicle, Recorder, geo
 
 
 class Modes:

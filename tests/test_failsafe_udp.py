@@ -11,7 +11,12 @@ import math
 from collections.abc import Iterator
 
 import pytest
-from mavlink_support import BRAKE, GUIDED, LAND, POS_ONLY, RTL, Gcs, M, sitl_and_gcs, wall
+
+from harness.model import sitl_and_gcs
+from harness.observer import BRAKE, GUIDED, LAND, POS_ONLY, RTL, Gcs, M
+from harness.timing import wall
+
+pytestmark = pytest.mark.integration
 
 
 @pytest.fixture(scope="module")

@@ -9,11 +9,11 @@ both autopilots, is in ``tests/test_differential_fence.py``.
 from __future__ import annotations
 
 import pytest
-from kinematic_support import IN_AIR, ON_GROUND, KinematicVehicle, Recorder
 
 from autopilot_model.modules import fence as fm
 from autopilot_model.modules.mission import MissionStore
 from autopilot_model.modules.safety import LAND, RTL, Safety
+from harness.kinematic import IN_AIR, ON_GROUND, KinematicVehicle, Recorder
 
 
 class Modes:

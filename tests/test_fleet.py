@@ -12,13 +12,17 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from fleet_support import base_free, ports, start_fleet
-from mavlink_support import GUIDED, Gcs, M, wait_for
 from pymavlink import mavutil
 
 from autopilot_model.fleet import Fleet, fleet_homes, template_urls
+from harness.fleet import ports, start_fleet
+from harness.observer import GUIDED, Gcs, M
+from harness.timing import wait_for
 from taskflight.sitlproc import ModelProcess
 from taskflight_common.geo import geodetic_to_ned
+from taskflight_common.ports import base_free
+
+pytestmark = pytest.mark.integration
 
 SPEEDUP = 5.0
 N = 3

@@ -9,12 +9,12 @@ from __future__ import annotations
 import math
 
 import pytest
-from square_support import fly_and_check_square
 
 from autopilot_model.airframe import load_airframe
 from autopilot_model.flights import goto, land, takeoff
 from autopilot_model.modules.navigation import LANDED_ON_GROUND
 from autopilot_model.vehicle import Vehicle
+from harness.square import fly_and_check_square
 
 
 def _vehicle(profile: str = "indoor", gusts: bool = True, seed: int = 1) -> Vehicle:

@@ -260,6 +260,7 @@ def _cmd(h: dict[str, Any], v: dict[str, Any], end: dict[str, Any], hd: dict[str
     return command_from_dict({"horizontal": h, "vertical": v, "heading": hd or {"mode": "DNU"}, "end": end})
 
 
+@pytest.mark.integration
 def test_real_flight_is_logged_drawn_and_tabulated(tmp_path: Path,
                                                     capsys: pytest.CaptureFixture[str]) -> None:
     """Take-off, a two-waypoint "scan", a joystick break-in (ExtVel, ended by user_confirm), one more scan

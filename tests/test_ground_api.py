@@ -15,15 +15,17 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from ground_support import OBSERVER, OPERATOR, InProcessGround
-from mavlink_support import wait_for
-from team_support import geo
 
 from companion.team.tasks import LedgerSnapshot, TaskDef, TaskLedger
 from companion.team.types import TaskState
 from groundstation.auth import Tokens
 from groundstation.db import Database
 from groundstation.service import fence_of
+from harness.ground import OBSERVER, OPERATOR, InProcessGround
+from harness.team import geo
+from harness.timing import wait_for
+
+pytestmark = pytest.mark.integration
 
 BORDER = [list(geo(0, 0, 5)), list(geo(0, 100, 5)), list(geo(50, 100, 5))]
 AREA = [list(geo(10, 10)), list(geo(10, 60)), list(geo(60, 60)), list(geo(60, 10))]

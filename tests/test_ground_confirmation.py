@@ -5,9 +5,8 @@ groundstation.fleet.waits_for_operator)."""
 
 from __future__ import annotations
 
-from behaviors_support import World
-
 from groundstation.fleet import waits_for_operator
+from harness.behaviors import World
 
 
 def test_an_idle_vehicles_default_hover_asks_nothing() -> None:

@@ -20,11 +20,15 @@ from typing import Any
 
 import pytest
 import yaml
-from ground_support import GroundRig
-from mavlink_support import wait_for
 from shapely.geometry import LineString, Point, Polygon
-from team_support import HOME, ROOT, geo
-from up_support import UpRig
+
+from harness import ROOT
+from harness.ground import GroundRig
+from harness.team import HOME, geo
+from harness.timing import wait_for
+from harness.up import UpRig
+
+pytestmark = pytest.mark.integration
 
 SCAN_AND_SEARCH = yaml.safe_load((ROOT / "mission_specs" / "scan_and_search.yaml").read_text())
 # the outdoor platform's floor is 3 m: the final fly-to at 5 m

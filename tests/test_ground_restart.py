@@ -13,10 +13,13 @@ import time
 from collections.abc import Iterator
 
 import pytest
-from ground_support import GroundRig
-from mavlink_support import wait_for
-from team_support import geo
 from test_ground_flight import add, local, state
+
+from harness.ground import GroundRig
+from harness.team import geo
+from harness.timing import wait_for
+
+pytestmark = pytest.mark.integration
 
 
 @pytest.fixture(scope="module")

@@ -12,10 +12,10 @@ import re
 from pathlib import Path
 
 import pytest
-from square_support import fly_and_check_square
 
 from autopilot_model.airframe import load_airframe
 from autopilot_model.vehicle import DEFAULT_MODULES, Vehicle
+from harness.square import fly_and_check_square
 
 
 def _modules_at(tmp_path: Path, main_hz: int, fast_hz: int) -> Path:

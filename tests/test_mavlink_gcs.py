@@ -8,25 +8,19 @@ simulated durations; nothing sleeps and hopes.
 from __future__ import annotations
 
 import math
+import socket
 import time
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from mavlink_support import (
-    ALT_HOLD,
-    GUIDED,
-    LAND,
-    LOITER,
-    SPEEDUP,
-    STABILIZE,
-    Gcs,
-    M,
-    SitlProcess,
-    free_port,
-    sitl_and_gcs,
-    wall,
-)
+
+from harness.model import SitlProcess, sitl_and_gcs
+from harness.observer import ALT_HOLD, GUIDED, LAND, LOITER, STABILIZE, Gcs, M
+from harness.timing import SPEEDUP, wall
+from taskflight_common.ports import free_ports
+
+pytestmark = pytest.mark.integration
 
 IGNORE_VEL_ACC_YAW = 0b110111111000
 IGNORE_POS_ACC_YAW = 0b110111000111
@@ -306,7 +300,7 @@ def test_land_then_arm_and_disarm_on_the_ground(gcs: Gcs) -> None:
 
 
 def test_parameters_persist_across_restart(tmp_path: Path) -> None:
-    port = free_port()
+    port = free_ports(1, socket.SOCK_DGRAM)[0]
     for attempt in range(2):
         sitl = SitlProcess([f"udpin:127.0.0.1:{port}"], tmp_path, speedup=SPEEDUP)
         g = Gcs(port)

@@ -7,20 +7,26 @@ infinite fields in GUIDED targets change nothing and are counted; the vehicle ke
 from __future__ import annotations
 
 import math
+import socket
 import time
 from collections.abc import Iterator
 
 import pytest
-from mavlink_support import GUIDED, LOITER, POS_ONLY, SPEEDUP, VEL_ONLY, Gcs, M, SitlProcess, free_port
 
 from autopilot_model.mavlink.signing import key_from_passphrase
+from harness.model import SitlProcess
+from harness.observer import GUIDED, LOITER, POS_ONLY, VEL_ONLY, Gcs, M
+from harness.timing import SPEEDUP
+from taskflight_common.ports import free_ports
+
+pytestmark = pytest.mark.integration
 
 PASSPHRASE = "taskflight-signing-test"
 
 
 @pytest.fixture(scope="module")
 def sitl(tmp_path_factory: pytest.TempPathFactory) -> Iterator[int]:
-    port = free_port()
+    port = free_ports(1, socket.SOCK_DGRAM)[0]
     proc = SitlProcess([f"udpin:127.0.0.1:{port}"], tmp_path_factory.mktemp("sitl"), speedup=SPEEDUP,
                        extra=["--signing-key", PASSPHRASE])
     try:

@@ -14,7 +14,6 @@ from collections.abc import Callable
 from typing import Any
 
 import pytest
-from mavlink_support import free_port
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from autopilot_model.mavlink.commands import ACCEPTED, DENIED, UNSUPPORTED, Command
@@ -24,6 +23,7 @@ from autopilot_model.mavlink.signing import key_from_passphrase
 from autopilot_model.mavlink.wiring import LinkProtocol, link_protocol
 from autopilot_model.params import ParamStore
 from taskflight_common.clock import SimClock
+from taskflight_common.ports import free_ports
 
 
 class StandIn:
@@ -111,7 +111,7 @@ def make_endpoint(v: StandIn, urls: list[str], signing_key: bytes | None = None)
 @pytest.fixture()
 def setup(tmp_path: Any) -> Any:
     v = StandIn()
-    port = free_port()
+    port = free_ports(1, socket.SOCK_DGRAM)[0]
     proto = make_endpoint(v, [f"udpin:127.0.0.1:{port}"])
     ep = proto.endpoint
     proto.streams.add_builder("HEARTBEAT", lambda: ep.mav.heartbeat_encode(
@@ -260,7 +260,7 @@ def test_tcp_stream_split_frames() -> None:
 
 def test_signing_unsigned_refused_signed_accepted() -> None:
     v = StandIn()
-    port = free_port()
+    port = free_ports(1, socket.SOCK_DGRAM)[0]
     key = key_from_passphrase("taskflight")
     proto = make_endpoint(v, [f"udpin:127.0.0.1:{port}"], signing_key=key)
     ep = proto.endpoint

@@ -19,7 +19,13 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from mavlink_support import ROOT, Gcs, M, SitlProcess, free_port
+
+from harness import ROOT
+from harness.model import SitlProcess
+from harness.observer import Gcs, M
+from taskflight_common.ports import free_ports
+
+pytestmark = pytest.mark.integration
 
 
 def _mavproxy() -> list[str]:
@@ -60,7 +66,7 @@ class Lines:
 
 @pytest.fixture(scope="module")
 def setup(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Lines, Gcs]]:
-    tcp, udp = free_port(socket.SOCK_STREAM), free_port()  # each free for its own protocol
+    tcp, udp = free_ports(1, socket.SOCK_STREAM)[0], free_ports(1, socket.SOCK_DGRAM)[0]  # each its own
     d = tmp_path_factory.mktemp("mavproxy")
     sitl = SitlProcess([f"tcpin:127.0.0.1:{tcp}", f"udpin:127.0.0.1:{udp}"], d / "state", speedup=10)
     env = dict(os.environ, PYTHONPATH=str(ROOT))

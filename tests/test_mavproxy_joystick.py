@@ -19,10 +19,15 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from mavlink_support import ROOT, Gcs, M, SitlProcess, free_port
 from test_mavproxy import Lines, _mavproxy
 
+from harness import ROOT
+from harness.model import SitlProcess
+from harness.observer import Gcs, M
 from taskflight_common.ardupilot import CopterMode
+from taskflight_common.ports import free_ports
+
+pytestmark = pytest.mark.integration
 
 SPEEDUP = 2.0
 LOITER = CopterMode.LOITER
@@ -53,7 +58,7 @@ class MavProxy:
 
 @pytest.fixture()
 def setup(tmp_path: Path) -> Iterator[tuple[MavProxy, Gcs]]:
-    tcp, udp = free_port(socket.SOCK_STREAM), free_port()  # each free for its own protocol
+    tcp, udp = free_ports(1, socket.SOCK_STREAM)[0], free_ports(1, socket.SOCK_DGRAM)[0]  # each its own
     sitl = SitlProcess([f"tcpin:127.0.0.1:{tcp}", f"udpin:127.0.0.1:{udp}"], tmp_path / "state",
                        speedup=SPEEDUP, extra=["--no-persist"])
     gcs = Gcs(udp, SPEEDUP, sysid=254, background=True)  # an observer; MAVProxy is the pilot's GCS (255)

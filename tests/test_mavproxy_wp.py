@@ -14,8 +14,14 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from mavlink_support import Gcs, M, SitlProcess, free_port, wait_for
 from test_mavproxy_joystick import MavProxy
+
+from harness.model import SitlProcess
+from harness.observer import Gcs, M
+from harness.timing import wait_for
+from taskflight_common.ports import free_ports
+
+pytestmark = pytest.mark.integration
 
 SPEEDUP = 10.0
 HOME = (-35.363261, 149.165230, 584.0)
@@ -49,7 +55,7 @@ def _download(gcs: Gcs) -> list[Any]:
 
 @pytest.fixture()
 def setup(tmp_path: Path):
-    tcp, udp = free_port(socket.SOCK_STREAM), free_port()  # each free for its own protocol
+    tcp, udp = free_ports(1, socket.SOCK_STREAM)[0], free_ports(1, socket.SOCK_DGRAM)[0]  # each its own
     sitl = SitlProcess([f"tcpin:127.0.0.1:{tcp}", f"udpin:127.0.0.1:{udp}"], tmp_path / "state",
                        speedup=SPEEDUP, extra=["--no-persist"])
     gcs = Gcs(udp, SPEEDUP, sysid=254, background=True)

@@ -9,20 +9,26 @@ from __future__ import annotations
 import asyncio
 import functools
 import math
+import socket
 from collections.abc import Awaitable, Callable, Iterator
 from typing import Any
 
 import pytest
 
 mavsdk_asyncio = pytest.importorskip("mavsdk.asyncio")
-from mavlink_support import SPEEDUP, SitlProcess, free_port  # noqa: E402
-from mavlink_support import wall as sitl_wall  # noqa: E402
 from mavsdk.asyncio import Configuration, Mavsdk  # noqa: E402
 from mavsdk.asyncio.plugins.action import ActionAsync  # noqa: E402
 from mavsdk.asyncio.plugins.offboard import OffboardAsync  # noqa: E402
 from mavsdk.asyncio.plugins.telemetry import TelemetryAsync  # noqa: E402
 from mavsdk.component_type import ComponentType  # noqa: E402
 from mavsdk.plugins.offboard import PositionNedYaw, VelocityNedYaw  # noqa: E402
+
+from harness.model import SitlProcess  # noqa: E402
+from harness.timing import SPEEDUP  # noqa: E402
+from harness.timing import wall as sitl_wall  # noqa: E402
+from taskflight_common.ports import free_ports  # noqa: E402
+
+pytestmark = pytest.mark.integration
 
 wall = functools.partial(sitl_wall, base_s=10.0)  # more slack: MAVSDK discovers and retries on its own
 
@@ -42,7 +48,7 @@ async def until(pred: Callable[[], Awaitable[Any]], timeout_s: float, what: str)
 
 @pytest.fixture(scope="module")
 def sitl_port(tmp_path_factory: pytest.TempPathFactory) -> Iterator[int]:
-    port = free_port()
+    port = free_ports(1, socket.SOCK_DGRAM)[0]
     sitl = SitlProcess([f"udpin:127.0.0.1:{port}"], tmp_path_factory.mktemp("sitl"), speedup=SPEEDUP)
     try:
         yield port

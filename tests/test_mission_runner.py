@@ -5,7 +5,6 @@ from __future__ import annotations
 import math
 
 import pytest
-from kinematic_support import HOME, IN_AIR, ON_GROUND, TAKEOFF, KinematicVehicle, Recorder, geo
 
 from autopilot_model.modules.mission import (
     COMPLETE,
@@ -16,6 +15,7 @@ from autopilot_model.modules.mission import (
     MissionStore,
     item_to_ned,
 )
+from harness.kinematic import HOME, IN_AIR, ON_GROUND, TAKEOFF, KinematicVehicle, Recorder, geo
 
 
 def item(seq: int, cmd: int, n: float = 0, e: float = 0, z: float = 0, frame: int = 6, p1: float = 0,

@@ -12,9 +12,13 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from mavlink_support import AUTO, GUIDED, SPEEDUP, Gcs, M, sitl_and_gcs, wall
 
+from harness.model import sitl_and_gcs
+from harness.observer import AUTO, GUIDED, Gcs, M
+from harness.timing import SPEEDUP, wall
 from taskflight_common.geo import ned_to_geodetic
+
+pytestmark = pytest.mark.integration
 
 REL = M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT
 

@@ -10,8 +10,11 @@ from __future__ import annotations
 from collections.abc import Iterator
 
 import pytest
-from autopilot_support import AUTOPILOTS
-from flight_session_support import FlightSession
+
+from harness.autopilot import AUTOPILOTS
+from harness.flight_session import FlightSession
+
+pytestmark = pytest.mark.integration
 
 SPEEDUP = 3.0
 

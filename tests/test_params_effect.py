@@ -10,17 +10,20 @@ controllers read the parameter objects themselves, so a PARAM_SET is flown at on
 from __future__ import annotations
 
 import math
+import socket
 from pathlib import Path
 
 import pytest
-from mavlink_support import free_port
 
 from autopilot_model.modules.flight_modes import GUIDED
 from autopilot_model.sitl import Sitl
+from taskflight_common.ports import free_ports
+
+pytestmark = pytest.mark.integration
 
 
 def _sitl(state_dir: Path) -> Sitl:
-    return Sitl(urls=[f"udpin:127.0.0.1:{free_port()}"], state_dir=state_dir)
+    return Sitl(urls=[f"udpin:127.0.0.1:{free_ports(1, socket.SOCK_DGRAM)[0]}"], state_dir=state_dir)
 
 
 def _tilt_deg(q: tuple[float, ...]) -> float:

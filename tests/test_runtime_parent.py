@@ -8,7 +8,11 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from taskflight_common.runtime import PARENT_ENV
+
+pytestmark = pytest.mark.integration
 
 ROOT = Path(__file__).resolve().parents[1]
 CHILD = ("import os, time; from taskflight_common.runtime import PARENT_ENV, die_with_parent; "

@@ -19,16 +19,20 @@ from typing import Any
 
 import httpx
 import pytest
-from autopilot_support import AUTOPILOTS, Autopilot, start_autopilot
-from mavlink_support import free_ports, wait_for
-from team_support import PLATFORM, ROOT, distance_m, free_udp_port, geo
 
 from companion.flight.limits import Limits
 from companion.flightlog import log_violations, read_flight_log
 from companion.team.station import TeamControlStation
 from companion.team.tasks import TaskDef
 from companion.team.transport import open_transport
+from harness import ROOT
+from harness.autopilot import AUTOPILOTS, Autopilot, start_autopilot
+from harness.team import PLATFORM, distance_m, geo, new_team_url
+from harness.timing import wait_for
 from taskflight.sitlproc import stop_child
+from taskflight_common.ports import free_ports
+
+pytestmark = pytest.mark.integration
 
 SPEEDUP = 3.0
 
@@ -36,7 +40,7 @@ SPEEDUP = 3.0
 class Member:
     def __init__(self, kind: str, tmp: Path) -> None:
         self.ap: Autopilot = start_autopilot(kind, tmp, SPEEDUP)
-        self.url = f"udp://239.255.70.1:{free_udp_port()}"
+        self.url = new_team_url()
         self.port = free_ports(1, socket.SOCK_STREAM)[0]
         self.log = tmp / "flight.jsonl"
         out = open(tmp / "companion.out", "ab")  # noqa: SIM115 - the child owns it

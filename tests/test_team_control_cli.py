@@ -14,12 +14,15 @@ import sys
 import time
 from pathlib import Path
 
-from team_support import free_udp_port, geo
+import pytest
 
 from companion.team.groupstate import GroupState
 from companion.team.link import TeamLink
 from companion.team.transport import open_transport
 from companion.team.types import Claim, ClaimState, MemberEntry, MemberStatus
+from harness.team import geo, new_team_url
+
+pytestmark = pytest.mark.integration
 
 EXE = str(Path(sys.executable).with_name("taskflight"))
 
@@ -36,7 +39,7 @@ tasks:
 
 
 def test_station_cli_gives_the_tasks_and_follows_the_team(tmp_path: Path) -> None:
-    url = f"udp://239.255.70.1:{free_udp_port()}"
+    url = new_team_url()
     proc = subprocess.Popen([EXE, "team", "control", "--team", url, "--tasks", str(_task_file(tmp_path)),
                              "--duration", "60"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     state = GroupState(7)

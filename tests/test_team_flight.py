@@ -15,11 +15,14 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from mavlink_support import GUIDED, LOITER, wait_for
-from team_support import TeamRig, distance_m, fly_nine_tasks, geo
 
 from companion.team.tasks import TaskDef
 from companion.team.transport import open_transport
+from harness.observer import GUIDED, LOITER
+from harness.team import TeamRig, distance_m, fly_nine_tasks, geo
+from harness.timing import wait_for
+
+pytestmark = pytest.mark.integration
 
 SPEEDUP = 3.0
 

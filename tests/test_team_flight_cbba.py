@@ -11,10 +11,12 @@ from __future__ import annotations
 from collections.abc import Iterator
 
 import pytest
-from mavlink_support import wait_for
-from team_support import TeamRig, geo
 
 from companion.team.tasks import TaskDef
+from harness.team import TeamRig, geo
+from harness.timing import wait_for
+
+pytestmark = pytest.mark.integration
 
 SPEEDUP = 3.0
 

@@ -10,7 +10,10 @@ from __future__ import annotations
 from collections.abc import Iterator
 
 import pytest
-from team_support import TeamRig, fly_nine_tasks
+
+from harness.team import TeamRig, fly_nine_tasks
+
+pytestmark = pytest.mark.integration
 
 SPEEDUP = 3.0
 

@@ -12,7 +12,6 @@ from collections.abc import Callable
 from typing import Any
 
 import pytest
-from mavlink_support import wait_for
 
 from companion.team.groupstate import GroupState
 from companion.team.link import LinkEvent, TeamLink
@@ -34,6 +33,8 @@ from companion.team.types import (
     TeamTask,
 )
 from companion.team.wire import VERSION, encode_packet
+from harness.timing import wait_for
+from taskflight_common.ports import free_ports
 
 VOC = 10
 
@@ -424,15 +425,9 @@ def test_open_transport_bad_urls_name_the_part(url: str, part: str) -> None:
 
 # ------------------------------------------------------------------------------------ real UDP
 
-def free_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 @pytest.mark.parametrize("kind", ["multicast", "broadcast"])
 def test_udp_loopback_two_links_in_threads(kind: str) -> None:
-    port = free_port()
+    port = free_ports(1, socket.SOCK_DGRAM)[0]
     url = (f"udp://239.255.70.1:{port}?iface=127.0.0.1" if kind == "multicast"
            else f"bcast://127.255.255.255:{port}")
     positions = {1: (58.39, 15.57, 30.0), 2: (58.391, 15.571, 35.0)}

@@ -14,6 +14,8 @@ from companion.team.types import TaskState
 from taskflight.cli import main
 from taskflight_common.yamlio import ConfigError
 
+pytestmark = pytest.mark.integration
+
 ROOT = Path(__file__).resolve().parents[1]
 DEMO = ROOT / "mission_specs" / "team_tasks.yaml"
 

@@ -9,7 +9,6 @@ from __future__ import annotations
 from typing import Any
 
 import pytest
-from behaviors_support import World
 
 from companion.flight.simulate import jerk_violations, step_violations
 from companion.sensing.scenario import Scenario
@@ -17,6 +16,7 @@ from companion.tst.execution import TstExecutionSystem
 from companion.tst.plan import NodePlan
 from companion.tst.spec import mission_from_yaml
 from companion.tst.status import ExecutionRequestError
+from harness.behaviors import World
 
 AREA = "[[-35.363243, 149.165186], [-35.363243, 149.165274], [-35.363171, 149.165274]]"
 SCAN_MISSION = f"""

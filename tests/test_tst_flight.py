@@ -22,6 +22,8 @@ from companion.flight.simulate import jerk_violations, step_violations
 from companion.flightlog import read_flight_log
 from taskflight.fig16 import DEFAULT_BREAK_INS, reproduce
 
+pytestmark = pytest.mark.integration
+
 SPEEDUP = 3.0  # the companion's ticks run on the wall clock: room for a loaded CI machine
 
 

@@ -14,9 +14,12 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from autopilot_support import AUTOPILOTS
-from flight_session_support import FlightSession
-from mavlink_support import wait_for
+
+from harness.autopilot import AUTOPILOTS
+from harness.flight_session import FlightSession
+from harness.timing import wait_for
+
+pytestmark = pytest.mark.integration
 
 ROOT = Path(__file__).resolve().parents[1]
 SCAN_AND_SEARCH = (ROOT / "mission_specs" / "scan_and_search.yaml").read_text()

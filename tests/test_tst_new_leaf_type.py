@@ -16,7 +16,6 @@ from collections.abc import Iterator
 from typing import Any
 
 import pytest
-from behaviors_support import World
 
 from companion.behaviors.activation import format_activation
 from companion.tst.constraints import ConstraintProblem
@@ -33,6 +32,7 @@ from companion.tst.registry import leaf_type, register, unregister
 from companion.tst.spec import mission_from_yaml
 from companion.tst.status import NodeExecutionInfo
 from companion.tst.tree import TstNode
+from harness.behaviors import World
 
 
 class CirclePointExecutor(TstExecutor):

@@ -13,10 +13,12 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from flight_session_support import FlightSession
-from mavlink_support import wait_for
 
 from companion.sensing.scenario import Scenario
+from harness.flight_session import FlightSession
+from harness.timing import wait_for
+
+pytestmark = pytest.mark.integration
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -19,18 +19,23 @@ from typing import Any
 
 import pytest
 import yaml
-from ui_support import Shots, browser, foreign, login, missing, requested_urls
+
+from harness.ui import Shots, browser, foreign, login, missing, requested_urls
 
 if missing():
     pytest.skip(missing() or "", allow_module_level=True)
 
-from ground_support import OBSERVER, OPERATOR, GroundRig
-from mavlink_support import wait_for
 from selenium.webdriver.common.action_chains import ActionChains
 from selenium.webdriver.common.by import By
 from selenium.webdriver.support.ui import WebDriverWait
-from team_support import HOME, ROOT
-from up_support import UpRig
+
+from harness import ROOT
+from harness.ground import OBSERVER, OPERATOR, GroundRig
+from harness.team import HOME
+from harness.timing import wait_for
+from harness.up import UpRig
+
+pytestmark = pytest.mark.integration
 
 SCAN_AND_SEARCH = yaml.safe_load((ROOT / "mission_specs" / "scan_and_search.yaml").read_text())
 SCAN_AND_SEARCH["tree"]["children"][2]["params"]["position"][2] = 5.0  # the outdoor platform's 3 m floor

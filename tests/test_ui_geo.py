@@ -17,6 +17,8 @@ import pytest
 
 from taskflight_common.geo import geodetic_to_ned, ned_to_geodetic
 
+pytestmark = pytest.mark.integration
+
 GEO_JS = Path(__file__).resolve().parents[1] / "groundstation" / "static" / "js" / "geo.js"
 HOMES = [(-35.363261, 149.165230), (0.0, 0.0), (64.1, -21.9), (89.9, 10.0)]
 OFFSETS = [(0.0, 0.0), (120.0, -75.0), (-2500.0, 4000.0)]

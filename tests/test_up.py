@@ -18,8 +18,10 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from mavlink_support import free_ports, wait_for
-from up_support import Summary, UpProcess, alive, free_base, processes_mentioning
+
+from harness.timing import wait_for
+from harness.up import Summary, UpProcess, alive, processes_mentioning
+from taskflight_common.ports import free_base, free_ports, port_free
 
 os.environ.setdefault("MAVLINK20", "1")
 from pymavlink import mavutil
@@ -27,6 +29,8 @@ from pymavlink import mavutil
 from companion.team.transport import open_transport
 from companion.team.wire import WireError, decode_packet
 from taskflight.team_tasking import HttpError, http_json
+
+pytestmark = pytest.mark.integration
 
 N = 3
 SPEEDUP = 3.0
@@ -127,17 +131,7 @@ def test_sigint_stops_everything_and_frees_the_ports(running: Running) -> None:
     assert [p for p in pids.values() if alive(p)] == []
     assert processes_mentioning(str(running.state)) == []
     for port in running.summary.tcp:  # a listener can bind each port again
-        wait_for(lambda port=port: _tcp_free(port), 10, f"TCP {port} free")
-
-
-def _tcp_free(port: int) -> bool:
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-        s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-        try:
-            s.bind(("127.0.0.1", port))
-        except OSError:
-            return False
-    return True
+        wait_for(lambda port=port: port_free(socket.SOCK_STREAM, port), 10, f"TCP {port} free")
 
 
 def test_a_port_already_taken_is_a_clear_error_and_nothing_starts(tmp_path: Path) -> None:

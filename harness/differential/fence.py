@@ -16,8 +16,8 @@ import time
 from collections import Counter
 from typing import Any
 
-from autopilot_support import Autopilot
-from mavlink_support import GUIDED, POS_ONLY, M
+from harness.autopilot import Autopilot
+from harness.observer import GUIDED, POS_ONLY, M
 
 #: What QGroundControl's ArduCopter plugin reads on connecting (setup pages: airframe, radio, flight modes,
 #: sensors, power, safety) besides the parameters the companion uses.

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 import os
+import socket
 import threading
 import time
 from collections import Counter
@@ -27,6 +28,7 @@ from pymavlink import mavutil
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from taskflight_common.ardupilot import CopterMode
+from taskflight_common.ports import free_ports
 
 M = mavlink2
 #: ArduCopter custom modes (HEARTBEAT custom_mode)
@@ -49,6 +51,12 @@ _SENSORS = (M.MAV_SYS_STATUS_SENSOR_3D_GYRO | M.MAV_SYS_STATUS_SENSOR_3D_ACCEL |
             | M.MAV_SYS_STATUS_PREARM_CHECK)
 
 Policy = Callable[[Any], int | None]
+
+
+def unanswered_url() -> str:
+    """A companion's autopilot URL that nobody answers (a free loopback UDP port): for companions built
+    and never flown."""
+    return f"udpout:127.0.0.1:{free_ports(1, socket.SOCK_DGRAM)[0]}"
 
 
 @dataclass(frozen=True)

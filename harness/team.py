@@ -15,31 +15,32 @@
 from __future__ import annotations
 
 import math
-import os
-import random
 import socket
 import subprocess
 import sys
+import threading
+import time
 from pathlib import Path
 from typing import Any
 
 import httpx
-from fleet_support import ports, start_fleet
-from mavlink_support import Gcs, free_ports, wait_for
 
 from companion.flight.limits import Limits
 from companion.flightlog import log_violations, read_flight_log
 from companion.team.station import TeamControlStation
 from companion.team.tasks import TaskDef
 from companion.team.transport import open_transport
+from harness import ROOT
+from harness.fleet import ports, start_fleet
+from harness.observer import Gcs
+from harness.timing import wait_for
 from taskflight.sitlproc import stop_child
 from taskflight_common.geo import ned_to_geodetic
+from taskflight_common.ports import free_ports
 
-ROOT = Path(__file__).resolve().parents[1]
 PLATFORM = ROOT / "mission_specs" / "platform_outdoor.yaml"
 #: the fleet's base home (the model's default, CMAC); vehicle i stands 5 i m east of it
 HOME = (-35.363261, 149.165230, 584.0)
-_rng = random.Random(os.getpid() ^ 0x7EA)
 
 
 def geo(n: float, e: float, alt: float = 0.0) -> tuple[float, float, float]:
@@ -48,16 +49,9 @@ def geo(n: float, e: float, alt: float = 0.0) -> tuple[float, float, float]:
     return (lat, lon, alt)
 
 
-def free_udp_port() -> int:
-    for _ in range(50):
-        port = _rng.randrange(20000, 60000)
-        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-            try:
-                s.bind(("", port))
-            except OSError:
-                continue
-        return port
-    raise RuntimeError("no free UDP port for the team link")
+def new_team_url() -> str:
+    """A team link of its own: the project's multicast group on a UDP port free on every interface."""
+    return f"udp://239.255.70.1:{free_ports(1, socket.SOCK_DGRAM, host='')[0]}"
 
 
 class TeamRig:
@@ -67,7 +61,7 @@ class TeamRig:
                  policy: str = "greedy") -> None:
         self.tmp, self.n, self.speedup, self.loss, self.policy = tmp, n, speedup, loss, policy
         self.fleet, self.base = start_fleet(tmp / "fleet", n, speedup)
-        self.team_url = f"udp://239.255.70.1:{free_udp_port()}"
+        self.team_url = new_team_url()
         self.member_url = self.team_url + (f"?loss={loss}" if loss else "")
         self.control_ports = free_ports(n, socket.SOCK_STREAM)
         self.companions: list[subprocess.Popen[bytes] | None] = [None] * n
@@ -174,9 +168,16 @@ class TeamRig:
 
 def fly_nine_tasks(rig: TeamRig) -> None:
     """Seed 003 Sec. V: "A series of nine tasks was assigned to the three UAVs, including multiple-agent
-    tasks such as cooperative border patrol. On three occasions, conflicts were declared ..."."""
+    tasks such as cooperative border patrol. On three occasions, conflicts were declared ..."." Every
+    vehicle's claims are sampled over the whole run (:class:`ClaimSampler`): no task is held twice."""
     st = rig.station
     assert st is not None
+    with ClaimSampler(rig) as claims:
+        _fly_nine_tasks(rig, st)
+    claims.assert_no_task_held_twice()
+
+
+def _fly_nine_tasks(rig: TeamRig, st: TeamControlStation) -> None:
     visits = [rig.add(TaskDef("visit", (geo(25, -15, 8),), name="visit-1"))[0],
               rig.add(TaskDef("visit", (geo(-20, 25, 8),), name="visit-2"))[0]]
     area = rig.add(TaskDef("area_scan", (geo(15, 40), geo(15, 60), geo(45, 60), geo(45, 40)), n=2,
@@ -207,8 +208,56 @@ def fly_nine_tasks(rig: TeamRig) -> None:
         return all(t["status"] in ("idle", "landed") and not t["claims"] and t["controller"] == "loiter"
                    for t in teams)
     wait_for(loitering, rig.wall(60), "every vehicle idle")
-    held = [c["task"] for i in range(rig.n) for c in rig.team(i)["claims"] if c["state"] != "done"]
-    assert len(held) == len(set(held))  # no task held twice
+
+
+class ClaimSampler:
+    """Every vehicle's claims, read from its companion (``GET /team``) every ``period_s`` in a thread for
+    the whole run: each sample is (wall time, {task: [vehicles holding it]}) over the claims not done.
+
+    :meth:`assert_no_task_held_twice` fails when a task is held by two vehicles in two samples in a row
+    (seed 003 Sec. II: a conflict is declared and resolved, so a double claim may be seen once, while one
+    vehicle's release and the next one's claim are read a few milliseconds apart; one that lasts a whole
+    period is a task flown twice). The message shows the samples that broke it."""
+
+    def __init__(self, rig: TeamRig, period_s: float = 0.25) -> None:
+        self.rig, self.period_s = rig, period_s
+        self.samples: list[tuple[float, dict[int, list[int]]]] = []
+        self.errors: list[str] = []
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="claim-sampler", daemon=True)
+
+    def __enter__(self) -> ClaimSampler:
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._stop.set()
+        self._thread.join(10.0)
+
+    def sample(self) -> dict[int, list[int]]:
+        holders: dict[int, list[int]] = {}
+        for i in range(self.rig.n):
+            for c in self.rig.team(i)["claims"]:
+                if c["state"] != "done":
+                    holders.setdefault(c["task"], []).append(i)
+        return holders
+
+    def _run(self) -> None:
+        while not self._stop.wait(self.period_s):
+            try:
+                self.samples.append((time.monotonic(), self.sample()))
+            except (httpx.HTTPError, ValueError, KeyError) as e:  # a companion killed or restarting
+                self.errors.append(repr(e))
+
+    def assert_no_task_held_twice(self) -> None:
+        assert self.samples, f"no claims sampled (errors: {self.errors[-3:]})"
+        t0 = self.samples[0][0]
+        for (t_a, a), (t_b, b) in zip(self.samples, self.samples[1:], strict=False):
+            twice = {task: (a[task], b[task]) for task in a.keys() & b.keys()
+                     if len(set(a[task])) > 1 and set(a[task]) == set(b[task])}
+            assert not twice, (f"task(s) held by two vehicles in two samples in a row, at {t_a - t0:.2f} s "
+                               f"and {t_b - t0:.2f} s: {twice}; samples: {a} then {b} "
+                               f"({len(self.samples)} samples)")
 
 
 def distance_m(a: tuple[float, float, float], b: tuple[float, float, float]) -> float:

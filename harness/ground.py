@@ -24,23 +24,22 @@ from typing import Any
 import httpx
 import uvicorn
 import yaml
-from fleet_support import ports, start_fleet
-from mavlink_support import Gcs, free_ports, wait_for
-from team_support import PLATFORM, ROOT, free_udp_port
 from websockets.sync.client import ClientConnection, connect
 
 from groundstation.app import create_app
 from groundstation.auth import Tokens
 from groundstation.service import GroundService
+from harness import ROOT
+from harness.fleet import ports, start_fleet
+from harness.observer import Gcs
+from harness.team import PLATFORM, new_team_url
+from harness.timing import wait_for
 from taskflight.sitlproc import stop_child
+from taskflight_common.ports import free_ports
 
 OPERATOR, OBSERVER = "op-token-for-tests", "ob-token-for-tests"
 TOKENS = {"operator": [OPERATOR], "observer": [OBSERVER]}
 COMPANION_TOKEN = "companion-token-for-tests"
-
-
-def free_tcp_port() -> int:
-    return free_ports(1, socket.SOCK_STREAM)[0]
 
 
 class _Api:
@@ -74,10 +73,10 @@ class InProcessGround(_Api):
 
     def __init__(self, tmp: Path, team_url: str | None = None, companions: dict[int, str] | None = None,
                  snapshot_period_s: float = 0.1, fence: list[list[float]] | None = None) -> None:
-        self.team_url = team_url or f"udp://239.255.70.1:{free_udp_port()}"
+        self.team_url = team_url or new_team_url()
         self.service = GroundService(str(tmp / "ground.db"), Tokens(TOKENS), team_url=self.team_url,
                                      companions=companions, fence=fence).start()
-        port = free_tcp_port()
+        port = free_ports(1, socket.SOCK_STREAM)[0]
         self.url = f"http://127.0.0.1:{port}"
         config = uvicorn.Config(create_app(self.service, snapshot_period_s), host="127.0.0.1", port=port,
                                 log_level="warning", ws="websockets-sansio")
@@ -97,7 +96,7 @@ class GroundProcess(_Api):
 
     def __init__(self, tmp: Path, team_url: str, companions: dict[int, str], port: int | None = None) -> None:
         self.tmp, self.team_url, self.companions = tmp, team_url, companions
-        self.port = port or free_tcp_port()
+        self.port = port or free_ports(1, socket.SOCK_STREAM)[0]
         self.url = f"http://127.0.0.1:{self.port}"
         self.db = tmp / "ground.db"
         self.tokens = tmp / "tokens.yaml"
@@ -140,7 +139,7 @@ class GroundRig:
     def __init__(self, tmp: Path, n: int = 3, speedup: float = 3.0) -> None:
         self.tmp, self.n, self.speedup = tmp, n, speedup
         self.fleet, self.base = start_fleet(tmp / "fleet", n, speedup)
-        self.team_url = f"udp://239.255.70.1:{free_udp_port()}"
+        self.team_url = new_team_url()
         self.control_ports = free_ports(n, socket.SOCK_STREAM)
         self.companions: list[subprocess.Popen[bytes] | None] = [None] * n
         self.gcs: list[Gcs] = []

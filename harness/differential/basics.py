@@ -12,8 +12,9 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from autopilot_support import Autopilot
-from mavlink_support import GUIDED, LAND, VEL_ONLY, M, wait_for
+from harness.autopilot import Autopilot
+from harness.observer import GUIDED, LAND, VEL_ONLY, M
+from harness.timing import wait_for
 
 #: Parameters a ground station or the companion uses, by their current ArduCopter names.
 PARAMS = ("GUID_TIMEOUT", "FS_GCS_ENABLE", "FS_GCS_TIMEOUT", "MAV_SYSID", "MAV_GCS_SYSID", "DISARM_DELAY",

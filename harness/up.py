@@ -20,13 +20,12 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from fleet_support import ports
-from ground_support import OBSERVER, OPERATOR, GroundRig, _Api
-from mavlink_support import Gcs, free_ports, wait_for
-
-from taskflight_common.ports import free_base
-
-ROOT = Path(__file__).resolve().parents[1]
+from harness import ROOT
+from harness.fleet import ports
+from harness.ground import OBSERVER, OPERATOR, GroundRig, _Api
+from harness.observer import Gcs
+from harness.timing import wait_for
+from taskflight_common.ports import free_base, free_ports
 
 
 @dataclass

@@ -18,10 +18,10 @@ import math
 from collections.abc import Callable
 from typing import Any
 
-from autopilot_support import Autopilot
-from mavlink_support import GUIDED, M, wait_for
-from pilot_support import Sticks
-
+from harness.autopilot import Autopilot
+from harness.differential.pilot import Sticks
+from harness.observer import GUIDED, M
+from harness.timing import wait_for
 from taskflight_common.ardupilot import CopterMode
 from taskflight_common.geo import ned_to_geodetic
 

@@ -15,9 +15,9 @@ import threading
 import time
 from typing import Any
 
-from autopilot_support import Autopilot
-from mavlink_support import M, wait_for
-
+from harness.autopilot import Autopilot
+from harness.observer import M
+from harness.timing import wait_for
 from taskflight_common.ardupilot import CopterMode
 
 STABILIZE, ALT_HOLD, LOITER, RTL, POSHOLD = (

@@ -1,10 +1,6 @@
-"""Helpers for the companion's integration tests and bench (no tests here); the SITL process, the
-ground station and ``wait_for`` are in :mod:`mavlink_support`.
-
-* :class:`WireTap`: a UDP relay between the companion and the model that decodes what the companion
-  sends, so tests count SET_POSITION_TARGET_LOCAL_NED *on the wire*;
-* :func:`cmd`: a flight command from plain data (the codec form the HTTP surface takes).
-"""
+"""The wire tap: :class:`WireTap`, a UDP relay between the companion and the autopilot that decodes
+what the companion sends, so tests count SET_POSITION_TARGET_LOCAL_NED *on the wire*; and
+:func:`wire_violations`, the setpoints on the wire that break the limits."""
 
 from __future__ import annotations
 
@@ -17,12 +13,6 @@ from collections import Counter
 from typing import Any
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
-
-from companion.flight import FlightCommand, command_from_dict
-
-
-def cmd(data: dict[str, Any]) -> FlightCommand:
-    return command_from_dict(data)
 
 
 def _bound_socket(avoid: set[int]) -> socket.socket:

@@ -15,14 +15,15 @@ from pathlib import Path
 from typing import Any
 
 import httpx
-from autopilot_support import Autopilot, start_autopilot
-from companion_support import cmd
-from mavlink_support import GUIDED, wait_for
-from mavlink_support import wall as _wall
 
 from companion.builder import CompanionConfig, build_companion
 from companion.flight import Envelope, EventKind, Setpoint
+from companion.flight import command_from_dict as cmd
 from companion.tst.platform import bundled_platform
+from harness.autopilot import Autopilot, start_autopilot
+from harness.observer import GUIDED
+from harness.timing import wait_for
+from harness.timing import wall as _wall
 
 TAKEOFF = {"vertical": {"mode": "POS", "altitude": 5, "take_off": True}, "end": {"e_v": True}}
 LAND_HERE = {"vertical": {"mode": "POS", "altitude": 0.0, "allow_landing": True}, "end": {"e_v": True}}

@@ -1,38 +1,25 @@
-"""Helpers shared by the MAVLink integration tests and benches (no tests here).
-
-* :class:`SitlProcess`: the model in its own process (``python -m autopilot_model.sitl``), lockstep at
-  a fixed speedup, so the clients under test talk to it over real loopback sockets exactly as they
-  would to ArduPilot; :func:`free_port`;
-* :class:`Gcs`: a pymavlink ground station (system 255 unless told otherwise, optionally signing)
-  that sends GCS heartbeats while it pumps and records what the vehicle sends;
-* :func:`sitl_and_gcs`: both, the station having heard the vehicle;
-* :func:`wait_for` and :func:`wall`: deadlines in wall time, derived from simulated durations.
-"""
+"""The ground-station observer: :class:`Gcs`, a pymavlink ground station (system 255 unless told
+otherwise, optionally signing) that sends GCS heartbeats while it pumps and records what the vehicle
+sends; the ArduCopter flight-mode numbers and SET_POSITION_TARGET type masks the tests send with it."""
 
 from __future__ import annotations
 
 import math
 import os
-import socket
 import threading
 import time
-from collections.abc import Callable, Iterator, Sequence
-from contextlib import contextmanager
-from pathlib import Path
+from collections.abc import Callable
 from typing import Any
 
 os.environ.setdefault("MAVLINK20", "1")
 from pymavlink import mavutil
 
-from taskflight.sitlproc import ModelProcess
+from harness.timing import SPEEDUP, wait_for, wall
 from taskflight_common.ardupilot import CopterMode
 
 mavutil.set_dialect("ardupilotmega")
 
-ROOT = Path(__file__).resolve().parents[1]
 M = mavutil.mavlink
-#: the speedup the SITL tests run the model at
-SPEEDUP = 10.0
 #: ArduCopter flight modes (HEARTBEAT custom_mode)
 STABILIZE, ALT_HOLD, AUTO, GUIDED, LOITER, RTL, LAND, BRAKE = (
     CopterMode.STABILIZE, CopterMode.ALT_HOLD, CopterMode.AUTO, CopterMode.GUIDED, CopterMode.LOITER,
@@ -40,60 +27,6 @@ STABILIZE, ALT_HOLD, AUTO, GUIDED, LOITER, RTL, LAND, BRAKE = (
 #: SET_POSITION_TARGET_* type masks: position only, velocity only
 POS_ONLY = 0b110111111000
 VEL_ONLY = 0b110111000111
-
-
-def free_port(kind: int = socket.SOCK_DGRAM) -> int:
-    s = socket.socket(socket.AF_INET, kind)
-    s.bind(("127.0.0.1", 0))
-    port = s.getsockname()[1]
-    s.close()
-    return port
-
-
-def free_ports(n: int, kind: int = socket.SOCK_DGRAM) -> list[int]:
-    """``n`` distinct free ports (bound at the same time: two :func:`free_port` calls may return the same
-    port, and pymavlink's udpin sets SO_REUSEADDR, so two listeners would then share it silently)."""
-    socks = [socket.socket(socket.AF_INET, kind) for _ in range(n)]
-    try:
-        for s in socks:
-            s.bind(("127.0.0.1", 0))
-        return [s.getsockname()[1] for s in socks]
-    finally:
-        for s in socks:
-            s.close()
-
-
-def wall(sim_s: float, speedup: float = SPEEDUP, base_s: float = 5.0) -> float:
-    """Wall deadline for ``sim_s`` simulated seconds (generous: a loaded 2-core machine)."""
-    return base_s + 3.0 * sim_s / speedup
-
-
-def wait_for(pred: Callable[[], Any], timeout_s: float, what: str | Callable[[], str],
-             poll_s: float = 0.005) -> Any:
-    """Test ``pred`` until truthy or the wall deadline passes (then AssertionError naming ``what``; a
-    callable ``what`` is asked at the deadline, so the message shows the state that failed, not the
-    state when the wait began)."""
-    end = time.monotonic() + timeout_s
-    while True:
-        r = pred()
-        if r:
-            return r
-        if time.monotonic() > end:
-            raise AssertionError(f"timed out after {timeout_s:.1f} s waiting for "
-                                 f"{what() if callable(what) else what}")
-        time.sleep(poll_s)
-
-
-class SitlProcess(ModelProcess):
-    """``python -m autopilot_model.sitl`` in a subprocess at a fixed speedup; started when built (READY)."""
-
-    def __init__(self, urls: Sequence[str], state_dir: Path, speedup: float = SPEEDUP,
-                 extra: Sequence[str] = (), timeout_s: float = 60.0) -> None:
-        args = ["--state-dir", str(state_dir), "--speedup", str(speedup)]
-        for u in urls:
-            args += ["--mavlink", u]
-        super().__init__([*args, *extra], name="model SITL")
-        self.start(timeout_s)
 
 
 class Gcs:
@@ -327,21 +260,3 @@ class Gcs:
         if self._thread is not None:
             self._thread.join(2.0)
         self.conn.close()
-
-
-@contextmanager
-def sitl_and_gcs(state_dir: Path, speedup: float = SPEEDUP, extra: Sequence[str] = (),
-                 **gcs_options: Any) -> Iterator[Gcs]:
-    """A SITL process on a free UDP port and a :class:`Gcs` that has heard the vehicle; both closed after."""
-    port = free_port()
-    sitl = SitlProcess([f"udpin:127.0.0.1:{port}"], state_dir, speedup=speedup, extra=extra)
-    try:
-        gcs = Gcs(port, speedup, **gcs_options)
-        try:
-            gcs.wait(lambda: (m := gcs.last.get("HEARTBEAT")) is not None and m.get_srcSystem() == 1, 20,
-                     "the vehicle's first heartbeat")
-            yield gcs
-        finally:
-            gcs.close()
-    finally:
-        sitl.stop()
