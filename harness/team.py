@@ -78,6 +78,7 @@ class TeamRig:
                 g.request_streams(10)
                 self.gcs.append(g)
             wait_for(lambda: len(self.station.vehicle_rows()) == n, 90, f"{n} vehicles heard by the station")
+            self._wait_control_surfaces(60)
         except BaseException:
             self.close()
             raise
@@ -109,6 +110,7 @@ class TeamRig:
             if p is None or p.poll() is not None:
                 self.start_companion(i)
         wait_for(lambda: len(self.station.vehicle_rows()) == self.n, 60, "every vehicle in the team")
+        self._wait_control_surfaces(60)
         for i in range(self.n):  # a test that failed half-way may have left a vehicle out of the team
             if self.team(i)["status"] == "taken":
                 with self.http(i) as c:
@@ -123,6 +125,19 @@ class TeamRig:
             if p is not None:
                 stop_child(p, 10.0)
         self.fleet.stop()
+
+    def _control_up(self, i: int) -> bool:
+        try:
+            with self.http(i) as c:
+                return c.get("/status").status_code == 200
+        except httpx.HTTPError:
+            return False
+
+    def _wait_control_surfaces(self, timeout_s: float) -> None:
+        """Every companion's control surface answers: the companion joins the team (and is heard) before
+        its HTTP server starts, so a row on the team link does not mean the port is open yet."""
+        for i in range(self.n):
+            wait_for(lambda i=i: self._control_up(i), timeout_s, f"companion {i}'s control surface")
 
     # --- looking at the team -------------------------------------------------------------------------
     def http(self, i: int) -> httpx.Client:
