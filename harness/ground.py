@@ -3,7 +3,7 @@
 * :class:`InProcessGround`: :class:`~groundstation.service.GroundService` + uvicorn in a thread on a free
   port (unit-ish API tests);
 * :class:`GroundProcess`: ``taskflight ground`` as a child process (killed with SIGKILL and restarted
-  on the same database by the restart test);
+  on the same database by the restart test; the service the ground and UI benches load);
 * :class:`GroundRig`: a fleet of N models in one process, N companion processes on a team link and the
   ground service as the team's station (no station in the test process), with a pymavlink ground
   station per vehicle (positions read from the autopilots, not from the service).
