@@ -21,25 +21,18 @@ import argparse
 import json
 import math
 import os
-import socket
-import subprocess
 import sys
 import tempfile
 import threading
 import time
 from pathlib import Path
 
-import httpx
-import yaml
-from websockets.sync.client import connect
-
 from bench.common import machine, pct, table
 from companion.team.transport import open_transport
 from companion.team.types import MemberEntry, MemberStatus
 from companion.team.wire import encode_packets
-from harness import ROOT
+from harness.ground import OBSERVER, GroundProcess
 from harness.team import new_team_url
-from taskflight_common.ports import free_ports
 
 HOME = (-35.363261, 149.165230)
 WRAP_S = 300.0  # send times ride in the altitude modulo this (cm16 carries up to 327 m)
@@ -79,29 +72,14 @@ def main() -> int:
     ap.add_argument("--rate", type=float, default=10.0, help="rows per member per second")
     ap.add_argument("--seconds", type=float, default=20.0, help="measurement window")
     args = ap.parse_args()
-    tmp = Path(tempfile.mkdtemp(prefix="bench_ground"))
-    (tmp / "tokens.yaml").write_text(yaml.safe_dump({"operator": ["bench-op"], "observer": ["bench-ob"]}))
-    port = free_ports(1, socket.SOCK_STREAM)[0]
     team = new_team_url()
-    out = open(tmp / "ground.out", "wb")  # noqa: SIM115
-    proc = subprocess.Popen([sys.executable, "-m", "taskflight.cli", "ground", "--team", team, "--db",
-                             str(tmp / "g.db"), "--port", str(port), "--tokens", str(tmp / "tokens.yaml")],
-                            stdout=out, stderr=subprocess.STDOUT, cwd=ROOT)
-    base = f"http://127.0.0.1:{port}"
-    http = httpx.Client(base_url=base, headers={"Authorization": "Bearer bench-op"}, timeout=10)
+    ground = GroundProcess(Path(tempfile.mkdtemp(prefix="bench_ground")), team, {}).start()
+    assert ground.proc is not None
+    pid = ground.proc.pid
+    http = ground.http(timeout=10)
     stop = threading.Event()
     feeder = threading.Thread(target=feed, args=(team, args.vehicles, args.rate, stop), daemon=True)
     try:
-        deadline = time.monotonic() + 30
-        while True:
-            try:
-                if http.get("/api/whoami").status_code == 200:
-                    break
-            except httpx.HTTPError:
-                pass
-            if time.monotonic() > deadline or proc.poll() is not None:
-                raise SystemExit(f"the service did not start: {(tmp / 'ground.out').read_text()}")
-            time.sleep(0.1)
         feeder.start()
         deadline = time.monotonic() + 30
         while len(http.get("/api/vehicles").json()["vehicles"]) < args.vehicles:
@@ -113,7 +91,7 @@ def main() -> int:
         ws_stop = threading.Event()
 
         def watch() -> None:
-            with connect(f"ws://127.0.0.1:{port}/api/ws?token=bench-ob") as ws:
+            with ground.ws(OBSERVER) as ws:
                 while not ws_stop.is_set():
                     m = json.loads(ws.recv(timeout=5))
                     if m["type"] != "snapshot":
@@ -128,7 +106,7 @@ def main() -> int:
 
         watcher = threading.Thread(target=watch, daemon=True)
         watcher.start()
-        c0, t0 = cpu_s(proc.pid), time.monotonic()
+        c0, t0 = cpu_s(pid), time.monotonic()
         lat: dict[str, list[float]] = {"GET /api/vehicles": [], "GET /api/tasks": [],
                                        "POST+DELETE /api/tasks": []}
         end = t0 + args.seconds
@@ -149,7 +127,7 @@ def main() -> int:
                 lat["POST+DELETE /api/tasks"].append(time.perf_counter() - a)
             time.sleep(0.02)
         wall = time.monotonic() - t0
-        cpu = 100.0 * (cpu_s(proc.pid) - c0) / wall
+        cpu = 100.0 * (cpu_s(pid) - c0) / wall
         ws_stop.set()
         watcher.join(6)
         print(f"# bench_ground: {args.vehicles} members at {args.rate:g} Hz on the team link, {wall:.0f} s")
@@ -165,12 +143,7 @@ def main() -> int:
     finally:
         stop.set()
         http.close()
-        proc.terminate()
-        try:
-            proc.wait(10)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-        out.close()
+        ground.close()
     return 0
 
 

@@ -16,45 +16,17 @@ A screenshot is saved to ``docs/figures/ui.png``. Run: ``python bench/bench_ui.p
 from __future__ import annotations
 
 import argparse
-import socket
-import subprocess
-import sys
 import tempfile
 import threading
 import time
 from pathlib import Path
 
-import httpx
-import yaml
-
 from bench.bench_ground import feed
 from bench.common import machine, pct, table
 from harness import ROOT
+from harness.ground import OPERATOR, GroundProcess
 from harness.team import new_team_url
 from harness.ui import browser, foreign, login, missing, requested_urls
-from taskflight_common.ports import free_ports
-
-
-def start_ground(tmp: Path) -> tuple[subprocess.Popen[bytes], str, str]:
-    (tmp / "tokens.yaml").write_text(yaml.safe_dump({"operator": ["bench-op"], "observer": ["bench-ob"]}))
-    port = free_ports(1, socket.SOCK_STREAM)[0]
-    team = new_team_url()
-    out = open(tmp / "ground.out", "wb")  # noqa: SIM115 - the child owns it
-    proc = subprocess.Popen([sys.executable, "-m", "taskflight.cli", "ground", "--team", team, "--db",
-                             str(tmp / "g.db"), "--port", str(port), "--tokens", str(tmp / "tokens.yaml")],
-                            stdout=out, stderr=subprocess.STDOUT, cwd=ROOT)
-    url = f"http://127.0.0.1:{port}"
-    deadline = time.monotonic() + 30
-    while True:
-        try:
-            auth = {"Authorization": "Bearer bench-op"}
-            if httpx.get(url + "/api/whoami", headers=auth).status_code == 200:
-                return proc, url, team
-        except httpx.HTTPError:
-            pass
-        if time.monotonic() > deadline or proc.poll() is not None:
-            raise SystemExit(f"the service did not start: {(tmp / 'ground.out').read_text()}")
-        time.sleep(0.1)
 
 
 def main() -> int:
@@ -65,14 +37,15 @@ def main() -> int:
     args = ap.parse_args()
     if missing():
         raise SystemExit(missing())
-    tmp = Path(tempfile.mkdtemp(prefix="bench_ui"))
-    proc, url, team = start_ground(tmp)
+    team = new_team_url()
+    ground = GroundProcess(Path(tempfile.mkdtemp(prefix="bench_ui")), team, {}).start()
+    url = ground.url
     stop = threading.Event()
     feeder = threading.Thread(target=feed, args=(team, args.vehicles, 10.0, stop), daemon=True)
     feeder.start()
     d = browser()
     try:
-        login(d, url, "bench-op")
+        login(d, url, OPERATOR)
         deadline = time.monotonic() + 30
         while d.execute_script("return document.querySelectorAll('.vmarker[data-n]').length") < args.vehicles:
             if time.monotonic() > deadline:
@@ -94,8 +67,7 @@ def main() -> int:
     finally:
         d.quit()
         stop.set()
-        proc.terminate()
-        proc.wait(10)
+        ground.close()
     iv, rt, ft = s["iv"], s["rt"], s["ft"]
     rate = 1000.0 / (sum(iv) / len(iv)) if iv else 0.0
     print(f"# bench_ui: {args.vehicles} vehicles at 10 Hz on the team link, {args.seconds:.0f} s, "

@@ -11,6 +11,7 @@ run as ``python -m bench.<name>`` from the repository root):
 * :mod:`harness.arducopter`: ArduPilot's own copter SITL; :mod:`harness.autopilot`: either autopilot
   with its wire tap and observer (``start_autopilot``, ``AUTOPILOTS``);
 * :mod:`harness.fake_autopilot`: a scripted fake ArduCopter for the companion's link;
+* :mod:`harness.mavproxy`: MAVProxy on the model (its output waited on, or typed into);
 * :mod:`harness.kinematic`: the model's modules on the point-mass stand-in
   (:mod:`companion.flight.simulate`); :mod:`harness.flight_sim`: the companion's queue on it;
   :mod:`harness.behaviors`: the executive layer on it; :mod:`harness.square`: the model's square flight;

@@ -4,13 +4,17 @@
 a :class:`~companion.node.QuadNode` connected through the wire tap, and its HTTP control surface. It
 records what the companion hears (heartbeats, positions) and offers the waits the tests share, in
 wall time derived from simulated durations, plus :meth:`ensure_airborne` / :meth:`ensure_on_ground`
-so that each test can also run alone.
+so that each test can also run alone. :class:`SessionSpec` is how a test module asks for its session
+(the ``flight_session`` fixture of ``tests/conftest.py`` reads the module's ``FLIGHT_SESSION``).
 """
 
 from __future__ import annotations
 
 import math
 import threading
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -20,7 +24,7 @@ from companion.builder import CompanionConfig, build_companion
 from companion.flight import Envelope, EventKind, Setpoint
 from companion.flight import command_from_dict as cmd
 from companion.tst.platform import bundled_platform
-from harness.autopilot import Autopilot, start_autopilot
+from harness.autopilot import AUTOPILOTS, Autopilot, start_autopilot
 from harness.observer import GUIDED
 from harness.timing import wait_for
 from harness.timing import wall as _wall
@@ -164,3 +168,36 @@ class FlightSession:
         self.http.close()
         self.companion.close()
         self.ap.close()
+
+
+@dataclass(frozen=True)
+class SessionSpec:
+    """A test module's flight session: its state directory's prefix, the models' speedup, the autopilots it
+    is flown on (each a module-scoped session; none: the model only, not parametrised), whether the
+    executive layer must have localized first (home known, SELF_LOCALIZE active: the motion behaviors
+    need it), and :class:`FlightSession`'s options."""
+
+    name: str
+    speedup: float
+    autopilots: Sequence[Any] = tuple(AUTOPILOTS)
+    localized: bool = False
+    behaviors: bool = False
+    envelope: Envelope | None = None
+    missions: bool = False
+    scenario: Any = None
+
+    @contextmanager
+    def open(self, kind: str, state_dir: Path) -> Iterator[FlightSession]:
+        """A session on autopilot ``kind``, closed after."""
+        session = FlightSession(kind, state_dir, self.speedup, behaviors=self.behaviors,
+                                envelope=self.envelope, missions=self.missions, scenario=self.scenario)
+        try:
+            if self.localized:
+                wait_for(lambda: session.node.link.mirror.snapshot().home is not None, session.wall(30),
+                         "home")
+                layer = session.layer
+                assert layer is not None  # a healthy estimate: the motion behaviors need SELF_LOCALIZE
+                wait_for(lambda: layer.coordinator.is_active("SELF_LOCALIZE"), session.wall(60), "localized")
+            yield session
+        finally:
+            session.close()

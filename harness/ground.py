@@ -3,7 +3,7 @@
 * :class:`InProcessGround`: :class:`~groundstation.service.GroundService` + uvicorn in a thread on a free
   port (unit-ish API tests);
 * :class:`GroundProcess`: ``taskflight ground`` as a child process (killed with SIGKILL and restarted
-  on the same database by the restart test);
+  on the same database by the restart test; the service the ground and UI benches load);
 * :class:`GroundRig`: a fleet of N models in one process, N companion processes on a team link and the
   ground service as the team's station (no station in the test process), with a pymavlink ground
   station per vehicle (positions read from the autopilots, not from the service).
@@ -149,18 +149,23 @@ class GroundRig:
                 self.start_companion(i)
             urls = {i + 1: f"http://127.0.0.1:{self.control_ports[i]}" for i in range(n)}
             self.ground = GroundProcess(tmp, self.team_url, urls).start()
-            for i in range(n):
-                g = Gcs(ports(self.base + i)[1], speedup, background=True, target=i + 1)
-                g.request_streams(10)
-                self.gcs.append(g)
-            self.tracks: list[list[tuple[float, float, float, float]]] = [[] for _ in range(n)]
-            self._stop = threading.Event()
-            self._sampler = threading.Thread(target=self._sample, daemon=True)
-            self._sampler.start()
-            wait_for(lambda: self.ready(), 120, f"{n} vehicles in the team, companions answering")
+            self._observe()
         except BaseException:
             self.close()
             raise
+
+    def _observe(self) -> None:
+        """A pymavlink ground station per vehicle (target its system id), the 10 Hz track sampler, then
+        the wait for every vehicle in the team with its companion answering."""
+        for i in range(self.n):
+            g = Gcs(ports(self.base + i)[1], self.speedup, background=True, target=i + 1)
+            g.request_streams(10)
+            self.gcs.append(g)
+        self.tracks: list[list[tuple[float, float, float, float]]] = [[] for _ in range(self.n)]
+        self._stop = threading.Event()
+        self._sampler = threading.Thread(target=self._sample, daemon=True)
+        self._sampler.start()
+        wait_for(lambda: self.ready(), 120, f"{self.n} vehicles in the team, companions answering")
 
     def start_companion(self, i: int) -> None:
         exe = Path(sys.executable).with_name("taskflight")

@@ -1,7 +1,8 @@
-"""Stand-ins shared by the mission and failsafe logic tests (no tests here): a kinematic vehicle whose
+"""Stand-ins shared by the mission, failsafe and fence logic tests (no tests here): a kinematic vehicle whose
 navigator flies straight to its target at a fixed speed (the library's
-:class:`~companion.flight.simulate.PointMass`), on a clock the test advances, and an endpoint
-that records what would be sent."""
+:class:`~companion.flight.simulate.PointMass`), on a clock the test advances, an endpoint that records
+what would be sent (and when a ground station was last heard), and a mode switch that records what it
+was asked."""
 
 from __future__ import annotations
 
@@ -102,6 +103,11 @@ class KinematicVehicle:
 
 
 class Recorder:
+    """The MAVLink endpoint stand-in: what would be sent, the status texts, the last GCS heartbeat."""
+
+    #: when a ground station's heartbeat was last heard (vehicle seconds); None: never (the GCS failsafe)
+    last_gcs_heartbeat_s: float | None = None
+
     def __init__(self) -> None:
         self.mav = mavlink.MAVLink(None, 1, 1)
         self.sent: list[Any] = []
@@ -112,6 +118,32 @@ class Recorder:
 
     def statustext(self, severity: int, text: str) -> None:
         self.texts.append(text)
+
+
+class ModeSwitch:
+    """The flight-mode switch stand-in: records each mode asked for (``calls``) with its reason
+    (``reasons``); a mode in ``deny`` is refused (as a mode whose checks fail)."""
+
+    def __init__(self, mode: int = 4) -> None:  # GUIDED
+        self.mode = mode
+        self.calls: list[int] = []
+        self.reasons: list[str] = []
+        self.deny: set[int] = set()
+
+    def set_mode(self, mode: int, reason: str = "") -> tuple[bool, str]:
+        self.calls.append(mode)
+        self.reasons.append(reason)
+        if mode in self.deny:
+            return False, "denied"
+        self.mode = mode
+        return True, ""
+
+
+def fly(v: KinematicVehicle, ned: tuple[float, float, float]) -> None:
+    """The vehicle armed and in the air at ``ned`` (the failsafe and fence tests' starting point)."""
+    v.nav.armed = True
+    v.nav.landed_state = IN_AIR
+    v.state.position_ned = ned
 
 
 def geo(n: float, e: float) -> tuple[int, int]:

@@ -21,10 +21,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from harness import ROOT
-from harness.fleet import ports
 from harness.ground import OBSERVER, OPERATOR, GroundRig, _Api
 from harness.observer import Gcs
-from harness.timing import wait_for
 from taskflight_common.ports import free_base, free_ports
 
 
@@ -178,15 +176,7 @@ class UpRig(GroundRig):
             summary = self.up.wait_ready(180.0)
             assert summary.ground, self.up.output
             self.ground = _UpGround(summary.ground)
-            for i in range(n):
-                g = Gcs(ports(self.base + i)[1], speedup, background=True, target=i + 1)
-                g.request_streams(10)
-                self.gcs.append(g)
-            self.tracks = [[] for _ in range(n)]
-            self._stop = threading.Event()
-            self._sampler = threading.Thread(target=self._sample, daemon=True)
-            self._sampler.start()
-            wait_for(lambda: self.ready(), 120, f"{n} vehicles in the team, companions answering")
+            self._observe()
         except BaseException:
             self.close()
             raise

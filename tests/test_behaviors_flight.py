@@ -11,15 +11,13 @@ the wire, the process trace shows the delayed stop, and the flight log becomes a
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import pytest
 
 from companion.flight import Envelope
-from harness.autopilot import AUTOPILOTS
-from harness.flight_session import FlightSession
+from harness.flight_session import FlightSession, SessionSpec
 from harness.timing import wait_for
 from harness.wire_tap import wire_violations
 
@@ -29,14 +27,7 @@ SPEEDUP = 5.0
 ENVELOPE = Envelope.box(-40, 40, -40, 40, altitude_ceiling=30.0)
 
 
-@pytest.fixture(scope="module", params=AUTOPILOTS)
-def f(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory) -> Iterator[FlightSession]:
-    session = FlightSession(request.param, tmp_path_factory.mktemp(f"behaviors_{request.param}"), SPEEDUP,
-                            behaviors=True, envelope=ENVELOPE)
-    try:
-        yield session
-    finally:
-        session.close()
+FLIGHT_SESSION = SessionSpec("behaviors", SPEEDUP, behaviors=True, envelope=ENVELOPE)
 
 
 def activate(f: FlightSession, text: str, requester: str = "mission") -> dict[str, Any]:
@@ -79,91 +70,96 @@ def near(f: FlightSession, neu: tuple[float, float, float], tol: float, sim_s: f
     f.wait_near(ned, tol, sim_s)
 
 
-def test_flight_by_activation_requests(f: FlightSession, tmp_path: Path) -> None:
-    ensure_flying(f)
-    assert active(f)["KEEP_HOVERING"] == "default"
+def test_flight_by_activation_requests(flight_session: FlightSession, tmp_path: Path) -> None:
+    ensure_flying(flight_session)
+    assert active(flight_session)["KEEP_HOVERING"] == "default"
     # the take-off's goal is its reference's arrival (seed 000 Fig. 8): the vehicle follows it
-    wait_for(lambda: abs(f.alt() - 5.0) < 0.5, f.wall(5), lambda: f"the vehicle at 5 m (at {f.alt():.2f} m)")
-    end = run_behavior(f, "GO_TO_POINT coordinate: (10, 0, 6)", 40)
+    wait_for(lambda: abs(flight_session.alt() - 5.0) < 0.5, flight_session.wall(5),
+             lambda: f"the vehicle at 5 m (at {flight_session.alt():.2f} m)")
+    end = run_behavior(flight_session, "GO_TO_POINT coordinate: (10, 0, 6)", 40)
     assert end["cause"] == "goal_achieved", end
-    near(f, (10, 0, 6), 1.0, 10)
-    end = run_behavior(f, "ROTATE angle: 90", 20)
+    near(flight_session, (10, 0, 6), 1.0, 10)
+    end = run_behavior(flight_session, "ROTATE angle: 90", 20)
     assert end["cause"] == "goal_achieved", end
-    wait_for(lambda: abs(math.remainder(f.node.link.mirror.snapshot().yaw - math.pi / 2, 2 * math.pi)) < 0.1,
-             f.wall(5), "heading east")
-    end = run_behavior(f, "FOLLOW_PATH path: ((10, 10, 6), (0, 10, 7))", 60)
+    wait_for(lambda: abs(math.remainder(flight_session.node.link.mirror.snapshot().yaw - math.pi / 2,
+                                        2 * math.pi)) < 0.1,
+             flight_session.wall(5), "heading east")
+    end = run_behavior(flight_session, "FOLLOW_PATH path: ((10, 10, 6), (0, 10, 7))", 60)
     assert end["cause"] == "goal_achieved", end
-    near(f, (0, 10, 7), 1.0, 10)
-    wait_for(lambda: "KEEP_HOVERING" in active(f), f.wall(3), "KEEP_HOVERING between behaviors")
+    near(flight_session, (0, 10, 7), 1.0, 10)
+    wait_for(lambda: "KEEP_HOVERING" in active(flight_session), flight_session.wall(3),
+             "KEEP_HOVERING between behaviors")
     # delayed stop: the motion controller kept running from the take-off to here; the planner stopped
     # once KEEP_HOVERING took over and started again for FOLLOW_PATH
-    trace = [(e.process, e.event) for e in f.layer.processes.trace]
+    trace = [(e.process, e.event) for e in flight_session.layer.processes.trace]
     assert trace.count(("motion_controller", "start")) == 1 and ("motion_controller", "stop") not in trace
     assert trace.count(("trajectory_planner", "start")) == 2
     assert trace.count(("trajectory_planner", "stop")) == 2
 
 
-def test_emergency_land_preempts_a_mission_go_to_point(f: FlightSession) -> None:
-    ensure_flying(f)
-    go = activate(f, "GO_TO_POINT coordinate: (-20, -20, 8)")
+def test_emergency_land_preempts_a_mission_go_to_point(flight_session: FlightSession) -> None:
+    ensure_flying(flight_session)
+    go = activate(flight_session, "GO_TO_POINT coordinate: (-20, -20, 8)")
     assert go["accepted"], go
-    wait_for(lambda: f.speed() > 1.0, f.wall(10), "on its way")
-    land = activate(f, "LAND", "emergency")
+    wait_for(lambda: flight_session.speed() > 1.0, flight_session.wall(10), "on its way")
+    land = activate(flight_session, "LAND", "emergency")
     assert land["accepted"] and land["stopped"] == ["GO_TO_POINT"], land
-    assert wait_end(f, go["activation_id"], 1)["cause"] == "interrupted"
-    again = activate(f, "GO_TO_POINT coordinate: (0, 0, 5)")
+    assert wait_end(flight_session, go["activation_id"], 1)["cause"] == "interrupted"
+    again = activate(flight_session, "GO_TO_POINT coordinate: (0, 0, 5)")
     assert not again["accepted"] and "LAND" in again["reason"] and "emergency" in again["reason"], again
-    end = wait_end(f, land["activation_id"], 90)
+    end = wait_end(flight_session, land["activation_id"], 90)
     assert end["cause"] == "goal_achieved", end
-    wait_for(lambda: not f.armed(), f.wall(30), "disarmed after landing")
-    assert f.alt() < 0.5
-    wait_for(lambda: set(active(f)) == {"SELF_LOCALIZE", "WATCH_GROUND"}, f.wall(3),
+    wait_for(lambda: not flight_session.armed(), flight_session.wall(30), "disarmed after landing")
+    assert flight_session.alt() < 0.5
+    wait_for(lambda: set(active(flight_session)) == {"SELF_LOCALIZE", "WATCH_GROUND"}, flight_session.wall(3),
              "no flight behavior on the ground")
 
 
-def test_unreachable_point_never_hangs(f: FlightSession) -> None:
-    ensure_flying(f)
-    here = f.pos()
-    end = run_behavior(f, "GO_TO_POINT coordinate: (70, 0, 6)", 10)  # outside the envelope's box
+def test_unreachable_point_never_hangs(flight_session: FlightSession) -> None:
+    ensure_flying(flight_session)
+    here = flight_session.pos()
+    end = run_behavior(flight_session, "GO_TO_POINT coordinate: (70, 0, 6)", 10)  # outside the envelope's box
     assert end["cause"] == "wrong_progress" and "outside" in end["detail"], end
-    wait_for(lambda: "KEEP_HOVERING" in active(f), f.wall(3), "KEEP_HOVERING after the failure")
-    assert math.dist(f.pos(), here) < 1.5  # it did not fly off
+    wait_for(lambda: "KEEP_HOVERING" in active(flight_session), flight_session.wall(3),
+             "KEEP_HOVERING after the failure")
+    assert math.dist(flight_session.pos(), here) < 1.5  # it did not fly off
 
 
-def test_bad_requests_change_nothing(f: FlightSession) -> None:
-    before = active(f)
+def test_bad_requests_change_nothing(flight_session: FlightSession) -> None:
+    before = active(flight_session)
     for body, fragment in (({"text": "GO_TO_POINT coordinate: (1, 2)"}, "expected 3 values"),
                            ({"text": "JUMP"}, "unknown behavior"),
                            ({"behavior": "ROTATE", "params": {"angle": "north"}}, "expected a number"),
                            ({"text": "ROTATE angle: 4", "params": {}}, "'params' goes with 'behavior'"),
                            ({"text": "TAKE_OFF", "requester": "pilot"}, "unknown requester")):
-        r = f.post("/behaviors/activate", body)
+        r = flight_session.post("/behaviors/activate", body)
         assert r.status_code == 400 and fragment in r.json()["error"], (body, r.text)
-    r = f.post("/behaviors/check", {"text": "GO_TO_POINT coordinate: (1, 2, 3)"})
+    r = flight_session.post("/behaviors/check", {"text": "GO_TO_POINT coordinate: (1, 2, 3)"})
     assert r.status_code == 200
     assert r.json()["params"] == {"coordinate": [1.0, 2.0, 3.0], "straight_line": True}  # with the default
-    r = f.http.get("/beliefs", params={"query": "flight_state(self, ?s"})
+    r = flight_session.http.get("/beliefs", params={"query": "flight_state(self, ?s"})
     assert r.status_code == 400 and "expected" in r.json()["error"]
-    r = f.post("/beliefs", {"add": ["object(57, place)", "position(57, (3.0, 4.5, ?z))"]})
+    r = flight_session.post("/beliefs", {"add": ["object(57, place)", "position(57, (3.0, 4.5, ?z))"]})
     assert r.status_code == 400
-    assert f.http.get("/beliefs", params={"query": "object(57, ?c)"}).json()["bindings"] == []
-    r = f.post("/beliefs", {"add": ["object(57, place)", "name(57, point_A)"]})
+    assert flight_session.http.get("/beliefs", params={"query": "object(57, ?c)"}).json()["bindings"] == []
+    r = flight_session.post("/beliefs", {"add": ["object(57, place)", "name(57, point_A)"]})
     assert r.status_code == 200
-    got = f.http.get("/beliefs", params={"query": "object(?x, place), name(?x, ?n)"}).json()["bindings"]
+    got = flight_session.http.get("/beliefs",
+                                  params={"query": "object(?x, place), name(?x, ?n)"}).json()["bindings"]
     assert got == [{"x": 57, "n": "point_A"}]
-    assert f.post("/behaviors/joystick", {"values": [1, 0, 0, 0]}).status_code == 409
-    assert active(f) == before
+    assert flight_session.post("/behaviors/joystick", {"values": [1, 0, 0, 0]}).status_code == 409
+    assert active(flight_session) == before
 
 
-def test_flight_continuous_on_the_wire_and_timeline(f: FlightSession, tmp_path: Path) -> None:
-    msgs = f.tap.kept()
+def test_flight_continuous_on_the_wire_and_timeline(flight_session: FlightSession, tmp_path: Path) -> None:
+    msgs = flight_session.tap.kept()
     if len(msgs) < 200:
         pytest.skip("run with the flight tests before it: too few setpoints on the wire")
-    violations = wire_violations(msgs, f.node.queue.limits)
+    violations = wire_violations(msgs, flight_session.node.queue.limits)
     assert violations == [], violations[:5]
     from taskflight.cli import main
 
-    log = f.layer.log.path
+    log = flight_session.layer.log.path
     out = tmp_path / "timeline.png"
     assert main(["behaviors", "timeline", str(log), "--out", str(out)]) == 0
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and out.stat().st_size > 5000

@@ -16,26 +16,13 @@ from typing import Any
 
 import pytest
 
-from harness.autopilot import AUTOPILOTS, start_autopilot
 from harness.differential.basics import OLD_PARAMS, observe
 from harness.observer import GUIDED, LAND, STABILIZE, M
 
 pytestmark = pytest.mark.integration
 
 SPEEDUP = 5.0
-_cache: dict[str, dict[str, Any]] = {}
-
-
-@pytest.fixture(scope="module", params=AUTOPILOTS)
-def seen(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
-    kind = request.param
-    if kind not in _cache:
-        ap = start_autopilot(kind, tmp_path_factory.mktemp(f"differential_{kind}"), SPEEDUP)
-        try:
-            _cache[kind] = observe(ap)
-        finally:
-            ap.close()
-    return _cache[kind]
+OBSERVE = observe  # the seen fixture: the scenario flown on each autopilot
 
 
 ACCEPTED, FAILED, UNSUPPORTED = M.MAV_RESULT_ACCEPTED, M.MAV_RESULT_FAILED, M.MAV_RESULT_UNSUPPORTED

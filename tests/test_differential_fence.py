@@ -16,26 +16,13 @@ from typing import Any
 
 import pytest
 
-from harness.autopilot import AUTOPILOTS, start_autopilot
 from harness.differential.fence import QGC_PARAMS, RATE_HZ, SYSTEM_TIME_HZ, observe_fence
 from harness.observer import GUIDED, RTL, STABILIZE, M
 
 pytestmark = pytest.mark.integration
 
 SPEEDUP = 5.0
-_cache: dict[str, dict[str, Any]] = {}
-
-
-@pytest.fixture(scope="module", params=AUTOPILOTS)
-def seen(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
-    kind = request.param
-    if kind not in _cache:
-        ap = start_autopilot(kind, tmp_path_factory.mktemp(f"fence_{kind}"), SPEEDUP)
-        try:
-            _cache[kind] = observe_fence(ap)
-        finally:
-            ap.close()
-    return _cache[kind]
+OBSERVE = observe_fence  # the seen fixture: the scenario flown on each autopilot
 
 
 ACCEPTED, FAILED = M.MAV_RESULT_ACCEPTED, M.MAV_RESULT_FAILED

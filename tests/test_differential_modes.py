@@ -18,7 +18,8 @@ from typing import Any
 import pytest
 
 from autopilot_model.modules.flight_modes import GUIDED
-from harness.autopilot import AUTOPILOTS, start_autopilot
+from harness.autopilot import AUTOPILOTS
+from harness.differential import Observation, observed
 from harness.differential.modes import (
     AUTO,
     CIRCLE,
@@ -33,31 +34,19 @@ from harness.observer import M
 pytestmark = pytest.mark.integration
 
 SPEEDUP = 8.0
-_cache: dict[tuple[str, str], dict[str, Any]] = {}
 ACCEPTED, DENIED, FAILED, UNSUPPORTED = (M.MAV_RESULT_ACCEPTED, M.MAV_RESULT_DENIED, M.MAV_RESULT_FAILED,
                                          M.MAV_RESULT_UNSUPPORTED)
 ON_GROUND, IN_AIR, LANDING = 1, 2, 4
 
 
-def _seen(kind: str, scenario: str, tmp: pytest.TempPathFactory) -> dict[str, Any]:
-    if (kind, scenario) not in _cache:
-        ap = start_autopilot(kind, tmp.mktemp(f"{scenario}_{kind}"), SPEEDUP)
-        try:
-            run = observe_commands if scenario == "commands" else observe_mission
-            _cache[(kind, scenario)] = run(ap)
-        finally:
-            ap.close()
-    return _cache[(kind, scenario)]
+@pytest.fixture(scope="module", params=AUTOPILOTS)
+def commands(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory) -> Observation:
+    return observed(request.param, observe_commands, tmp_path_factory.mktemp, SPEEDUP)
 
 
 @pytest.fixture(scope="module", params=AUTOPILOTS)
-def commands(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
-    return _seen(request.param, "commands", tmp_path_factory)
-
-
-@pytest.fixture(scope="module", params=AUTOPILOTS)
-def mission(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
-    return _seen(request.param, "mission", tmp_path_factory)
+def mission(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory) -> Observation:
+    return observed(request.param, observe_mission, tmp_path_factory.mktemp, SPEEDUP)
 
 
 def _angle(a: float | None, b: float, tol: float) -> bool:

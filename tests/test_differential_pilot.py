@@ -14,26 +14,13 @@ from typing import Any
 
 import pytest
 
-from harness.autopilot import AUTOPILOTS, start_autopilot
 from harness.differential.pilot import ALT_HOLD, LOITER, POSHOLD, RTL, STABILIZE, observe_pilot
 from harness.observer import M
 
 pytestmark = pytest.mark.integration
 
 SPEEDUP = 2.0
-_cache: dict[str, dict[str, Any]] = {}
-
-
-@pytest.fixture(scope="module", params=AUTOPILOTS)
-def seen(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
-    kind = request.param
-    if kind not in _cache:
-        ap = start_autopilot(kind, tmp_path_factory.mktemp(f"pilot_{kind}"), SPEEDUP)
-        try:
-            _cache[kind] = observe_pilot(ap)
-        finally:
-            ap.close()
-    return _cache[kind]
+OBSERVE = observe_pilot  # the seen fixture: the scenario flown on each autopilot
 
 
 ACCEPTED, FAILED = M.MAV_RESULT_ACCEPTED, M.MAV_RESULT_FAILED

@@ -9,9 +9,7 @@ or telemetry. The vehicle runs in-process on its Python API (same seed: determin
 from __future__ import annotations
 
 import math
-import socket
-from collections.abc import Callable, Iterator
-from pathlib import Path
+from collections.abc import Callable
 
 import pytest
 from pymavlink.dialects.v20 import common as mavlink
@@ -19,24 +17,13 @@ from pymavlink.dialects.v20 import common as mavlink
 from autopilot_model.modules.flight_modes import GUIDED, LAND
 from autopilot_model.modules.navigation import LANDED_ON_GROUND
 from autopilot_model.sitl import Sitl
-from taskflight_common.ports import free_ports
 
 pytestmark = pytest.mark.integration
 
 NAN = math.nan
 
 
-@pytest.fixture
-def sitl(tmp_path: Path) -> Iterator[Sitl]:
-    s = Sitl(urls=[f"udpin:127.0.0.1:{free_ports(1, socket.SOCK_DGRAM)[0]}"], state_dir=tmp_path)
-    v = s.vehicle
-    assert v.wait_estimator(10.0)
-    assert s.modes.set_mode(GUIDED)[0]
-    assert v.nav.arm()[0] and v.nav.takeoff(10.0)[0]
-    assert v.run_until(lambda: v.world.x[2] < -9.8, 30.0)
-    v.run_for(2.0)
-    yield s
-    s.close()
+SITL_TAKEOFF_M = 10.0  # the sitl fixture: each test starts hovering in GUIDED at 10 m
 
 
 def _published_finite(s: Sitl) -> bool:

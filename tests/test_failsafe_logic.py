@@ -4,45 +4,13 @@ from __future__ import annotations
 
 import pytest
 
-from autopilot_model.modules.mission import FENCE, MissionItem, MissionStore
-from autopilot_model.modules.safety import BRAKE, LAND, RTL, Safety
-from harness.kinematic import IN_AIR, ON_GROUND, KinematicVehicle, Recorder, geo
+from autopilot_model.modules.mission import FENCE, MissionItem
+from autopilot_model.modules.safety import BRAKE, LAND, RTL
+from harness.kinematic import ON_GROUND, fly, geo
 
 
-class Modes:
-    def __init__(self) -> None:
-        self.mode = 4  # GUIDED
-        self.calls: list[tuple[int, str]] = []
-        self.deny: set[int] = set()
-
-    def set_mode(self, mode: int, reason: str = "") -> tuple[bool, str]:
-        self.calls.append((mode, reason))
-        if mode in self.deny:
-            return False, "denied"
-        self.mode = mode
-        return True, ""
-
-
-class Ep(Recorder):
-    last_gcs_heartbeat_s: float | None = None
-
-
-@pytest.fixture
-def rig():
-    v = KinematicVehicle()
-    ep, modes, store = Ep(), Modes(), MissionStore()
-    safety = Safety(v, ep, modes, store)
-    return v, ep, modes, store, safety
-
-
-def fly(v: KinematicVehicle, ned: tuple[float, float, float]) -> None:
-    v.nav.armed = True
-    v.nav.landed_state = IN_AIR
-    v.state.position_ned = ned
-
-
-def test_gcs_loss_only_after_a_heartbeat_and_when_armed(rig):
-    v, ep, modes, _, safety = rig
+def test_gcs_loss_only_after_a_heartbeat_and_when_armed(safety_rig):
+    v, ep, modes, _, safety = safety_rig
     v.params.set("FS_GCS_ENABLE", 1)
     fly(v, (0, 0, -10))
     v.run(10, safety.periodic)
@@ -60,8 +28,8 @@ def test_gcs_loss_only_after_a_heartbeat_and_when_armed(rig):
     assert not safety.gcs_failsafe and "GCS Failsafe Cleared" in ep.texts
 
 
-def test_gcs_loss_disabled_or_disarmed_or_land_option(rig):
-    v, ep, modes, _, safety = rig
+def test_gcs_loss_disabled_or_disarmed_or_land_option(safety_rig):
+    v, ep, modes, _, safety = safety_rig
     fly(v, (0, 0, -10))
     ep.last_gcs_heartbeat_s = 0.0
     v.run(8, safety.periodic)  # FS_GCS_ENABLE = 0 by default
@@ -75,8 +43,8 @@ def test_gcs_loss_disabled_or_disarmed_or_land_option(rig):
     assert modes.mode == LAND
 
 
-def test_battery_low_rtl_then_critical_land(rig):
-    v, ep, modes, _, safety = rig
+def test_battery_low_rtl_then_critical_land(safety_rig):
+    v, ep, modes, _, safety = safety_rig
     v.params.set("BATT_LOW_TIMER", 1)
     fly(v, (0, 0, -10))
     v.battery_voltage = 14.2
@@ -96,18 +64,18 @@ def test_battery_low_rtl_then_critical_land(rig):
     assert len(modes.calls) == 2  # latched
 
 
-def test_battery_mah_threshold_and_rtl_fallback_to_land(rig):
-    v, _, modes, _, safety = rig
+def test_battery_mah_threshold_and_rtl_fallback_to_land(safety_rig):
+    v, _, modes, _, safety = safety_rig
     v.params.set("BATT_LOW_MAH", 1000)
     modes.deny = {RTL}
     fly(v, (0, 0, -10))
     v.battery.consumed_mah = v.params.get("BATT_CAPACITY") - 900
     v.run(0.2, safety.periodic)
-    assert [m for m, _ in modes.calls] == [RTL, LAND] and modes.mode == LAND
+    assert modes.calls == [RTL, LAND] and modes.mode == LAND
 
 
-def test_failsafe_on_ground_disarms(rig):
-    v, _, modes, _, safety = rig
+def test_failsafe_on_ground_disarms(safety_rig):
+    v, _, modes, _, safety = safety_rig
     v.params.set("BATT_LOW_TIMER", 0)
     v.nav.armed, v.nav.landed_state = True, ON_GROUND
     v.battery_voltage = 13.0
@@ -115,8 +83,8 @@ def test_failsafe_on_ground_disarms(rig):
     assert not v.nav.armed and modes.calls == []
 
 
-def test_fence_altitude_and_radius(rig):
-    v, ep, modes, _, safety = rig
+def test_fence_altitude_and_radius(safety_rig):
+    v, ep, modes, _, safety = safety_rig
     v.params.set("FENCE_ENABLE", 1)
     v.params.set("FENCE_ALT_MAX", 30)
     v.params.set("FENCE_RADIUS", 50)
@@ -142,8 +110,8 @@ def test_fence_altitude_and_radius(rig):
     assert len(modes.calls) == 3
 
 
-def test_fence_polygon_from_fence_plan(rig):
-    v, ep, modes, store, safety = rig
+def test_fence_polygon_from_fence_plan(safety_rig):
+    v, ep, modes, store, safety = safety_rig
     v.params.set("FENCE_ENABLE", 1)
     corners = [(-20, -20), (20, -20), (20, 20), (-20, 20)]
     store.replace(FENCE, [MissionItem(seq=i, frame=5, command=5001, param1=4, x=geo(n, e)[0], y=geo(n, e)[1],
@@ -157,8 +125,8 @@ def test_fence_polygon_from_fence_plan(rig):
     assert safety.fence_excess()[1] == pytest.approx(5.0, abs=0.05)
 
 
-def test_fence_off_when_disabled_or_disarmed(rig):
-    v, _, modes, _, safety = rig
+def test_fence_off_when_disabled_or_disarmed(safety_rig):
+    v, _, modes, _, safety = safety_rig
     fly(v, (0, 0, -200))
     v.run(0.3, safety.periodic)
     v.params.set("FENCE_ENABLE", 1)
@@ -167,8 +135,8 @@ def test_fence_off_when_disabled_or_disarmed(rig):
     assert modes.calls == []
 
 
-def test_no_rtl_while_landing(rig):
-    v, ep, modes, _, safety = rig
+def test_no_rtl_while_landing(safety_rig):
+    v, ep, modes, _, safety = safety_rig
     v.params.set("FS_GCS_ENABLE", 1)
     modes.mode = LAND
     fly(v, (0, 0, -10))
@@ -177,8 +145,8 @@ def test_no_rtl_while_landing(rig):
     assert modes.calls == [] and any("continuing LAND" in t for t in ep.texts)
 
 
-def test_sim_battery_capacity_param(rig):
-    v, *_ = rig
+def test_sim_battery_capacity_param(safety_rig):
+    v, *_ = safety_rig
     v.params.set("SIM_BATT_CAP_AH", 0.5)
     assert v.battery.capacity_mah == pytest.approx(500.0)
 

@@ -8,22 +8,18 @@ mode in the HEARTBEAT, and leaves the vehicle landed and disarmed with the fails
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
 
 import pytest
 
-from harness.model import sitl_and_gcs
 from harness.observer import BRAKE, GUIDED, LAND, POS_ONLY, RTL, Gcs, M
 from harness.timing import wall
 
 pytestmark = pytest.mark.integration
 
 
-@pytest.fixture(scope="module")
-def gcs(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Gcs]:
-    # heartbeats at 2 Hz of simulated time: margin for the GCS failsafe (FS_GCS_ENABLE) when a wait lags
-    with sitl_and_gcs(tmp_path_factory.mktemp("sitl_failsafe"), heartbeat_hz=2.0) as g:
-        yield g
+# the gcs fixture's ground station: heartbeats at 2 Hz of simulated time, a margin for the GCS failsafe
+# (FS_GCS_ENABLE) when a wait lags
+GCS_OPTIONS = {"heartbeat_hz": 2.0}
 
 
 def text_seen(gcs: Gcs, fragment: str) -> bool:

@@ -8,45 +8,13 @@ both autopilots, is in ``tests/test_differential_fence.py``.
 
 from __future__ import annotations
 
-import pytest
-
 from autopilot_model.modules import fence as fm
-from autopilot_model.modules.mission import MissionStore
-from autopilot_model.modules.safety import LAND, RTL, Safety
-from harness.kinematic import IN_AIR, ON_GROUND, KinematicVehicle, Recorder
+from autopilot_model.modules.safety import LAND, RTL
+from harness.kinematic import ON_GROUND, fly
 
 
-class Modes:
-    def __init__(self) -> None:
-        self.mode = 4  # GUIDED
-        self.calls: list[int] = []
-
-    def set_mode(self, mode: int, reason: str = "") -> tuple[bool, str]:
-        self.calls.append(mode)
-        self.mode = mode
-        return True, ""
-
-
-class Ep(Recorder):
-    last_gcs_heartbeat_s: float | None = None
-
-
-@pytest.fixture
-def rig():
-    v = KinematicVehicle()
-    ep, modes = Ep(), Modes()
-    safety = Safety(v, ep, modes, MissionStore())
-    return v, ep, modes, safety, safety.fence
-
-
-def fly(v: KinematicVehicle, ned: tuple[float, float, float]) -> None:
-    v.nav.armed = True
-    v.nav.landed_state = IN_AIR
-    v.state.position_ned = ned
-
-
-def test_enable_param_enables_all_but_the_floor_and_do_fence_enable_is_not_persisted(rig):
-    v, _, _, _, fence = rig
+def test_enable_param_enables_all_but_the_floor_and_do_fence_enable_is_not_persisted(fence_rig):
+    v, _, _, _, fence = fence_rig
     v.params.set("FENCE_TYPE", 15)
     assert not fence.enabled
     v.params.set("FENCE_ENABLE", 1)
@@ -57,8 +25,8 @@ def test_enable_param_enables_all_but_the_floor_and_do_fence_enable_is_not_persi
     assert fence.enable(True, fm.ALT_MIN) == 0  # not configured: nothing changes (the command is FAILED)
 
 
-def test_floor_enables_itself_above_min_alt_plus_margin_and_breaches_below(rig):
-    v, ep, modes, safety, fence = rig
+def test_floor_enables_itself_above_min_alt_plus_margin_and_breaches_below(fence_rig):
+    v, ep, modes, safety, fence = fence_rig
     v.params.set("FENCE_TYPE", 15)
     v.params.set("FENCE_ALT_MIN", 5)
     v.params.set("FENCE_MARGIN", 3)
@@ -75,8 +43,8 @@ def test_floor_enables_itself_above_min_alt_plus_margin_and_breaches_below(rig):
     assert fence.breach_count == 1 and fence.breached == fm.ALT_MIN
 
 
-def test_floor_is_dropped_while_landing_so_landing_is_no_breach(rig):
-    v, _ep, modes, safety, fence = rig
+def test_floor_is_dropped_while_landing_so_landing_is_no_breach(fence_rig):
+    v, _ep, modes, safety, fence = fence_rig
     v.params.set("FENCE_TYPE", 15)
     v.params.set("FENCE_ALT_MIN", 5)
     v.params.set("FENCE_ENABLE", 1)
@@ -89,8 +57,8 @@ def test_floor_is_dropped_while_landing_so_landing_is_no_breach(rig):
     assert not fence.breached and modes.calls == [] and not fence.enabled_fences & fm.ALT_MIN
 
 
-def test_prearm_texts(rig):
-    v, _, _, _safety, fence = rig
+def test_prearm_texts(fence_rig):
+    v, _, _, _safety, fence = fence_rig
     assert fence.prearm_failure() is None  # not enabled: no checks
     fence.enable(True)
     v.params.set("FENCE_ALT_MAX", 20)
@@ -106,16 +74,16 @@ def test_prearm_texts(rig):
     assert fence.prearm_failure() == "Fences enabled, but none selected"
 
 
-def test_breach_while_disarmed_fails_the_prearm_check(rig):
-    v, _, modes, safety, fence = rig
+def test_breach_while_disarmed_fails_the_prearm_check(fence_rig):
+    v, _, modes, safety, fence = fence_rig
     fence.enable(True)
     v.state.position_ned = (400, 0, 0)  # beyond FENCE_RADIUS 300, on the ground, disarmed
     v.run(0.2, safety.periodic)
     assert fence.prearm_failure() == "Vehicle breaching Circle fence" and modes.calls == []
 
 
-def test_destination_check(rig):
-    v, _, _, _, fence = rig
+def test_destination_check(fence_rig):
+    v, _, _, _, fence = fence_rig
     assert fence.destination_ok((1000, 0, -500))  # no fence enabled
     v.params.set("FENCE_TYPE", 15)
     v.params.set("FENCE_ALT_MIN", 3)
@@ -126,8 +94,8 @@ def test_destination_check(rig):
     assert not fence.destination_ok((0, 0, -2))  # below the floor, enabled by hand
 
 
-def test_backup_fence_and_give_up_distance(rig):
-    v, ep, modes, safety, fence = rig
+def test_backup_fence_and_give_up_distance(fence_rig):
+    v, ep, modes, safety, fence = fence_rig
     v.params.set("FENCE_RADIUS", 50)
     v.params.set("FENCE_ENABLE", 1)
     fly(v, (55, 0, -10))
@@ -144,8 +112,8 @@ def test_backup_fence_and_give_up_distance(rig):
     assert modes.calls[-1] == LAND
 
 
-def test_breach_on_the_ground_disarms(rig):
-    v, _, modes, safety, _fence = rig
+def test_breach_on_the_ground_disarms(fence_rig):
+    v, _, modes, safety, _fence = fence_rig
     v.params.set("FENCE_ENABLE", 1)
     v.nav.armed, v.nav.landed_state = True, ON_GROUND
     v.state.position_ned = (400, 0, 0)
@@ -153,8 +121,8 @@ def test_breach_on_the_ground_disarms(rig):
     assert not v.nav.armed and modes.calls == []
 
 
-def test_report_only_changes_no_mode(rig):
-    v, ep, modes, safety, _ = rig
+def test_report_only_changes_no_mode(fence_rig):
+    v, ep, modes, safety, _ = fence_rig
     v.params.set("FENCE_ACTION", 0)
     v.params.set("FENCE_ENABLE", 1)
     fly(v, (0, 0, -120))

@@ -15,7 +15,7 @@ import json
 import math
 import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from typing import Any
 
 import pytest
@@ -26,10 +26,11 @@ from harness import ROOT
 from harness.ground import GroundRig
 from harness.team import HOME, geo
 from harness.timing import wait_for
-from harness.up import UpRig
 
 pytestmark = pytest.mark.integration
 
+# the up_rig fixture's camera scenario: every vehicle's camera sees a person 1 m north of where it takes off
+UP_SCENARIO = "objects:\n  - {id: 7, class: person, position: [1.0, 0.0]}\n"
 SCAN_AND_SEARCH = yaml.safe_load((ROOT / "mission_specs" / "scan_and_search.yaml").read_text())
 # the outdoor platform's floor is 3 m: the final fly-to at 5 m
 SCAN_AND_SEARCH["tree"]["children"][2]["params"]["position"][2] = 5.0
@@ -44,17 +45,6 @@ def visited(rig: GroundRig, shape: Any, tol: float, since: float = 0.0) -> list[
     """The vehicles whose MAVLink track came within ``tol`` m of ``shape`` after ``since``."""
     return [i for i in range(rig.n)
             if any(shape.distance(Point(local(s[1:]))) <= tol for s in list(rig.tracks[i]) if s[0] >= since)]
-
-
-@pytest.fixture(scope="module")
-def rig(tmp_path_factory: pytest.TempPathFactory) -> Iterator[GroundRig]:
-    tmp = tmp_path_factory.mktemp("ground_flight")
-    # every vehicle's camera sees a person 1 m north of where it takes off
-    scenario = tmp / "scenario.yaml"
-    scenario.write_text("objects:\n  - {id: 7, class: person, position: [1.0, 0.0]}\n")
-    r = UpRig(tmp, n=3, speedup=3.0, scenario=scenario)
-    yield r
-    r.close()
 
 
 def post(rig: GroundRig, path: str, body: Any = None) -> Any:
@@ -76,43 +66,47 @@ def state(rig: GroundRig, tid: int) -> str:
     return rig.tasks()[tid]["state"]
 
 
-def test_team_tasks_of_every_type_added_flown_and_cancelled(rig: GroundRig) -> None:
+def test_team_tasks_of_every_type_added_flown_and_cancelled(up_rig: GroundRig) -> None:
     t0 = time.monotonic()
-    visit = add(rig, {"type": "visit", "point": list(geo(20, -10, 6)), "name": "visit"})["ids"][0]
+    visit = add(up_rig, {"type": "visit", "point": list(geo(20, -10, 6)), "name": "visit"})["ids"][0]
     area_pts = [geo(15, 20), geo(15, 35), geo(30, 35), geo(30, 20)]
-    area = add(rig, {"type": "area_scan", "area": [list(p) for p in area_pts], "vehicles": 2, "altitude": 6})
+    area = add(up_rig, {"type": "area_scan", "area": [list(p) for p in area_pts], "vehicles": 2,
+                        "altitude": 6})
     ids = [visit, *area["ids"]]
-    wait_for(lambda: all(rig.tasks()[t]["holder"] is not None or state(rig, t) == "done" for t in ids),
-             rig.wall(60), "the visit and the area parts allocated")
-    wait_for(lambda: all(state(rig, t) == "done" for t in ids), rig.wall(300),
-             lambda: f"flown: {rig.report()}")
-    assert visited(rig, Point(local(geo(20, -10))), 2.5, t0), "nobody flew to the visit point (MAVLink)"
-    assert visited(rig, Polygon([local(p) for p in area_pts]), 0.5, t0), "nobody scanned the area"
+    wait_for(lambda: all(up_rig.tasks()[t]["holder"] is not None or state(up_rig, t) == "done" for t in ids),
+             up_rig.wall(60), "the visit and the area parts allocated")
+    wait_for(lambda: all(state(up_rig, t) == "done" for t in ids), up_rig.wall(300),
+             lambda: f"flown: {up_rig.report()}")
+    assert visited(up_rig, Point(local(geo(20, -10))), 2.5, t0), "nobody flew to the visit point (MAVLink)"
+    assert visited(up_rig, Polygon([local(p) for p in area_pts]), 0.5, t0), "nobody scanned the area"
     t1 = time.monotonic()
     line = [geo(-15, -10, 6), geo(-15, 10, 6)]
-    patrol = add(rig, {"type": "patrol_line", "points": [list(p) for p in line], "name": "patrol"})["ids"][0]
+    patrol = add(up_rig, {"type": "patrol_line", "points": [list(p) for p in line],
+                          "name": "patrol"})["ids"][0]
     border_pts = [geo(40, -20, 6), geo(40, 0, 6), geo(40, 20, 6)]
-    border = add(rig, {"type": "border_patrol", "points": [list(p) for p in border_pts], "vehicles": 2})
+    border = add(up_rig, {"type": "border_patrol", "points": [list(p) for p in border_pts], "vehicles": 2})
     live = [patrol, *border["ids"]]
-    wait_for(lambda: all(state(rig, t) == "active" for t in live), rig.wall(120),
-             lambda: f"patrols: {rig.report()}")
-    holder = rig.tasks()[patrol]["holder"]
-    wait_for(lambda: holder - 1 in visited(rig, LineString([local(p) for p in line]), 1.5, t1), rig.wall(60),
+    wait_for(lambda: all(state(up_rig, t) == "active" for t in live), up_rig.wall(120),
+             lambda: f"patrols: {up_rig.report()}")
+    holder = up_rig.tasks()[patrol]["holder"]
+    wait_for(lambda: holder - 1 in visited(up_rig, LineString([local(p) for p in line]), 1.5, t1),
+             up_rig.wall(60),
              "the patrol's holder on its line (MAVLink)")
-    _break_in_on_a_team_task(rig, holder, patrol)
-    with rig.ground.http() as c:
+    _break_in_on_a_team_task(up_rig, holder, patrol)
+    with up_rig.ground.http() as c:
         assert c.delete(f"/api/tasks/{patrol}").json() == {"cancelled": [patrol]}
         assert sorted(c.delete(f"/api/tasks/{border['group']}").json()["cancelled"]) == sorted(border["ids"])
-    wait_for(lambda: all(state(rig, t) == "cancelled" for t in live), 10, "cancelled")
+    wait_for(lambda: all(state(up_rig, t) == "cancelled" for t in live), 10, "cancelled")
     wait_for(lambda: all(not v["claims"] or all(c["state"] == "done" for c in v["claims"])
-                         for v in rig.vehicles().values()), rig.wall(60), "every vehicle idle again")
+                         for v in up_rig.vehicles().values()), up_rig.wall(60), "every vehicle idle again")
     # idle, they hover by default (KEEP_HOVERING ends on E_User): nobody is asked to confirm anything
-    wait_for(lambda: not any(v["confirmation_required"] for v in rig.vehicles().values()), 10,
-             f"no confirmation asked of idle vehicles: {rig.vehicles()}")
+    wait_for(lambda: not any(v["confirmation_required"] for v in up_rig.vehicles().values()), 10,
+             f"no confirmation asked of idle vehicles: {up_rig.vehicles()}")
     # and no cancelled task's tree flies on (seed 003: a vehicle with nothing to do loiters where it is)
-    wait_for(lambda: all(v["mission"]["state"] != "executing" for v in rig.vehicles().values()), rig.wall(5),
-             f"no tree executing on idle vehicles: {rig.vehicles()}")
-    with rig.ground.http() as c:
+    wait_for(lambda: all(v["mission"]["state"] != "executing" for v in up_rig.vehicles().values()),
+             up_rig.wall(5),
+             f"no tree executing on idle vehicles: {up_rig.vehicles()}")
+    with up_rig.ground.http() as c:
         kinds = {e["kind"] for e in c.get("/api/events").json()["events"]}
         history = c.get("/api/assignments", params={"task": visit}).json()["assignments"]
     assert {"task_added", "task_state", "task_cancelled"} <= kinds
@@ -141,10 +135,11 @@ def _break_in_on_a_team_task(rig: GroundRig, vid: int, task: int) -> None:
     assert rig.tasks()[task]["holder"] == vid
 
 
-def test_gain_changed_in_flight_is_read_back_from_the_autopilot(rig: GroundRig) -> None:
-    g = rig.gcs[0]
-    wait_for(lambda: g.armed() and (rig.position(0) or (0, 0, 0))[2] > 1.0, rig.wall(60), "vehicle 1 flying")
-    with rig.ground.http() as c:
+def test_gain_changed_in_flight_is_read_back_from_the_autopilot(up_rig: GroundRig) -> None:
+    g = up_rig.gcs[0]
+    wait_for(lambda: g.armed() and (up_rig.position(0) or (0, 0, 0))[2] > 1.0, up_rig.wall(60),
+             "vehicle 1 flying")
+    with up_rig.ground.http() as c:
         r = c.put("/api/vehicles/1/params/ATC_RAT_RLL_P", json={"value": 0.162})
         assert r.status_code == 200, r.text
         assert r.json()["name"] == "ATC_RAT_RLL_P" and r.json()["value"] == pytest.approx(0.162, abs=1e-5)
@@ -190,52 +185,54 @@ def _stick(rig: GroundRig, vid: int, values: list[float], seconds: float,
     return errors
 
 
-def test_break_in_with_the_joystick_then_resume_and_enough(rig: GroundRig) -> None:
+def test_break_in_with_the_joystick_then_resume_and_enough(up_rig: GroundRig) -> None:
     i, vid = 2, 3
-    if rig.gcs[i].armed():  # flying after the team's tasks: the mission starts with a take-off
-        r = post(rig, f"/api/vehicles/{vid}/land")
+    if up_rig.gcs[i].armed():  # flying after the team's tasks: the mission starts with a take-off
+        r = post(up_rig, f"/api/vehicles/{vid}/land")
         assert r.status_code == 200, r.text
-        wait_for(lambda: not rig.gcs[i].armed(), rig.wall(90), "vehicle 3 landed and disarmed (MAVLink)")
-    r = post(rig, f"/api/vehicles/{vid}/mission", {**SCAN_AND_SEARCH, "start": True})
+        wait_for(lambda: not up_rig.gcs[i].armed(), up_rig.wall(90),
+                 "vehicle 3 landed and disarmed (MAVLink)")
+    r = post(up_rig, f"/api/vehicles/{vid}/mission", {**SCAN_AND_SEARCH, "start": True})
     assert r.status_code == 200, r.text
 
     def mission() -> dict[str, Any]:
-        return rig.vehicles()[vid]["mission"]
+        return up_rig.vehicles()[vid]["mission"]
 
     wait_for(lambda: mission()["node"] == "scan" and (mission()["progress"] or "").startswith("waypoint"),
-             rig.wall(120), f"the scan under way: {mission()}")
-    r = post(rig, f"/api/vehicles/{vid}/pause")
+             up_rig.wall(120), f"the scan under way: {mission()}")
+    r = post(up_rig, f"/api/vehicles/{vid}/pause")
     assert r.status_code == 200, r.text
-    start = rig.position(i)
+    start = up_rig.position(i)
     def moved() -> float:
-        return local(rig.position(i))[1] - local(start)[1]
+        return local(up_rig.position(i))[1] - local(start)[1]
 
     # north at 1.5 m/s: 8 m take ~6 s of autopilot time (2 s of wall time at 3x); up to 24 s of autopilot time
-    errors = _stick(rig, vid, [1.5, 0.0, 0.0, 0.0], rig.wall(24.0), until=lambda: moved() > 8.0)
+    errors = _stick(up_rig, vid, [1.5, 0.0, 0.0, 0.0], up_rig.wall(24.0), until=lambda: moved() > 8.0)
     assert len(errors) < 5, errors[:3]  # a loaded machine may miss a sample's deadline now and then
     north = moved()
     assert north > 5.0, f"moved {north:.1f} m north under the stick"
     # the samples stopped: the vehicle stops within the validity (0.5 s) plus its braking
-    wait_for(lambda: math.hypot(*rig.velocity(i)[:2]) < 0.3, rig.wall(3.0), "stopped after the last sample")
-    held = rig.position(i)
+    wait_for(lambda: math.hypot(*up_rig.velocity(i)[:2]) < 0.3, up_rig.wall(3.0),
+             "stopped after the last sample")
+    held = up_rig.position(i)
     time.sleep(1.5)
-    assert math.dist(local(held), local(rig.position(i))) < 0.5, "drifting without samples"
-    assert post(rig, f"/api/vehicles/{vid}/resume").status_code == 200
+    assert math.dist(local(held), local(up_rig.position(i))) < 0.5, "drifting without samples"
+    assert post(up_rig, f"/api/vehicles/{vid}/resume").status_code == 200
     wait_for(lambda: mission()["state"] == "executing", 10, "resumed")
-    r = post(rig, f"/api/vehicles/{vid}/enough")
+    r = post(up_rig, f"/api/vehicles/{vid}/enough")
     assert r.status_code == 200, r.text
     wait_for(lambda: mission()["node"] in ("fly-to", "land") or mission()["state"] == "succeeded",
-             rig.wall(60), lambda: f"the mission goes on after enough: {mission()}")
-    wait_for(lambda: mission()["state"] == "succeeded", rig.wall(120),
+             up_rig.wall(60), lambda: f"the mission goes on after enough: {mission()}")
+    wait_for(lambda: mission()["state"] == "succeeded", up_rig.wall(120),
              lambda: f"the mission's end: {mission()}")
-    with rig.ground.http() as c:
+    with up_rig.ground.http() as c:
         actions = [e["action"] for e in c.get("/api/audit").json()["entries"]]
         assert c.get("/api/missions", params={"vehicle": vid}).json()["missions"][-1]["status"] == 200
     assert {"mission", "pause", "joystick", "resume", "enough"} <= set(actions)
     # the camera saw the person during the scan: a detection event with where it is
-    with rig.ground.http() as c:
+    with up_rig.ground.http() as c:
         seen = [e for e in c.get("/api/events", params={"kind": "detection"}).json()["events"]
                 if e["vehicle"] == vid]
     assert seen and seen[0]["data"]["kind"] == "person", seen
     assert math.dist(local((seen[0]["data"]["lat"], seen[0]["data"]["lon"])), (10.0, 1.0)) < 1.0
-    assert post(rig, f"/api/vehicles/{vid}/release").status_code == 200  # back into the team
+    assert post(up_rig, f"/api/vehicles/{vid}/release").status_code == 200  # back into the team

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Iterator
 
 import pytest
 from test_ground_flight import add, local, state
@@ -22,41 +21,36 @@ from harness.timing import wait_for
 pytestmark = pytest.mark.integration
 
 
-@pytest.fixture(scope="module")
-def rig(tmp_path_factory: pytest.TempPathFactory) -> Iterator[GroundRig]:
-    r = GroundRig(tmp_path_factory.mktemp("ground_restart"), n=3, speedup=3.0)
-    yield r
-    r.close()
-
-
-def test_sigkill_mid_mission_and_restart_loses_nothing(rig: GroundRig) -> None:
+def test_sigkill_mid_mission_and_restart_loses_nothing(ground_rig: GroundRig) -> None:
     line = [geo(-20, -15, 6), geo(-20, 15, 6)]
     body = {"type": "patrol_line", "points": [list(p) for p in line], "name": "long patrol"}
-    patrol = add(rig, body)["ids"][0]
-    wait_for(lambda: state(rig, patrol) == "active", rig.wall(120), "the patrol flown")
-    with rig.ground.http() as c:
+    patrol = add(ground_rig, body)["ids"][0]
+    wait_for(lambda: state(ground_rig, patrol) == "active", ground_rig.wall(120), "the patrol flown")
+    with ground_rig.ground.http() as c:
         tasks_before = c.get("/api/tasks").json()["tasks"]
         audit_before = c.get("/api/audit").json()["entries"]
         assign_before = c.get("/api/assignments").json()["assignments"]
     holder = next(t for t in tasks_before if t["id"] == patrol)["holder"]
-    rig.ground.kill()
+    ground_rig.ground.kill()
     killed = time.monotonic()
     time.sleep(3.0)  # the service is down for 3 s of wall time: the vehicles go on
-    rig.ground.start()
-    down = [s for s in rig.tracks[holder - 1] if s[0] >= killed]
+    ground_rig.ground.start()
+    down = [s for s in ground_rig.tracks[holder - 1] if s[0] >= killed]
     assert len(down) > 10
     assert max(math.dist(local(a[1:]), local(down[0][1:])) for a in down) > 1.0, "the holder stopped"
-    with rig.ground.http() as c:
+    with ground_rig.ground.http() as c:
         tasks_after = c.get("/api/tasks").json()["tasks"]
         assert [(t["id"], t["kind"], t["state"], t["holder"], t["version"]) for t in tasks_after] == \
             [(t["id"], t["kind"], t["state"], t["holder"], t["version"]) for t in tasks_before]
         assert c.get("/api/audit").json()["entries"][:len(audit_before)] == audit_before
         assert c.get("/api/assignments").json()["assignments"][:len(assign_before)] == assign_before
-    wait_for(lambda: rig.vehicles()[holder]["task"] == patrol, 30, "the holder still flying the patrol")
-    wait_for(lambda: rig.ready(), 30, "the fleet picked up again")
-    assert state(rig, patrol) == "active" and rig.tasks()[patrol]["holder"] == holder
-    with rig.ground.http() as c:
+    wait_for(lambda: ground_rig.vehicles()[holder]["task"] == patrol, 30,
+             "the holder still flying the patrol")
+    wait_for(lambda: ground_rig.ready(), 30, "the fleet picked up again")
+    assert state(ground_rig, patrol) == "active" and ground_rig.tasks()[patrol]["holder"] == holder
+    with ground_rig.ground.http() as c:
         assert c.delete(f"/api/tasks/{patrol}").status_code == 200  # the restarted service commands
         new = c.post("/api/tasks", json={"type": "visit", "point": list(geo(5, 5, 6))}).json()["ids"][0]
     assert new > max(t["id"] for t in tasks_before)
-    wait_for(lambda: state(rig, new) == "done", rig.wall(120), "a task given after the restart flown")
+    wait_for(lambda: state(ground_rig, new) == "done", ground_rig.wall(120),
+             "a task given after the restart flown")

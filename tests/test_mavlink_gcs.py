@@ -10,12 +10,11 @@ from __future__ import annotations
 import math
 import socket
 import time
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
-from harness.model import SitlProcess, sitl_and_gcs
+from harness.model import SitlProcess
 from harness.observer import ALT_HOLD, GUIDED, LAND, LOITER, STABILIZE, Gcs, M
 from harness.timing import SPEEDUP, wall
 from taskflight_common.ports import free_ports
@@ -27,11 +26,7 @@ IGNORE_POS_ACC_YAW = 0b110111000111
 IGNORE_ACC_YAW = 0b110111000000
 
 
-@pytest.fixture(scope="module")
-def gcs(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Gcs]:
-    with sitl_and_gcs(tmp_path_factory.mktemp("sitl")) as g:
-        g.wait_prearm(wall(30))
-        yield g
+GCS_WAIT_PREARM = True  # the gcs fixture: the tests start from a vehicle ready to arm
 
 
 def test_heartbeat_identifies_an_arducopter(gcs: Gcs) -> None:

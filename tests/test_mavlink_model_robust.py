@@ -7,41 +7,29 @@ infinite fields in GUIDED targets change nothing and are counted; the vehicle ke
 from __future__ import annotations
 
 import math
-import socket
 import time
-from collections.abc import Iterator
 
 import pytest
 
 from autopilot_model.mavlink.signing import key_from_passphrase
-from harness.model import SitlProcess
 from harness.observer import GUIDED, LOITER, POS_ONLY, VEL_ONLY, Gcs, M
 from harness.timing import SPEEDUP
-from taskflight_common.ports import free_ports
 
 pytestmark = pytest.mark.integration
 
 PASSPHRASE = "taskflight-signing-test"
 
 
-@pytest.fixture(scope="module")
-def sitl(tmp_path_factory: pytest.TempPathFactory) -> Iterator[int]:
-    port = free_ports(1, socket.SOCK_DGRAM)[0]
-    proc = SitlProcess([f"udpin:127.0.0.1:{port}"], tmp_path_factory.mktemp("sitl"), speedup=SPEEDUP,
-                       extra=["--signing-key", PASSPHRASE])
-    try:
-        yield port
-    finally:
-        proc.stop()
+SITL_EXTRA = ("--signing-key", PASSPHRASE)  # the sitl_port fixture: the model signs its link
 
 
-def test_unsigned_refused_signed_accepted_then_invalid_fields_ignored(sitl: int) -> None:
+def test_unsigned_refused_signed_accepted_then_invalid_fields_ignored(sitl_port: int) -> None:
     key = key_from_passphrase(PASSPHRASE)
-    gcs = Gcs(sitl, key=key)
+    gcs = Gcs(sitl_port, key=key)
     gcs.wait(lambda: gcs.last.get("HEARTBEAT"), 20, "heartbeat")
     mode0 = gcs.fresh("HEARTBEAT").custom_mode
     assert mode0 != LOITER
-    plain = Gcs(sitl, sysid=250)
+    plain = Gcs(sitl_port, sysid=250)
     plain.conn.mav.command_long_send(1, 1, M.MAV_CMD_DO_SET_MODE, 0, M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED,
                                      LOITER, 0, 0, 0, 0, 0)
     # two simulated seconds later: no ACK to the unsigned sender, no mode change

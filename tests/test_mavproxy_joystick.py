@@ -10,22 +10,13 @@ MAVProxy's own view (mode, ARMED) and RC_CHANNELS showing its sticks.
 
 from __future__ import annotations
 
-import contextlib
 import math
-import os
-import socket
-import subprocess
-from collections.abc import Iterator
-from pathlib import Path
 
 import pytest
-from test_mavproxy import Lines, _mavproxy
 
-from harness import ROOT
-from harness.model import SitlProcess
+from harness.mavproxy import MavProxy
 from harness.observer import Gcs, M
 from taskflight_common.ardupilot import CopterMode
-from taskflight_common.ports import free_ports
 
 pytestmark = pytest.mark.integration
 
@@ -33,46 +24,8 @@ SPEEDUP = 2.0
 LOITER = CopterMode.LOITER
 
 
-class MavProxy:
-    def __init__(self, tcp: int, d: Path) -> None:
-        env = dict(os.environ, PYTHONPATH=str(ROOT))
-        self.proc = subprocess.Popen([*_mavproxy(), f"--master=tcp:127.0.0.1:{tcp}", f"--state-basedir={d}"],
-                                     cwd=d, env=env, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-                                     stderr=subprocess.STDOUT, text=True)
-        self.out = Lines(self.proc)
-
-    def type(self, line: str) -> None:
-        assert self.proc.stdin is not None
-        self.proc.stdin.write(line + "\n")
-        self.proc.stdin.flush()
-
-    def close(self) -> None:
-        with contextlib.suppress(BrokenPipeError, OSError):
-            self.type("exit")
-        self.proc.terminate()
-        try:
-            self.proc.wait(10)
-        except subprocess.TimeoutExpired:
-            self.proc.kill()
-
-
-@pytest.fixture()
-def setup(tmp_path: Path) -> Iterator[tuple[MavProxy, Gcs]]:
-    tcp, udp = free_ports(1, socket.SOCK_STREAM)[0], free_ports(1, socket.SOCK_DGRAM)[0]  # each its own
-    sitl = SitlProcess([f"tcpin:127.0.0.1:{tcp}", f"udpin:127.0.0.1:{udp}"], tmp_path / "state",
-                       speedup=SPEEDUP, extra=["--no-persist"])
-    gcs = Gcs(udp, SPEEDUP, sysid=254, background=True)  # an observer; MAVProxy is the pilot's GCS (255)
-    mp = MavProxy(tcp, tmp_path)
-    try:
-        yield mp, gcs
-    finally:
-        mp.close()
-        gcs.close()
-        sitl.stop()
-
-
-def test_mavproxy_flies_loiter_with_rc_sticks(setup: tuple[MavProxy, Gcs]) -> None:
-    mp, gcs = setup
+def test_mavproxy_flies_loiter_with_rc_sticks(mavproxy: tuple[MavProxy, Gcs]) -> None:
+    mp, gcs = mavproxy
     mp.out.wait("Detected vehicle 1:1", 30)
     gcs.request_streams(10)
     gcs.conn.mav.command_long_send(1, 1, M.MAV_CMD_SET_MESSAGE_INTERVAL, 0, M.MAVLINK_MSG_ID_RC_CHANNELS,

@@ -9,17 +9,14 @@ step: the edited item changed, every other item as uploaded, the count unchanged
 
 from __future__ import annotations
 
-import socket
 from pathlib import Path
 from typing import Any
 
 import pytest
-from test_mavproxy_joystick import MavProxy
 
-from harness.model import SitlProcess
+from harness.mavproxy import MavProxy
 from harness.observer import Gcs, M
 from harness.timing import wait_for
-from taskflight_common.ports import free_ports
 
 pytestmark = pytest.mark.integration
 
@@ -53,21 +50,6 @@ def _download(gcs: Gcs) -> list[Any]:
     return items
 
 
-@pytest.fixture()
-def setup(tmp_path: Path):
-    tcp, udp = free_ports(1, socket.SOCK_STREAM)[0], free_ports(1, socket.SOCK_DGRAM)[0]  # each its own
-    sitl = SitlProcess([f"tcpin:127.0.0.1:{tcp}", f"udpin:127.0.0.1:{udp}"], tmp_path / "state",
-                       speedup=SPEEDUP, extra=["--no-persist"])
-    gcs = Gcs(udp, SPEEDUP, sysid=254, background=True)
-    mp = MavProxy(tcp, tmp_path)
-    try:
-        yield mp, gcs, tmp_path
-    finally:
-        mp.close()
-        gcs.close()
-        sitl.stop()
-
-
 def _typed_until(mp: MavProxy, command: str, done: Any, what: str, tries: int = 3) -> None:
     """Type ``command`` into MAVProxy until ``done()``: the observer's downloads are paced (1 s) so they
     do not hold the mission protocol while MAVProxy writes; a write lost on a loaded machine is typed
@@ -82,8 +64,8 @@ def _typed_until(mp: MavProxy, command: str, done: Any, what: str, tries: int = 
                 raise
 
 
-def test_mavproxy_wp_partial_edit(setup: tuple[MavProxy, Gcs, Path]) -> None:
-    mp, gcs, d = setup
+def test_mavproxy_wp_partial_edit(mavproxy: tuple[MavProxy, Gcs], tmp_path: Path) -> None:
+    (mp, gcs), d = mavproxy, tmp_path
     mp.out.wait("Detected vehicle 1:1", 30)
     wait_for(lambda: gcs.last.get("HEARTBEAT") is not None, 20, "the observer's first heartbeat")
     plan = _plan_file(d / "plan.txt")

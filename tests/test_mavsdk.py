@@ -9,8 +9,7 @@ from __future__ import annotations
 import asyncio
 import functools
 import math
-import socket
-from collections.abc import Awaitable, Callable, Iterator
+from collections.abc import Awaitable, Callable
 from typing import Any
 
 import pytest
@@ -23,10 +22,7 @@ from mavsdk.asyncio.plugins.telemetry import TelemetryAsync  # noqa: E402
 from mavsdk.component_type import ComponentType  # noqa: E402
 from mavsdk.plugins.offboard import PositionNedYaw, VelocityNedYaw  # noqa: E402
 
-from harness.model import SitlProcess  # noqa: E402
-from harness.timing import SPEEDUP  # noqa: E402
 from harness.timing import wall as sitl_wall  # noqa: E402
-from taskflight_common.ports import free_ports  # noqa: E402
 
 pytestmark = pytest.mark.integration
 
@@ -44,16 +40,6 @@ async def until(pred: Callable[[], Awaitable[Any]], timeout_s: float, what: str)
         return await asyncio.wait_for(loop(), timeout_s)
     except TimeoutError:
         raise AssertionError(f"timed out after {timeout_s} s waiting for {what}") from None
-
-
-@pytest.fixture(scope="module")
-def sitl_port(tmp_path_factory: pytest.TempPathFactory) -> Iterator[int]:
-    port = free_ports(1, socket.SOCK_DGRAM)[0]
-    sitl = SitlProcess([f"udpin:127.0.0.1:{port}"], tmp_path_factory.mktemp("sitl"), speedup=SPEEDUP)
-    try:
-        yield port
-    finally:
-        sitl.stop()
 
 
 def test_mavsdk_flight(sitl_port: int) -> None:

@@ -11,11 +11,10 @@ from autopilot_model.modules.mission import (
     RUNNING,
     WAITING,
     MissionItem,
-    MissionRunner,
     MissionStore,
     item_to_ned,
 )
-from harness.kinematic import HOME, IN_AIR, ON_GROUND, TAKEOFF, KinematicVehicle, Recorder, geo
+from harness.kinematic import HOME, IN_AIR, ON_GROUND, TAKEOFF, Recorder, geo
 
 
 def item(seq: int, cmd: int, n: float = 0, e: float = 0, z: float = 0, frame: int = 6, p1: float = 0,
@@ -27,21 +26,12 @@ def item(seq: int, cmd: int, n: float = 0, e: float = 0, z: float = 0, frame: in
 HOME_ITEM = MissionItem(seq=0, frame=0, command=16, x=round(HOME[0] * 1e7), y=round(HOME[1] * 1e7), z=HOME[2])
 
 
-@pytest.fixture
-def rig():
-    v = KinematicVehicle()
-    store = MissionStore()
-    ep = Recorder()
-    runner = MissionRunner(v, store, ep)
-    return v, store, ep, runner
-
-
 def reached_msgs(ep: Recorder) -> list[int]:
     return [m.seq for m in ep.sent if m.get_type() == "MISSION_ITEM_REACHED"]
 
 
-def test_flies_plan_and_lands(rig):
-    v, store, ep, runner = rig
+def test_flies_plan_and_lands(mission_rig):
+    v, store, ep, runner = mission_rig
     store.replace(0, [HOME_ITEM, item(1, 22, z=10, here=True), item(2, 16, 30, 0, 10),
                       item(3, 178, p2=8), item(4, 16, 30, 20, 15, p1=3, p2=0.5), item(5, 21, here=True)])
     v.nav.arm()
@@ -75,8 +65,8 @@ def test_flies_plan_and_lands(rig):
     assert abs(cur[2][2] + 10) < 0.3
 
 
-def test_hold_time_is_waited(rig):
-    v, store, _, runner = rig
+def test_hold_time_is_waited(mission_rig):
+    v, store, _, runner = mission_rig
     store.replace(0, [HOME_ITEM, item(1, 22, z=5, here=True), item(2, 16, 5, 0, 5, p1=4, p2=0.1)])
     v.nav.arm()
     runner.start()
@@ -91,8 +81,8 @@ def test_hold_time_is_waited(rig):
     assert v.nav.armed and v.nav.landed_state == IN_AIR  # ends holding in the air
 
 
-def test_missing_takeoff_and_empty_mission(rig):
-    v, store, _, runner = rig
+def test_missing_takeoff_and_empty_mission(mission_rig):
+    v, store, _, runner = mission_rig
     store.replace(0, [HOME_ITEM, item(1, 16, 5, 0, 5)])
     v.nav.arm()
     ok, why = runner.start()
@@ -101,8 +91,8 @@ def test_missing_takeoff_and_empty_mission(rig):
     assert runner.mission_start()[0] is False
 
 
-def test_start_requested_while_disarmed_waits_for_arming(rig):
-    v, store, _, runner = rig
+def test_start_requested_while_disarmed_waits_for_arming(mission_rig):
+    v, store, _, runner = mission_rig
     store.replace(0, [HOME_ITEM, item(1, 22, z=5, here=True)])
     runner.start()
     assert runner.mission_start() == (True, "")
@@ -113,8 +103,8 @@ def test_start_requested_while_disarmed_waits_for_arming(rig):
     assert runner.state == RUNNING and v.nav.landed_state == TAKEOFF
 
 
-def test_rtl_item_climbs_returns_and_lands(rig):
-    v, store, _, runner = rig
+def test_rtl_item_climbs_returns_and_lands(mission_rig):
+    v, store, _, runner = mission_rig
     v.params.set("RTL_ALT", 2000)
     store.replace(0, [HOME_ITEM, item(1, 22, z=8, here=True), item(2, 16, 40, -10, 8), item(3, 20)])
     v.nav.arm()
@@ -133,8 +123,8 @@ def test_rtl_item_climbs_returns_and_lands(rig):
     assert abs(max_alt[0] - 20.0) < 0.1
 
 
-def test_set_current_jumps_and_resume_after_leaving_auto(rig):
-    v, store, _, runner = rig
+def test_set_current_jumps_and_resume_after_leaving_auto(mission_rig):
+    v, store, _, runner = mission_rig
     store.replace(0, [HOME_ITEM, item(1, 22, z=5, here=True), item(2, 16, 50, 0, 5), item(3, 16, 0, 50, 5)])
     v.nav.arm()
     runner.start()
@@ -160,8 +150,8 @@ def test_item_to_ned_frames():
     assert item_to_ned(here, HOME, HOME[2], (1.0, 2.0, -7.0)) == (1.0, 2.0, -7.0)
 
 
-def test_auto_refused_without_plan_and_restart_after_completion(rig):
-    v, store, _, runner = rig
+def test_auto_refused_without_plan_and_restart_after_completion(mission_rig):
+    v, store, _, runner = mission_rig
     assert runner.start() == (False, "Auto: no mission")
     store.replace(0, [HOME_ITEM, item(1, 22, z=5, here=True), item(2, 16, 10, 0, 5)])
     v.nav.arm()
@@ -198,8 +188,8 @@ def test_do_jump_walk_counts_and_resets():
     assert next_cmd(store, 2, jumps, increment=True) is None
 
 
-def test_condition_delay_holds_back_the_do_commands_after_it_not_the_navigation(rig):
-    v, store, _, runner = rig
+def test_condition_delay_holds_back_the_do_commands_after_it_not_the_navigation(mission_rig):
+    v, store, _, runner = mission_rig
     store.replace(0, [HOME_ITEM, item(1, 22, z=5, here=True), item(2, 112, p1=3), item(3, 178, p2=2),
                       item(4, 16, 40, 0, 5)])
     v.nav.arm()

@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -21,12 +20,6 @@ from taskflight_common.geo import ned_to_geodetic
 pytestmark = pytest.mark.integration
 
 REL = M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT
-
-
-@pytest.fixture(scope="module")
-def gcs(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Gcs]:
-    with sitl_and_gcs(tmp_path_factory.mktemp("sitl_mission")) as g:
-        yield g
 
 
 # --- the mission protocol as a ground station uses it ---------------------------------------------

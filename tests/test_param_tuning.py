@@ -7,53 +7,45 @@ each autopilot (the bundled model; ArduCopter SITL with ``TASKFLIGHT_ARDUCOPTER`
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-
 import pytest
 
-from harness.autopilot import AUTOPILOTS
-from harness.flight_session import FlightSession
+from harness.flight_session import FlightSession, SessionSpec
 
 pytestmark = pytest.mark.integration
 
 SPEEDUP = 3.0
 
 
-@pytest.fixture(scope="module", params=AUTOPILOTS)
-def f(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory) -> Iterator[FlightSession]:
-    session = FlightSession(request.param, tmp_path_factory.mktemp(f"params_{request.param}"), SPEEDUP)
-    try:
-        yield session
-    finally:
-        session.close()
+FLIGHT_SESSION = SessionSpec("params", SPEEDUP)
 
 
-def test_gain_set_in_flight_is_read_back_from_the_autopilot(f: FlightSession) -> None:
-    f.ensure_airborne()
-    before = f.http.get("/params/ATC_RAT_RLL_P")
+def test_gain_set_in_flight_is_read_back_from_the_autopilot(flight_session: FlightSession) -> None:
+    flight_session.ensure_airborne()
+    before = flight_session.http.get("/params/ATC_RAT_RLL_P")
     assert before.status_code == 200, before.text
     old = before.json()["value"]
     new = round(old * 1.2, 4)
-    r = f.http.put("/params/ATC_RAT_RLL_P", json={"value": new})
+    r = flight_session.http.put("/params/ATC_RAT_RLL_P", json={"value": new})
     assert r.status_code == 200, r.text
     assert r.json()["name"] == "ATC_RAT_RLL_P" and r.json()["value"] == pytest.approx(new, rel=1e-5)
     # asked again, the autopilot holds the new value (not the companion's memory of it)
-    assert f.http.get("/params/ATC_RAT_RLL_P").json()["value"] == pytest.approx(new, rel=1e-5)
-    assert f.phase() == "ENGAGED"  # still flying the queue
-    r = f.http.put("/params/ATC_RAT_RLL_P", json={"value": old})
+    assert flight_session.http.get("/params/ATC_RAT_RLL_P").json()["value"] == pytest.approx(new, rel=1e-5)
+    assert flight_session.phase() == "ENGAGED"  # still flying the queue
+    r = flight_session.http.put("/params/ATC_RAT_RLL_P", json={"value": old})
     assert r.status_code == 200 and r.json()["value"] == pytest.approx(old, rel=1e-5)
 
 
-def test_bad_parameter_requests_change_nothing(f: FlightSession) -> None:
-    got = f.http.get("/params/ATC_RAT_RLL_P")
+def test_bad_parameter_requests_change_nothing(flight_session: FlightSession) -> None:
+    got = flight_session.http.get("/params/ATC_RAT_RLL_P")
     assert got.status_code == 200, got.text
     value = got.json()["value"]
-    r = f.http.put("/params/atc_rat_rll_p", json={"value": 1.0})
+    r = flight_session.http.put("/params/atc_rat_rll_p", json={"value": 1.0})
     assert r.status_code == 400 and "parameter name" in r.json()["error"]
-    r = f.http.put("/params/ATC_RAT_RLL_P", json={"value": "high"})
+    r = flight_session.http.put("/params/ATC_RAT_RLL_P", json={"value": "high"})
     assert r.status_code == 400 and "value" in r.json()["error"]
-    r = f.http.put("/params/ATC_RAT_RLL_P", content=b"{nope", headers={"Content-Type": "application/json"})
+    r = flight_session.http.put("/params/ATC_RAT_RLL_P", content=b"{nope",
+                                headers={"Content-Type": "application/json"})
     assert r.status_code == 400
-    r = f.http.put("/params/NO_SUCH_PARAM_X", json={"value": 1.0})
+    r = flight_session.http.put("/params/NO_SUCH_PARAM_X", json={"value": 1.0})
     assert r.status_code == 504 and "no PARAM_VALUE" in r.json()["error"]
-    assert f.http.get("/params/ATC_RAT_RLL_P").json()["value"] == value
+    assert flight_session.http.get("/params/ATC_RAT_RLL_P").json()["value"] == value

@@ -10,9 +10,6 @@ behavior against ArduCopter SITL is in ``test_differential_pilot.py``.
 from __future__ import annotations
 
 import math
-import socket
-from collections.abc import Iterator
-from pathlib import Path
 
 import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
@@ -20,7 +17,6 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink
 from autopilot_model.modules.flight_modes import ALT_HOLD, GUIDED, LAND, LOITER, POSHOLD, RTL, STABILIZE
 from autopilot_model.modules.navigation import LANDED_IN_AIR, LANDED_ON_GROUND
 from autopilot_model.sitl import Sitl
-from taskflight_common.ports import free_ports
 
 pytestmark = pytest.mark.integration
 
@@ -66,17 +62,6 @@ class Pilot:
         while v.clock.now() < end:
             self.rc(*chans)
             v.run_for(0.1)
-
-
-@pytest.fixture
-def sitl(tmp_path: Path) -> Iterator[Sitl]:
-    port = free_ports(1, socket.SOCK_DGRAM)[0]
-    s = Sitl(urls=[f"udpin:127.0.0.1:{port}"], state_dir=tmp_path, persist=False)
-    v = s.vehicle
-    assert v.wait_estimator(10.0)
-    assert v.run_until(lambda: not v.nav.prearm_failures(), 60.0)
-    yield s
-    s.close()
 
 
 def _airborne(s: Sitl, p: Pilot, mode: int) -> None:

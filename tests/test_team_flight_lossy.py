@@ -7,8 +7,6 @@ through the loss, the allocation still converges (no task held twice), every tas
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-
 import pytest
 
 from harness.team import TeamRig, fly_nine_tasks
@@ -18,19 +16,13 @@ pytestmark = pytest.mark.integration
 SPEEDUP = 3.0
 
 
-@pytest.fixture(scope="module")
-def rig(tmp_path_factory: pytest.TempPathFactory) -> Iterator[TeamRig]:
-    r = TeamRig(tmp_path_factory.mktemp("team_lossy"), n=3, speedup=SPEEDUP, loss=0.3)
-    try:
-        yield r
-    finally:
-        r.close()
+TEAM_LOSS = 0.3  # of the team packets, dropped by every member (the team_rig fixture)
 
 
-def test_nine_tasks_with_30_percent_of_team_packets_dropped(rig: TeamRig) -> None:
-    fly_nine_tasks(rig)
-    for i in range(rig.n):
-        link = rig.team(i)["link"]
+def test_nine_tasks_with_30_percent_of_team_packets_dropped(team_rig: TeamRig) -> None:
+    fly_nine_tasks(team_rig)
+    for i in range(team_rig.n):
+        link = team_rig.team(i)["link"]
         total = link["packets_received"] + link["dropped_by_test_loss"]
         assert 0.2 < link["dropped_by_test_loss"] / total < 0.4, link  # the loss really happened
-    assert rig.discontinuities() == []
+    assert team_rig.discontinuities() == []

@@ -9,13 +9,12 @@ the vehicle lands there.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
 from companion.sensing.scenario import Scenario
-from harness.flight_session import FlightSession
+from harness.flight_session import FlightSession, SessionSpec
 from harness.timing import wait_for
 
 pytestmark = pytest.mark.integration
@@ -23,32 +22,26 @@ pytestmark = pytest.mark.integration
 ROOT = Path(__file__).resolve().parents[1]
 
 
-@pytest.fixture
-def f(tmp_path: Path) -> Iterator[FlightSession]:
-    session = FlightSession("model", tmp_path, 3.0, missions=True,
-                            scenario=Scenario.load(ROOT / "mission_specs" / "scenario_person.yaml"))
-    try:
-        wait_for(lambda: session.node.link.mirror.snapshot().home is not None, session.wall(30), "home")
-        assert session.layer is not None  # a healthy estimate: the motion behaviors need SELF_LOCALIZE
-        wait_for(lambda: session.layer.coordinator.is_active("SELF_LOCALIZE"), session.wall(60), "localized")
-        yield session
-    finally:
-        session.close()
+FLIGHT_SESSION = SessionSpec("search", 3.0, autopilots=(), localized=True, missions=True,
+                             scenario=Scenario.load(ROOT / "mission_specs" / "scenario_person.yaml"))
 
 
-def test_scan_until_a_person_is_seen_then_hover_over_it_and_ask(f: FlightSession) -> None:
+def test_scan_until_a_person_is_seen_then_hover_over_it_and_ask(flight_session: FlightSession) -> None:
     text = (ROOT / "mission_specs" / "search_and_inspect.yaml").read_text()
-    r = f.http.post("/mission", content=text, headers={"Content-Type": "application/yaml"})
+    r = flight_session.http.post("/mission", content=text, headers={"Content-Type": "application/yaml"})
     assert r.status_code == 200, r.text
-    assert f.post("/mission/start").status_code == 200
-    wait_for(lambda: f.http.get("/mission").json()["active_node"] == "ask", f.wall(120),
-             f"asking the operator: {f.http.get('/mission').json()}")
-    assert f.layer is not None and [d.object_id for d in f.layer.camera.detections] == [7]
-    assert f.layer.camera.detections[0].data_uuid == "search-1"
-    assert f.layer.beliefs.holds("waiting_for(self, operator)")
-    n, e, _ = f.pos()
+    assert flight_session.post("/mission/start").status_code == 200
+    wait_for(lambda: flight_session.http.get("/mission").json()["active_node"] == "ask",
+             flight_session.wall(120),
+             f"asking the operator: {flight_session.http.get('/mission').json()}")
+    assert flight_session.layer is not None
+    assert [d.object_id for d in flight_session.layer.camera.detections] == [7]
+    assert flight_session.layer.camera.detections[0].data_uuid == "search-1"
+    assert flight_session.layer.beliefs.holds("waiting_for(self, operator)")
+    n, e, _ = flight_session.pos()
     assert math.dist((n, e), (6.0, 1.5)) < 0.5  # above the person
-    assert f.post("/user_confirm").status_code == 200  # the operator: land here
-    wait_for(lambda: f.http.get("/mission").json()["state"] == "succeeded", f.wall(60), "the mission's end")
-    wait_for(lambda: not f.armed(), f.wall(30), "landed and disarmed")
-    assert math.dist(f.pos()[:2], (6.0, 1.5)) < 0.7
+    assert flight_session.post("/user_confirm").status_code == 200  # the operator: land here
+    wait_for(lambda: flight_session.http.get("/mission").json()["state"] == "succeeded",
+             flight_session.wall(60), "the mission's end")
+    wait_for(lambda: not flight_session.armed(), flight_session.wall(30), "landed and disarmed")
+    assert math.dist(flight_session.pos()[:2], (6.0, 1.5)) < 0.7

@@ -33,7 +33,6 @@ from harness import ROOT
 from harness.ground import OBSERVER, OPERATOR, GroundRig
 from harness.team import HOME
 from harness.timing import wait_for
-from harness.up import UpRig
 
 pytestmark = pytest.mark.integration
 
@@ -48,22 +47,15 @@ def local(p: Any) -> tuple[float, float]:
 
 
 @pytest.fixture(scope="module")
-def rig(tmp_path_factory: pytest.TempPathFactory) -> Iterator[GroundRig]:
-    r = UpRig(tmp_path_factory.mktemp("ui"), n=3, speedup=3.0)
-    yield r
-    r.close()
-
-
-@pytest.fixture(scope="module")
 def shots(tmp_path_factory: pytest.TempPathFactory) -> Shots:
     return Shots(tmp_path_factory.mktemp("ui_screenshots"))
 
 
 @pytest.fixture(scope="module")
-def page(rig: GroundRig) -> Iterator[Any]:
+def page(up_rig: GroundRig) -> Iterator[Any]:
     d = browser()
     try:
-        login(d, rig.ground.url, OPERATOR)
+        login(d, up_rig.ground.url, OPERATOR)
         WebDriverWait(d, 30).until(lambda d: len(d.find_elements(By.CSS_SELECTOR, "#fleet tbody tr")) == 3)
         yield d
     finally:
@@ -97,7 +89,7 @@ def task_ids(d: Any) -> set[int]:
     return {int(r.get_attribute("data-task")) for r in d.find_elements(By.CSS_SELECTOR, "#tasks tbody tr")}
 
 
-def test_three_vehicles_move_to_visits_clicked_on_the_map(rig: GroundRig, page: Any, shots: Shots) -> None:
+def test_three_vehicles_move_to_visits_clicked_on_the_map(up_rig: GroundRig, page: Any, shots: Shots) -> None:
     d = page
     WebDriverWait(d, 30).until(lambda d: len(markers(d)) == 3)
     # taskflight up gives the ground service the platform's envelope: the map draws it
@@ -113,23 +105,24 @@ def test_three_vehicles_move_to_visits_clicked_on_the_map(rig: GroundRig, page: 
         WebDriverWait(d, 20).until(lambda d, w=want: len(task_ids(d)) >= w, f"visit {k + 1} in the task list")
     new = sorted(task_ids(d) - before)
     assert len(new) == 3
-    points = {t: rig.tasks()[t]["points"][0] for t in new}
-    WebDriverWait(d, rig.wall(60)).until(
+    points = {t: up_rig.tasks()[t]["points"][0] for t in new}
+    WebDriverWait(d, up_rig.wall(60)).until(
         lambda d: all(task_state(d, t) in ("assigned", "active", "done") for t in new), "visits allocated")
     shots(d, "2_visits_allocated")
-    WebDriverWait(d, rig.wall(120)).until(
+    WebDriverWait(d, up_rig.wall(120)).until(
         lambda d: all(math.dist(markers(d)[v], start[v]) > 3.0 for v in start), "all three vehicles moving")
     shots(d, "3_three_moving")
-    WebDriverWait(d, rig.wall(300)).until(lambda d: all(task_state(d, t) == "done" for t in new),
-                                          "the visits flown")
+    WebDriverWait(d, up_rig.wall(300)).until(lambda d: all(task_state(d, t) == "done" for t in new),
+                                             "the visits flown")
     shots(d, "4_visits_flown")
     for t, p in points.items():  # flown: a MAVLink track (not the service's view) reached each point
         goal = local(p)
-        assert any(math.dist(local(s[1:]), goal) < 2.5 for i in range(rig.n) for s in list(rig.tracks[i])
+        assert any(math.dist(local(s[1:]),
+                             goal) < 2.5 for i in range(up_rig.n) for s in list(up_rig.tracks[i])
                    if s[0] >= t0), f"nobody reached task {t}'s point (MAVLink)"
 
 
-def test_a_patrol_drawn_on_the_map_is_cancelled_from_the_task_list(rig: GroundRig, page: Any,
+def test_a_patrol_drawn_on_the_map_is_cancelled_from_the_task_list(up_rig: GroundRig, page: Any,
                                                                    shots: Shots) -> None:
     d = page
     before = task_ids(d)
@@ -139,16 +132,17 @@ def test_a_patrol_drawn_on_the_map_is_cancelled_from_the_task_list(rig: GroundRi
     d.find_element(By.ID, "draw-finish").click()
     WebDriverWait(d, 20).until(lambda d: task_ids(d) - before, "the patrol in the task list")
     tid = max(task_ids(d) - before)
-    assert rig.tasks()[tid]["kind"] == "patrol_line"
-    WebDriverWait(d, rig.wall(60)).until(lambda d: task_state(d, tid) in ("assigned", "active"), "allocated")
+    assert up_rig.tasks()[tid]["kind"] == "patrol_line"
+    WebDriverWait(d, up_rig.wall(60)).until(lambda d: task_state(d, tid) in ("assigned", "active"),
+                                            "allocated")
     shots(d, "5_patrol")
     d.find_element(By.CSS_SELECTOR, f"#tasks tr[data-task='{tid}'] button.cancel").click()
     WebDriverWait(d, 20).until(lambda d: task_state(d, tid) == "cancelled", "the patrol cancelled")
-    assert rig.tasks()[tid]["state"] == "cancelled"
+    assert up_rig.tasks()[tid]["state"] == "cancelled"
     shots(d, "6_cancelled")
 
 
-def test_a_border_for_more_vehicles_than_are_free_takes_the_offered_smaller_n(rig: GroundRig, page: Any,
+def test_a_border_for_more_vehicles_than_are_free_takes_the_offered_smaller_n(up_rig: GroundRig, page: Any,
                                                                              shots: Shots) -> None:
     """Seed 003 Sec. II: a border patrol asked of more vehicles than are free; the service offers a smaller N
     in a dialog, the operator accepts it, the border is divided into that many pieces (then cancelled)."""
@@ -173,7 +167,7 @@ def test_a_border_for_more_vehicles_than_are_free_takes_the_offered_smaller_n(ri
     finally:
         n_box.clear()
         n_box.send_keys("2")
-    pieces = {t: rig.tasks()[t] for t in task_ids(d) - before}
+    pieces = {t: up_rig.tasks()[t] for t in task_ids(d) - before}
     assert {t["kind"] for t in pieces.values()} == {"border_piece"}
     assert len({t["group"] for t in pieces.values()}) == 1
     d.find_element(By.CSS_SELECTOR, f"#tasks tr[data-task='{min(pieces)}'] button.cancel").click()  # all
@@ -181,21 +175,21 @@ def test_a_border_for_more_vehicles_than_are_free_takes_the_offered_smaller_n(ri
                                "the border cancelled")
 
 
-def test_break_in_with_the_keyboard_joystick_resume_and_enough_ends_the_scan(rig: GroundRig, page: Any,
+def test_break_in_with_the_keyboard_joystick_resume_and_enough_ends_the_scan(up_rig: GroundRig, page: Any,
                                                                             shots: Shots) -> None:
     d, i, vid = page, 2, 3
-    with rig.ground.http() as c:
-        if rig.vehicles()[vid]["armed"]:  # a mission starts with a take-off: from the ground
+    with up_rig.ground.http() as c:
+        if up_rig.vehicles()[vid]["armed"]:  # a mission starts with a take-off: from the ground
             assert c.post(f"/api/vehicles/{vid}/land").status_code == 200
-            wait_for(lambda: rig.vehicles()[vid]["armed"] is False, rig.wall(90), "vehicle 3 landed")
+            wait_for(lambda: up_rig.vehicles()[vid]["armed"] is False, up_rig.wall(90), "vehicle 3 landed")
         r = c.post(f"/api/vehicles/{vid}/mission", json={**SCAN_AND_SEARCH, "start": True})
         assert r.status_code == 200, r.text
 
     def mission() -> dict[str, Any]:
-        return rig.vehicles()[vid]["mission"]
+        return up_rig.vehicles()[vid]["mission"]
 
     wait_for(lambda: mission()["node"] == "scan" and (mission()["progress"] or "").startswith("waypoint"),
-             rig.wall(120), "the scan under way")
+             up_rig.wall(120), "the scan under way")
     d.find_element(By.CSS_SELECTOR, f"#fleet tr[data-vehicle='{vid}']").click()
     wait = WebDriverWait(d, 30)
     wait.until(lambda d: d.find_elements(By.CSS_SELECTOR, ".tree li[data-node='scan']"), "the mission tree")
@@ -203,16 +197,17 @@ def test_break_in_with_the_keyboard_joystick_resume_and_enough_ends_the_scan(rig
     d.find_element(By.CSS_SELECTOR, "[data-verb='pause']").click()
     wait.until(lambda d: d.find_element(By.CSS_SELECTOR, ".joystick").is_displayed(), "the joystick shown")
     wait.until(lambda d: mission()["state"] == "paused", "paused (the service's view)")
-    start = rig.position(i)
+    start = up_rig.position(i)
 
     def moved() -> float:
-        return local(rig.position(i))[0] - local(start)[0]
+        return local(up_rig.position(i))[0] - local(start)[0]
 
     # north at 2 m/s while W is held: until 8 m are flown (judged by MAVLink, not by the wall clock: a loaded
     # machine runs the simulation slower than its speed-up), at most 24 s of autopilot time
     ActionChains(d).key_down("w").perform()
     try:
-        wait_for(lambda: moved() > 8.0, rig.wall(24.0), "moved north under the keyboard joystick", poll_s=0.1)
+        wait_for(lambda: moved() > 8.0, up_rig.wall(24.0), "moved north under the keyboard joystick",
+                 poll_s=0.1)
         shots(d, "8_joystick")
     finally:
         ActionChains(d).key_up("w").perform()
@@ -222,16 +217,16 @@ def test_break_in_with_the_keyboard_joystick_resume_and_enough_ends_the_scan(rig
     wait.until(lambda d: not d.find_element(By.CSS_SELECTOR, ".joystick").is_displayed(), "the joystick gone")
     d.find_element(By.CSS_SELECTOR, "[data-verb='enough']").click()
     wait_for(lambda: mission()["node"] in ("fly-to", "land") or mission()["state"] == "succeeded",
-             rig.wall(60), "the mission goes on after enough")
+             up_rig.wall(60), "the mission goes on after enough")
     WebDriverWait(d, 20).until(lambda d: d.find_element(
         By.CSS_SELECTOR, ".tree li[data-node='scan'] > span.state").text == "succeeded", "the scan ended")
     shots(d, "9_enough")
 
 
-def test_an_observer_sees_everything_and_commands_nothing(rig: GroundRig, shots: Shots) -> None:
+def test_an_observer_sees_everything_and_commands_nothing(up_rig: GroundRig, shots: Shots) -> None:
     d = browser()
     try:
-        login(d, rig.ground.url, OBSERVER)
+        login(d, up_rig.ground.url, OBSERVER)
         WebDriverWait(d, 30).until(lambda d: len(d.find_elements(By.CSS_SELECTOR, "#fleet tbody tr")) == 3)
         d.find_element(By.CSS_SELECTOR, "#fleet tr[data-vehicle='1']").click()
         WebDriverWait(d, 20).until(lambda d: d.find_elements(By.CSS_SELECTOR, "[data-verb='pause']"))
@@ -252,14 +247,14 @@ def test_an_observer_sees_everything_and_commands_nothing(rig: GroundRig, shots:
         d.quit()
 
 
-def test_the_network_log_shows_only_the_service(rig: GroundRig) -> None:
+def test_the_network_log_shows_only_the_service(up_rig: GroundRig) -> None:
     d = browser()
     try:
-        login(d, rig.ground.url, OPERATOR)
+        login(d, up_rig.ground.url, OPERATOR)
         WebDriverWait(d, 30).until(lambda d: len(markers(d)) == 3)
     finally:
         URLS.extend(requested_urls(d))
         d.quit()
     assert any(u.endswith("/static/vendor/leaflet/leaflet.js") for u in URLS)
     assert any("/api/ws" in u for u in URLS)
-    assert foreign(URLS, rig.ground.url) == [], "requests left the service's host"
+    assert foreign(URLS, up_rig.ground.url) == [], "requests left the service's host"
