@@ -93,7 +93,7 @@ def test_every_companion_row_is_heard_on_the_team_link(running: Running) -> None
     heard: set[int] = set()
     try:
         end = time.monotonic() + 30
-        while heard != set(range(1, N + 1)) and time.monotonic() < end:
+        while not set(range(1, N + 1)) <= heard and time.monotonic() < end:  # the station sends too
             data = transport.recv(0.5)
             if data is None:
                 continue
