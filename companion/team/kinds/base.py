@@ -9,6 +9,7 @@ Tree node that flies it on a real vehicle (seed 000 Sec. III).
 from __future__ import annotations
 
 import math
+from abc import ABC, abstractmethod
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, ClassVar
@@ -67,8 +68,8 @@ def piece_name(name: str, k: int) -> str:
     return f"{name}#{k + 1}" if name else ""
 
 
-class TeamTaskKind:
-    """One team task kind. Subclasses set the class attributes and override what differs."""
+class TeamTaskKind(ABC):
+    """One team task kind. Subclasses set the class attributes, give :meth:`node`, override what differs."""
 
     #: the operator's name of the kind (``TaskDef.kind``, task files, the ground service's API)
     name: ClassVar[str]
@@ -129,9 +130,9 @@ class TeamTaskKind:
         """What the team simulator's kinematic vehicle flies (default: to the entry point, done there)."""
         return Route([self.entry_point(task, at)])
 
+    @abstractmethod
     def node(self, task: TeamTask, standard_altitude: float) -> dict[str, Any]:
         """The TST node (a dict in the mission-file format) that flies ``task``."""
-        raise NotImplementedError
 
 
 class PatrolKind(TeamTaskKind):
