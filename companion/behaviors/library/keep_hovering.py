@@ -17,6 +17,7 @@ class KeepHovering(FlightBehavior):
     behavior replaces it; it has no goal of its own (an operator's confirmation ends it)."""
 
     behavior = "KEEP_HOVERING"
+    measured_goal = False
 
     def situation(self, params: Mapping[str, Any]) -> str | None:
         return need_flying(self)
