@@ -47,7 +47,8 @@ def test_bundled_catalog_loads() -> None:
     goto = c.get("GO_TO_POINT")
     assert goto.timeout_s is None and goto.timeout_plan == {"factor": 1.5, "margin_s": 20.0}
     assert goto.goal["tolerance_m"] == 1.0 and c.get("ROTATE").goal["tolerance_deg"] == 10.0
-    assert c.get("KEEP_MOVING").timeout_s is None and not c.get("KEEP_MOVING").timeout_plan  # no goal, no plan
+    moving = c.get("KEEP_MOVING")
+    assert moving.timeout_s is None and not moving.timeout_plan  # no goal, no plan
 
 
 @pytest.mark.parametrize(("text", "where"), [

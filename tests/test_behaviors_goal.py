@@ -1,4 +1,4 @@
-"""Success is the vehicle, not the setpoint; time-outs from the plan; no silent clamp (seed 001 Sec. 5.2.1, 6.2.1).
+"""Success is the vehicle, not the setpoint; time-outs from the plan; no silent clamp (seed 001 5.2.1, 6.2.1).
 
 Over the executive layer's unit world (a real queue, the kinematic vehicle): with the measured state
 frozen (the vehicle does not follow: a fence, wind) a behavior whose commands ended is not
@@ -8,6 +8,7 @@ a speed beyond the flight envelope is refused at the format check with the reaso
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import pytest
@@ -23,7 +24,7 @@ LIMITS = Limits()  # 5 m/s horizontal, 2 m/s vertical: the queue's defaults
 
 
 def causes_while_running(w: World, behavior: str, timeout_s: float) -> tuple[list[str], object]:
-    """Run until ``behavior`` ends; the causes of every end seen on the way (sampled each tick) and the end."""
+    """Run until ``behavior`` ends; the causes of the ends seen on the way (sampled each tick), the end."""
     n = len([e for e in w.coordinator.ended if e.behavior == behavior])
     seen: list[str] = []
 
@@ -79,7 +80,7 @@ def test_frozen_take_off_is_not_achieved() -> None:
     assert seen == ["wrong_progress"] and "from the goal" in end.detail, end
 
 
-# --- time-outs from the plan ---------------------------------------------------------------------------------
+# --- time-outs from the plan --------------------------------------------------------------------------------
 def test_time_limit_is_distance_over_the_speed_allowed() -> None:
     goto = CATALOG.get("GO_TO_POINT")
     far = {"coordinate": (900.0, 900.0, 5.0)}
@@ -102,12 +103,12 @@ def test_emergency_land_1000_m_away_gets_more_than_180_s() -> None:
 def test_a_300_m_scan_is_not_killed_at_600_s() -> None:
     lanes = [(float(n), 0.0 if i % 2 == 0 else 300.0, 10.0) for i, n in enumerate(range(0, 301, 10))]
     path = [p for n, e, u in lanes for p in ((n, e, u), (n, 300.0 - e, u))]
-    length = sum(math.dist(a[:2], b[:2]) for a, b in zip(path, path[1:], strict=False))
+    length = sum(math.dist(a[:2], b[:2]) for a, b in itertools.pairwise(path))
     planned = planned_duration("FOLLOW_PATH", {"path": path}, LIMITS, path[0])
     limit = time_limit(CATALOG.get("FOLLOW_PATH"), {"path": path}, LIMITS, path[0])
     assert planned is not None and limit is not None
     assert planned >= length / 5.0 and limit > 600
-    assert time_limit(CATALOG.get("KEEP_MOVING"), {"velocity": (1.0, 0, 0)}, LIMITS) is None  # no plan, no goal
+    assert time_limit(CATALOG.get("KEEP_MOVING"), {"velocity": (1.0, 0, 0)}, LIMITS) is None  # no plan
     assert time_limit(CATALOG.get("SELF_LOCALIZE"), {}, LIMITS) is None  # recurrent
     assert time_limit(CATALOG.get("WAIT"), {"duration": 100.0}, LIMITS) == 110.0  # its duration + margin
 
@@ -131,7 +132,7 @@ def test_keep_moving_has_no_goal_time_out() -> None:
     assert w.coordinator.activation("KEEP_MOVING").controller.time_limit_s is None
 
 
-# --- no silent clamp ------------------------------------------------------------------------------------------
+# --- no silent clamp ----------------------------------------------------------------------------------------
 def test_speed_beyond_the_envelope_is_refused_at_the_format_check() -> None:
     w = World()
     w.take_off()
@@ -146,5 +147,6 @@ def test_speed_beyond_the_envelope_is_refused_at_the_format_check() -> None:
         w.coordinator.check("FOLLOW_PATH path: ((1, 0, 5)) speed: 6")
     assert w.activate("GO_TO_POINT coordinate: (10, 0, 5) speed: 5").accepted  # at the limit: flown
     # without limits (the catalog alone) the format check knows nothing of the envelope
-    assert check_format(CATALOG, parse_activation("GO_TO_POINT coordinate: (1, 0, 5) speed: 20"))["speed"] == 20
+    fast = parse_activation("GO_TO_POINT coordinate: (1, 0, 5) speed: 20")
+    assert check_format(CATALOG, fast)["speed"] == 20
     assert envelope_refusal({"speed": 4.9}, LIMITS) is None
