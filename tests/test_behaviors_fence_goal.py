@@ -115,3 +115,14 @@ def test_fence_breach_rtl_interrupts_and_is_never_achieved(flight_session: Fligh
     assert "goal_achieved" not in samples, samples[-20:]
     assert end["cause"] in ("wrong_progress", "time_out", "interrupted"), end
     flight_session.gcs.set_param("FENCE_ENABLE", 0)
+
+
+def test_speed_beyond_the_envelope_is_refused_over_http(flight_session: FlightSession) -> None:
+    """No silent clamp: the format check holds a speed against the queue's limits (400 with the reason)."""
+    f = flight_session
+    for path in ("/behaviors/activate", "/behaviors/check"):
+        r = f.post(path, {"text": "GO_TO_POINT coordinate: (10, 0, 5) speed: 20"})
+        assert r.status_code == 400, r.text
+        assert "speed: 20 m/s is beyond the flight envelope's horizontal speed limit 5 m/s" in r.json()["error"]
+    r = f.post("/behaviors/check", {"text": "GO_TO_POINT coordinate: (10, 0, 5) speed: 5"})
+    assert r.status_code == 200 and r.json()["params"]["speed"] == 5.0
