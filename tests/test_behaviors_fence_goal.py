@@ -123,6 +123,7 @@ def test_speed_beyond_the_envelope_is_refused_over_http(flight_session: FlightSe
     for path in ("/behaviors/activate", "/behaviors/check"):
         r = f.post(path, {"text": "GO_TO_POINT coordinate: (10, 0, 5) speed: 20"})
         assert r.status_code == 400, r.text
-        assert "speed: 20 m/s is beyond the flight envelope's horizontal speed limit 5 m/s" in r.json()["error"]
+        reason = r.json()["error"]
+        assert "speed: 20 m/s is beyond the flight envelope's horizontal speed limit 5 m/s" in reason
     r = f.post("/behaviors/check", {"text": "GO_TO_POINT coordinate: (10, 0, 5) speed: 5"})
     assert r.status_code == 200 and r.json()["params"]["speed"] == 5.0
