@@ -44,7 +44,11 @@ def test_bundled_catalog_loads() -> None:
     assert c.required_before("GO_TO_POINT") == {"SELF_LOCALIZE"}
     assert [d.behavior for d in c.defaults()] == ["SELF_LOCALIZE", "KEEP_HOVERING", "WATCH_GROUND"]
     assert c.priority("emergency") > c.priority("operator") > c.priority("mission") > c.priority("default")
-    assert c.get("GO_TO_POINT").timeout_s == 120
+    goto = c.get("GO_TO_POINT")
+    assert goto.timeout_s is None and goto.timeout_plan == {"factor": 1.5, "margin_s": 20.0}
+    assert goto.goal["tolerance_m"] == 1.0 and c.get("ROTATE").goal["tolerance_deg"] == 10.0
+    moving = c.get("KEEP_MOVING")
+    assert moving.timeout_s is None and not moving.timeout_plan  # no goal, no plan
 
 
 @pytest.mark.parametrize(("text", "where"), [
@@ -62,6 +66,12 @@ def test_bundled_catalog_loads() -> None:
     (GOOD.replace("- behavior: C", "- behavior: A"), "behavior_descriptors[2].behavior: A described twice"),
     (GOOD + "- wanted: [A]\n", "c.yaml:17: compatibility_conditions[2]: expected 'mutually_exclusive'"),
     ("behavior_descriptors: [\n", "c.yaml:2: YAML syntax error"),
+    (GOOD.replace("  category: recurrent", "  category: recurrent\n  timeout: 30"),
+     "c.yaml:10: behavior_descriptors[1].timeout: a recurrent behavior has no goal"),
+    (GOOD.replace("  category: goal_based\n  parameters", "  category: goal_based\n  timeout: {factor: 0.5}\n"
+                  "  parameters"), "behavior_descriptors[0].timeout: factor must be at least 1"),
+    (GOOD.replace("  category: goal_based\n  parameters", "  category: goal_based\n  goal: {tolerance: 1}\n"
+                  "  parameters"), "behavior_descriptors[0].goal.tolerance"),
 ])
 def test_bad_catalog_names_file_line_field(text: str, where: str) -> None:
     with pytest.raises(ConfigError) as exc:

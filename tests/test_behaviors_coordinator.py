@@ -99,8 +99,8 @@ def test_same_requester_replaces_its_behavior_and_rejections_change_nothing() ->
 
 
 def test_time_out_from_catalog() -> None:
-    goto = "  default: no\n  processes: [motion_controller, trajectory_planner]"
-    w = World(catalog_with({f"  timeout: 120\n{goto}": f"  timeout: 3\n{goto}"}))
+    planned = "  timeout: {factor: 1.5, margin_s: 20}    # distance over the speed allowed"
+    w = World(catalog_with({planned: "  timeout: 3  #"}))  # a fixed limit, shorter than the flight
     w.take_off()
     assert w.activate("GO_TO_POINT coordinate: (60, 0, 5)").accepted
     e = w.wait_ended("GO_TO_POINT", 10)

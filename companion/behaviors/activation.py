@@ -13,7 +13,9 @@ Values: numbers (a trailing ``°`` is allowed and ignored), tuples ``( ... )`` (
 sequences), symbols (``fast``, ``yes``) and double-quoted text. Coordinates are local metres (north,
 east, up) from home; angles degrees. :func:`parse_activation` and :func:`format_activation` convert
 both ways; :func:`check_format` is the coordinator's "checking behavior activation format" service:
-name, arguments, values, dimensions and allowed ranges against the catalog's descriptor, with an
+name, arguments, values, dimensions and allowed ranges against the catalog's descriptor and, given
+the queue's :class:`~companion.flight.limits.Limits`, against the flight envelope (a ``speed`` of 20
+under a 5 m/s limit is refused, never clamped silently: :func:`~.timeouts.envelope_refusal`), with an
 :class:`ActivationError` that says which and why.
 """
 
@@ -23,9 +25,12 @@ import math
 import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from .catalog import BehaviorCatalog, ParameterDescriptor
+
+if TYPE_CHECKING:
+    from companion.flight.limits import Limits
 
 
 class ActivationError(ValueError):
@@ -214,9 +219,11 @@ def check_value(p: ParameterDescriptor, value: Any) -> Any:
     return _one(p, value, p.name)
 
 
-def check_format(catalog: BehaviorCatalog, request: ActivationRequest) -> dict[str, Any]:
+def check_format(catalog: BehaviorCatalog, request: ActivationRequest, limits: Limits | None = None
+                 ) -> dict[str, Any]:
     """Sec. 6.2.2 "checking behavior activation format": the request's parameters, checked and with
-    defaults filled in; :class:`ActivationError` naming the part and the reason otherwise."""
+    defaults filled in; :class:`ActivationError` naming the part and the reason otherwise. With
+    ``limits`` (the queue's), a parameter the flight envelope cannot honour is refused too."""
     if request.behavior not in catalog:
         raise ActivationError("behavior", f"unknown behavior {request.behavior!r} "
                                           f"(known: {', '.join(sorted(catalog.names()))})")
@@ -236,6 +243,12 @@ def check_format(catalog: BehaviorCatalog, request: ActivationRequest) -> dict[s
             raise ActivationError(p.name, f"missing: {request.behavior} needs {p.describe()}")
         elif p.default is not None:
             out[p.name] = p.default
+    if limits is not None:
+        from .timeouts import envelope_refusal
+
+        refused = envelope_refusal(out, limits)
+        if refused is not None:
+            raise ActivationError(*refused)
     return out
 
 

@@ -7,7 +7,9 @@ The catalog is a YAML file written by a developer (the bundled one is
     behavior_descriptors:
     - behavior: GO_TO_POINT
       category: goal_based          # or recurrent
-      timeout: 120                  # s of autopilot time; 0 or absent: no time-out
+      timeout: {factor: 1.5, margin_s: 20}   # from the plan: factor x planned s + margin (timeouts.py)
+                                    # or a number: fixed s of autopilot time; 0 or absent: no time-out
+      goal: {tolerance_m: 1.0, settle_s: 10}  # the measured state that counts as the goal reached
       default: no                   # yes: active unless an incompatible behavior is
       processes: [motion_controller, trajectory_planner]
       performance: {no_progress_s: 8, progress_m: 0.5}   # optional, read by the execution controller
@@ -45,6 +47,9 @@ from mission_specs import bundled
 from taskflight_common.yamlio import ConfigError, Fields, load_yaml, load_yaml_text
 
 CATEGORIES = ("goal_based", "recurrent")
+#: the keys of a descriptor's ``goal`` (tolerances on the measured state) and planned ``timeout``
+GOAL_KEYS = ("tolerance_m", "tolerance_deg", "settle_s")
+TIMEOUT_KEYS = ("factor", "margin_s")
 PARAMETER_TYPES = ("number", "integer", "symbol", "text", "boolean")
 #: The requesters' priority, highest first (Sec. 6.1.2, Definition 3; "operator" is ours).
 DEFAULT_REQUESTER_PRIORITY = ("emergency", "operator", "mission", "default")
@@ -95,6 +100,10 @@ class BehaviorDescriptor:
     parameters: tuple[ParameterDescriptor, ...]
     performance: Mapping[str, float] = field(default_factory=dict)
     description: str = ""
+    #: the planned time-out (``timeout: {factor, margin_s}``), empty when ``timeout_s`` is fixed or none
+    timeout_plan: Mapping[str, float] = field(default_factory=dict)
+    #: the goal's tolerances on the measured state (``goal: {tolerance_m, tolerance_deg, settle_s}``)
+    goal: Mapping[str, float] = field(default_factory=dict)
 
     def parameter(self, name: str) -> ParameterDescriptor | None:
         for p in self.parameters:
@@ -183,7 +192,9 @@ class BehaviorCatalog:
         return {
             "requester_priority": list(self.requester_priority),
             "behavior_descriptors": [
-                {"behavior": d.behavior, "category": d.category, "timeout": d.timeout_s, "default": d.default,
+                {"behavior": d.behavior, "category": d.category,
+                 "timeout": dict(d.timeout_plan) if d.timeout_plan else d.timeout_s,
+                 "goal": dict(d.goal), "default": d.default,
                  "processes": list(d.processes), "description": d.description,
                  "parameters": [{"parameter": p.name, "type": p.type, "dimensions": p.dimensions,
                                  "sequence": p.sequence, "unit": p.unit, "required": p.required,
@@ -265,12 +276,14 @@ def _parameter(f: Fields) -> ParameterDescriptor:
 
 def _descriptor(f: Fields) -> BehaviorDescriptor:
     f.unknown(["behavior", "category", "timeout", "default", "processes", "parameters", "performance",
-               "description"])
+               "description", "goal"])
     name = f.string("behavior")
     if not name.isidentifier() or name.upper() != name:
         raise f.error("behavior", f"'{name}' is not an upper-case identifier (e.g. GO_TO_POINT)")
     category = f.string("category", choices=CATEGORIES)
-    timeout = f.number("timeout", 0.0, lo=0.0)
+    timeout, plan = _timeout(f)
+    if category == "recurrent" and (timeout or plan):
+        raise f.error("timeout", "a recurrent behavior has no goal, hence no time-out")
     default = f.boolean("default", False)
     processes = f.raw("processes", [])
     if not isinstance(processes, list) or not all(isinstance(p, str) and p.isidentifier() for p in processes):
@@ -291,8 +304,29 @@ def _descriptor(f: Fields) -> BehaviorDescriptor:
         pf = f.sub("performance")
         for key in pf.data:
             perf[str(key)] = pf.number(str(key), lo=0.0)
+    goal = _numbers(f, "goal", GOAL_KEYS)
     return BehaviorDescriptor(name, category, timeout or None, default, tuple(processes), tuple(params), perf,
-                              f.string("description", ""))
+                              f.string("description", ""), plan, goal)
+
+
+def _numbers(f: Fields, key: str, keys: Sequence[str]) -> dict[str, float]:
+    if not f.has(key):
+        return {}
+    sub = f.sub(key)
+    if not isinstance(sub.data, Mapping):
+        raise f.error(key, f"expected a mapping of {', '.join(keys)}")
+    sub.unknown(list(keys))
+    return {str(k): sub.number(str(k), lo=0.0) for k in sub.data}
+
+
+def _timeout(f: Fields) -> tuple[float, dict[str, float]]:
+    """``timeout``: a fixed number of seconds, or ``{factor, margin_s}`` applied to the planned duration."""
+    if f.has("timeout") and isinstance(f.raw("timeout"), Mapping):
+        plan = _numbers(f, "timeout", TIMEOUT_KEYS)
+        if "factor" in plan and plan["factor"] < 1.0:
+            raise f.error("timeout", "factor must be at least 1 (the plan itself takes that long)")
+        return 0.0, {"factor": plan.get("factor", 1.0), "margin_s": plan.get("margin_s", 0.0)}
+    return f.number("timeout", 0.0, lo=0.0), {}
 
 
 def _names(f: Fields, key: str, known: Mapping[str, Any]) -> list[str]:

@@ -9,14 +9,19 @@ Each behavior has one execution controller offering the paper's three services:
 3. *stopping the behavior* (:meth:`stop`): tell the process manager the processes are unused.
 
 and monitors the performance conditions (:meth:`monitor`, called periodically on the autopilot's
-clock), ending the behavior with a :class:`Termination`: ``goal_achieved``, ``time_out`` (the
-catalog's ``timeout``, counted while the behavior is not paused), ``wrong_progress`` (e.g. no progress
-toward the goal for the catalog's ``performance.no_progress_s``) or ``interrupted`` (someone else
-cancelled its commands or took the vehicle).
+clock), ending the behavior with a :class:`Termination`: ``goal_achieved``, ``time_out`` (the limit
+:func:`~.timeouts.time_limit` derives from the plan and the catalog's ``timeout``, counted while the
+behavior is not paused; goal-based behaviors only), ``wrong_progress`` (e.g. no progress toward the
+goal for the catalog's ``performance.no_progress_s``) or ``interrupted`` (someone else cancelled its
+commands or took the vehicle).
 
 :class:`FlightBehavior` is the common base of the flight maneuvers: it puts its commands on the queue
 with one atomic verb (:meth:`~companion.flight.queue.CommandQueue.replace_commands`, so switching
-behaviors keeps the setpoint stream continuous) and follows them through the queue's events.
+behaviors keeps the setpoint stream continuous) and follows them through the queue's events. Its goal
+is the *vehicle*, not the setpoint (Sec. 6.2.1: the controller watches the robot): once every command
+ended, ``goal_achieved`` only when the measured state (``ctx.vehicle()``, from the autopilot) is within
+the catalog's ``goal`` tolerances; still short of it after ``goal.settle_s`` (held by the autopilot's
+fence, by wind): ``wrong_progress``.
 
 A new behavior is one module in :mod:`companion.behaviors.library` with a controller class
 registered by :func:`register`, plus a descriptor in the catalog.
@@ -38,6 +43,7 @@ from companion.flight.setpoint import VehicleState
 
 from .catalog import BehaviorDescriptor
 from .processes import ProcessError, ProcessManager
+from .timeouts import time_limit
 
 if TYPE_CHECKING:
     from companion.flight.queue import CommandQueue
@@ -45,6 +51,11 @@ if TYPE_CHECKING:
     from .beliefs import BeliefMemory
 
 log = logging.getLogger(__name__)
+
+#: the goal's tolerances when the catalog gives none (``goal: {tolerance_m, tolerance_deg, settle_s}``)
+DEFAULT_TOLERANCE_M = 1.0
+DEFAULT_TOLERANCE_DEG = 10.0
+DEFAULT_SETTLE_S = 10.0
 
 
 class TerminationCause(Enum):
@@ -113,6 +124,7 @@ class BehaviorExecutionController:
         self.started_at: float | None = None
         self._paused_since: float | None = None
         self._paused_total = 0.0
+        self.time_limit_s: float | None = None
 
     # --- the three services (Sec. 6.2.1) -------------------------------------------------------------------
     def check_activation(self, params: Mapping[str, Any]) -> str | None:
@@ -126,6 +138,7 @@ class BehaviorExecutionController:
         self.started_at = self.ctx.now()
         self._paused_since = None
         self._paused_total = 0.0
+        self.time_limit_s = self.plan_time_limit(self.params)
         try:
             self.ctx.processes.request_start(self.descriptor.processes, self.behavior)
         except ProcessError as exc:
@@ -155,10 +168,31 @@ class BehaviorExecutionController:
         ended = self.performance(now_s)
         if ended is not None:
             return ended
-        timeout = self.descriptor.timeout_s
+        timeout = self.time_limit_s
         if timeout and self.active_time(now_s) > timeout:
-            return Termination(TerminationCause.TIME_OUT, f"not achieved within {timeout:g} s")
+            return Termination(TerminationCause.TIME_OUT, f"not achieved within {timeout:.0f} s (the limit "
+                                                          "of its plan)" if self.descriptor.timeout_plan
+                               else f"not achieved within {timeout:g} s")
         return None
+
+    def plan_time_limit(self, params: Mapping[str, Any]) -> float | None:
+        """The time-out of this activation (:func:`~.timeouts.time_limit` from where the vehicle is now)."""
+        limits = getattr(self.ctx.queue, "limits", None)
+        if limits is None:
+            return self.descriptor.timeout_s if self.descriptor.category == "goal_based" else None
+        start, heading = self.start_point()
+        return time_limit(self.descriptor, params, limits, start, heading)
+
+    def start_point(self) -> tuple[tuple[float, float, float], float | None]:
+        """Where the vehicle is ((north, east, up): measured, else the reference, else home) and its
+        heading in degrees (None when unknown)."""
+        v = self.ctx.vehicle()
+        if v is not None:
+            return (float(v.p[0]), float(v.p[1]), -float(v.p[2])), math.degrees(v.yaw) % 360.0
+        ref = getattr(self.ctx.queue, "reference", None)
+        if ref is not None:
+            return (float(ref.p[0]), float(ref.p[1]), float(ref.altitude)), None
+        return (0.0, 0.0, 0.0), None
 
     def active_time(self, now_s: float) -> float:
         """Seconds active, not counting paused spans (an operator's break-in does not time a behavior out)."""
@@ -192,7 +226,7 @@ class BehaviorExecutionController:
         return None
 
     def status(self) -> dict[str, Any]:
-        return {}
+        return {"time_limit_s": round(self.time_limit_s, 1) if self.time_limit_s else None}
 
     # --- helpers for situation conditions -------------------------------------------------------------------
     def need(self, query: str, why: str) -> str | None:
@@ -208,8 +242,13 @@ class FlightBehavior(BehaviorExecutionController, ABC):
     """A flight maneuver: its commands on the queue, followed through the queue's events.
 
     Subclasses give :meth:`commands`; ``goal_distance`` (optional) is the measured distance to the
-    goal, used for the catalog's progress condition ``performance: {no_progress_s, progress_m}``.
+    goal, used for the catalog's progress condition ``performance: {no_progress_s, progress_m}`` and,
+    by default, for the goal itself (:meth:`goal_check`, within ``goal.tolerance_m``). A behavior whose
+    goal is not a measured state (WAIT, KEEP_HOVERING ended by the operator) sets ``measured_goal``
+    False.
     """
+
+    measured_goal: ClassVar[bool] = True
 
     def __init__(self, descriptor: BehaviorDescriptor, ctx: BehaviorContext) -> None:
         super().__init__(descriptor, ctx)
@@ -219,6 +258,8 @@ class FlightBehavior(BehaviorExecutionController, ABC):
         self._best: float | None = None
         self._best_at = 0.0
         self.unreachable: str | None = None
+        self.commands_done_at: float | None = None
+        self.short_of_goal: str | None = None
 
     @abstractmethod
     def commands(self, params: Mapping[str, Any]) -> list[FlightCommand]:
@@ -230,6 +271,19 @@ class FlightBehavior(BehaviorExecutionController, ABC):
     def goal_reached(self) -> bool:
         """Called once every command finished; True: goal_achieved (override to wait for more)."""
         return True
+
+    def goal_check(self, vehicle: VehicleState | None) -> str | None:
+        """None when the measured state meets the goal, else what is missing (Sec. 6.2.1: the controller
+        watches the robot). By default :meth:`goal_distance` within the catalog's ``goal.tolerance_m``."""
+        if not self.measured_goal:
+            return None
+        if vehicle is None:
+            return "the autopilot reports no position"
+        d = self.goal_distance(vehicle)
+        if d is None:
+            return None
+        tol = self.descriptor.goal.get("tolerance_m", DEFAULT_TOLERANCE_M)
+        return None if d <= tol else f"the vehicle is {d:.1f} m from the goal (tolerance {tol:g} m)"
 
     def on_start(self, params: Mapping[str, Any]) -> None:
         if self.ctx.queue.status().queue_system_status.name == "OVERRIDDEN":
@@ -245,6 +299,8 @@ class FlightBehavior(BehaviorExecutionController, ABC):
         self.finished = set()
         self._best = None
         self._best_at = self.started_at or 0.0
+        self.commands_done_at = None
+        self.short_of_goal = None
 
     def performance(self, now_s: float) -> Termination | None:
         if self.unreachable is not None:
@@ -267,9 +323,27 @@ class FlightBehavior(BehaviorExecutionController, ABC):
                 self.set_paused(True, now_s)
             elif ev.kind in (EventKind.RESUMED, EventKind.STOPPED):
                 self.set_paused(ev.kind is EventKind.STOPPED, now_s)
-        if len(self.finished) == len(ids) and self.goal_reached():
-            return Termination(TerminationCause.GOAL_ACHIEVED)
+        if len(self.finished) == len(ids):
+            ended = self._judge_goal(now_s)
+            if ended is not None:
+                return ended
         return self._progress(now_s)
+
+    def _judge_goal(self, now_s: float) -> Termination | None:
+        """Every command ended: goal_achieved once the vehicle meets the goal; wrong_progress when it is
+        still short of it ``goal.settle_s`` later."""
+        if self.commands_done_at is None:
+            self.commands_done_at = now_s
+        why = None if self.goal_reached() else "the goal is not reached yet"
+        why = why or self.goal_check(self.ctx.vehicle())
+        self.short_of_goal = why
+        if why is None:
+            return Termination(TerminationCause.GOAL_ACHIEVED)
+        settle = self.descriptor.goal.get("settle_s", DEFAULT_SETTLE_S)
+        if now_s - self.commands_done_at > settle:
+            return Termination(TerminationCause.WRONG_PROGRESS,
+                               f"its commands ended but {why} {settle:g} s later")
+        return None
 
     def _progress(self, now_s: float) -> Termination | None:
         window = self.descriptor.performance.get("no_progress_s")
@@ -294,7 +368,10 @@ class FlightBehavior(BehaviorExecutionController, ABC):
         return None
 
     def status(self) -> dict[str, Any]:
-        return {"command_ids": list(self.command_ids), "finished": len(self.finished)}
+        out = {**super().status(), "command_ids": list(self.command_ids), "finished": len(self.finished)}
+        if self.short_of_goal is not None:
+            out["short_of_goal"] = self.short_of_goal
+        return out
 
 
 def distance(a: tuple[float, float, float], b: tuple[float, float, float]) -> float:

@@ -147,7 +147,7 @@ class BehaviorCoordinator:
     def check(self, request: ActivationRequest | str | Mapping[str, Any], requester: str | None = None
               ) -> dict[str, Any]:
         """The format check only: the checked parameters, or :class:`ActivationError`."""
-        return check_format(self.catalog, request_from(request, requester))
+        return check_format(self.catalog, request_from(request, requester), self._limits())
 
     def activate(self, request: ActivationRequest | str | Mapping[str, Any],
                  requester: str | None = None) -> ActivationResult:
@@ -155,7 +155,7 @@ class BehaviorCoordinator:
         t_received = time.perf_counter()
         try:
             req = request_from(request, requester)
-            params = check_format(self.catalog, req)
+            params = check_format(self.catalog, req, self._limits())
         except ActivationError as exc:
             return self._answer(None, requester or "?", False, f"format: {exc}")
         with self._lock:
@@ -248,6 +248,10 @@ class BehaviorCoordinator:
                     "requests": list(self.requests)[-50:]}
 
     # --- internals (lock held) ------------------------------------------------------------------------------
+    def _limits(self) -> Any:
+        """The queue's limits: what the format check holds speeds against (None: no queue limits)."""
+        return getattr(self.ctx.queue, "limits", None)
+
     def _plan(self, behavior: str, requester: str) -> tuple[_Plan, str | None]:
         cat = self.catalog
         prio = cat.priority(requester)

@@ -19,6 +19,7 @@ class FollowExternalVelocity(FlightBehavior):
     (``user_confirm``). A silent joystick stops the vehicle (the samples' validity runs out)."""
 
     behavior = "FOLLOW_EXTERNAL_VELOCITY"
+    measured_goal = False
 
     def situation(self, params: Mapping[str, Any]) -> str | None:
         return need_flying(self)

@@ -16,7 +16,9 @@ from ._common import go_to, need_flying, reference_neu
 @register
 class FollowPath(FlightBehavior):
     """Situation: flying. One straight leg per waypoint (planned inside the envelope); goal achieved
-    when the last leg finished; progress is measured toward the waypoint being flown."""
+    when the last leg finished and the measured position is within ``goal.tolerance_m`` of the last
+    waypoint; progress is measured toward the waypoint being flown; the time-out is the path's length
+    over the speed allowed (:mod:`..timeouts`)."""
 
     behavior = "FOLLOW_PATH"
 

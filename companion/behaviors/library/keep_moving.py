@@ -25,10 +25,12 @@ from ._common import need_flying
 class KeepMoving(FlightBehavior):
     """Situation: flying. The ``velocity_source`` process streams the velocity as ``ext_vel`` samples;
     the command flies both motion channels from that stream (the link streams velocity targets). It
-    has no goal: it runs until another behavior replaces it, the catalog's time-out, or the
-    envelope stops it (``wrong_progress``: the limit is reached and the vehicle no longer moves)."""
+    has no goal (and no plan, hence no time-out unless the catalog gives a fixed one): it runs until
+    another behavior replaces it or the envelope stops it (``wrong_progress``: the limit is reached
+    and the vehicle no longer moves)."""
 
     behavior = "KEEP_MOVING"
+    measured_goal = False
 
     def situation(self, params: Mapping[str, Any]) -> str | None:
         return need_flying(self)

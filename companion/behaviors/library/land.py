@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from typing import Any
 
@@ -15,8 +16,9 @@ from companion.flight import (
     VerticalChannel,
     VerticalMode,
 )
+from companion.flight.setpoint import VehicleState
 
-from ..controller import FlightBehavior, register
+from ..controller import DEFAULT_TOLERANCE_M, FlightBehavior, register
 from ..services import TrajectoryPlanner
 from ._common import go_to, reference_neu
 
@@ -27,7 +29,8 @@ class Land(FlightBehavior):
     short). Seed 000 Fig. 13b: where it is (H_DNU, V_Pos to the ground with allow landing, Hd_DNU; the
     link hands the touch-down to the autopilot's LAND), or, with ``coordinate`` (north, east), first
     a fly-to there at the current altitude. Goal achieved once the belief memory says
-    ``flight_state(self, landed)``."""
+    ``flight_state(self, landed)`` and, with a ``coordinate``, the measured position is within
+    ``goal.tolerance_m`` of it horizontally."""
 
     behavior = "LAND"
 
@@ -56,3 +59,13 @@ class Land(FlightBehavior):
 
     def goal_distance(self, vehicle: Any) -> float | None:
         return max(0.0, -vehicle.p[2])
+
+    def goal_check(self, vehicle: VehicleState | None) -> str | None:
+        if "coordinate" not in self.params:
+            return None  # landed where it is: the belief says so (goal_reached)
+        if vehicle is None:
+            return "the autopilot reports no position"
+        n, e = (float(c) for c in self.params["coordinate"])
+        d = math.hypot(vehicle.p[0] - n, vehicle.p[1] - e)
+        tol = self.descriptor.goal.get("tolerance_m", DEFAULT_TOLERANCE_M)
+        return None if d <= tol else f"it landed {d:.1f} m from ({n:g}, {e:g}) (tolerance {tol:g} m)"

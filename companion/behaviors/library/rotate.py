@@ -18,17 +18,23 @@ from companion.flight import (
     VerticalChannel,
     VerticalMode,
 )
+from companion.flight.setpoint import VehicleState
 
-from ..controller import FlightBehavior, register
+from ..controller import DEFAULT_TOLERANCE_DEG, FlightBehavior, register
 from ._common import need_flying
 
 
 @register
 class Rotate(FlightBehavior):
     """Situation: flying; exactly one of ``angle`` / ``relative_angle``. Position held while the heading
-    turns; goal achieved when the heading command finished."""
+    turns; goal achieved when the heading command finished and the measured heading is within the
+    catalog's ``goal.tolerance_deg`` of the one asked for."""
 
     behavior = "ROTATE"
+
+    def __init__(self, *args: Any) -> None:
+        super().__init__(*args)
+        self.target_deg: float | None = None
 
     def situation(self, params: Mapping[str, Any]) -> str | None:
         if ("angle" in params) == ("relative_angle" in params):
@@ -36,6 +42,12 @@ class Rotate(FlightBehavior):
         return need_flying(self)
 
     def commands(self, params: Mapping[str, Any]) -> list[FlightCommand]:
+        _, heading_now = self.start_point()
+        if "angle" in params:
+            self.target_deg = params["angle"] % 360.0
+        else:
+            turn = float(params["relative_angle"])
+            self.target_deg = None if heading_now is None else (heading_now + turn) % 360.0
         if "angle" in params:
             heading = HeadingChannel(HeadingMode.POS, heading=params["angle"] % 360.0)
         else:
@@ -43,3 +55,13 @@ class Rotate(FlightBehavior):
                                      use_sign=True, rate=math.copysign(90.0, params["relative_angle"] or 1.0))
         return [FlightCommand(HorizontalChannel(HorizontalMode.DNU), VerticalChannel(VerticalMode.DNU),
                               heading, EndCondition(e_hd=True))]
+
+    def goal_check(self, vehicle: VehicleState | None) -> str | None:
+        if vehicle is None:
+            return "the autopilot reports no heading"
+        if self.target_deg is None:
+            return None  # the heading at the start was unknown: the command's end is all there is
+        error = abs(math.remainder(math.degrees(vehicle.yaw) - self.target_deg, 360.0))
+        tol = self.descriptor.goal.get("tolerance_deg", DEFAULT_TOLERANCE_DEG)
+        return None if error <= tol else \
+            f"the heading is {error:.0f} deg from {self.target_deg:g} (tolerance {tol:g} deg)"

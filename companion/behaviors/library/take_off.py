@@ -22,7 +22,8 @@ from ..controller import FlightBehavior, register
 @register
 class TakeOff(FlightBehavior):
     """Situation: ``flight_state(self, landed)``. One take-off command (the link arms, switches to
-    GUIDED and sends MAV_CMD_NAV_TAKEOFF); goal achieved when it finished."""
+    GUIDED and sends MAV_CMD_NAV_TAKEOFF); goal achieved when it finished and the measured altitude is
+    within ``goal.tolerance_m`` of ``altitude``."""
 
     behavior = "TAKE_OFF"
 

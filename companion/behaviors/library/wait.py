@@ -14,10 +14,12 @@ from ._common import hold
 @register
 class Wait(FlightBehavior):
     """No situation condition (a wait on the ground is a wait too). One command: all channels DNU,
-    E_Wait = ``duration`` (Fig. 7 / Sec. VI-D); goal achieved when it ends. The time-out of the
-    catalog does not apply to more than the duration asked for plus its margin."""
+    E_Wait = ``duration`` (Fig. 7 / Sec. VI-D); goal achieved when it ends (no measured goal). Its
+    plan is the duration (:mod:`..timeouts`); a catalog with a plain ``timeout`` number gives the
+    margin beyond the duration."""
 
     behavior = "WAIT"
+    measured_goal = False
 
     def situation(self, params: Mapping[str, Any]) -> str | None:
         if self.ctx.queue.status().queue_system_status.name == "OVERRIDDEN":
@@ -27,13 +29,7 @@ class Wait(FlightBehavior):
     def commands(self, params: Mapping[str, Any]) -> list[FlightCommand]:
         return [hold(EndCondition(e_wait=float(params["duration"])))]
 
-    def monitor(self, now_s: float) -> Any:
-        ended = self.performance(now_s)
-        if ended is not None or not self.active:
-            return ended
-        limit = float(self.params["duration"]) + (self.descriptor.timeout_s or 10.0)
-        if self.active_time(now_s) > limit:
-            from ..controller import Termination, TerminationCause
-
-            return Termination(TerminationCause.TIME_OUT, f"not over after {limit:g} s")
-        return None
+    def plan_time_limit(self, params: Mapping[str, Any]) -> float | None:
+        if self.descriptor.timeout_plan:
+            return super().plan_time_limit(params)
+        return float(params["duration"]) + (self.descriptor.timeout_s or 10.0)
