@@ -165,6 +165,28 @@ class Platform:
             return "the straight line leaves the operational envelope (fence)"
         return None
 
+    # --- the one envelope: what the queue flies is what delegation checks --------------------------------
+    def flight_limits(self) -> Limits:
+        """The queue's limits (seed 000 Sec. IV-D v_env, a_env): ``limits`` tightened by the autopilot's
+        parameters, the same maxima delegation plans with (``max_speed``, ``max_climb``, ...)."""
+        return dataclasses.replace(self.limits, horizontal_speed=self.max_speed[0],
+                                   vertical_speed=min(self.max_climb, self.max_descent),
+                                   horizontal_acceleration=self.max_accel)
+
+    def flight_envelope(self) -> Envelope:
+        """The queue's operational envelope (p_env): the fence (``envelope``'s box or polygon, cut to a
+        polygon inscribed in ``FENCE_RADIUS`` when given), the ceiling and floor delegation checks."""
+        ceiling, floor = self.ceiling[0], self.floor[0]
+        env = Envelope(list(self.envelope.vertices) if self.envelope.vertices else None,
+                       altitude_floor=floor if floor > 0 else None,
+                       altitude_ceiling=ceiling if math.isfinite(ceiling) else None)
+        radius = self.autopilot_params.get("FENCE_RADIUS")
+        if radius is not None:
+            n = 64  # inscribed: every point of the polygon is inside the circle
+            angles = [2 * math.pi * k / n for k in range(n)]
+            env = env.intersected([(radius * math.cos(a), radius * math.sin(a)) for a in angles])
+        return env
+
     # --- helpers the companion uses with its MAVLink mirror ----------------------------------------------
     def with_battery(self, percent: float) -> Platform:
         """This platform with ``percent`` of the battery left (0-100)."""
