@@ -128,11 +128,11 @@ class TstExecutor(ABC):
             self.prepare()
         try:
             self.on_start()
+            text = self.activation()
         except ValueError as exc:
             self.lifecycle.start()
             self._fail(str(exc))
             return self.status
-        text = self.activation()
         result = self.ctx.coordinator.activate(text, "mission")
         if not result.accepted and _transient(result.reason):
             self.lifecycle.start(wait_conditions_met=False)
