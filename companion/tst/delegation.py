@@ -208,13 +208,13 @@ def delegate(mission: Mission, platform: Platform, catalog: BehaviorCatalog | No
                       platform.name)
 
 
-def _solve(problem: ConstraintProblem, objective: dict[str, float] | None = None) -> Solution:
-    """Solve preferring the ``standard`` option of every qualitative choice (speeds, altitudes); an
-    ``objective`` (the parameters bounded only from above, taken to their bound) comes first."""
+def _solve(problem: ConstraintProblem, maximize: dict[str, float] | None = None) -> Solution:
+    """Solve preferring the ``standard`` option of every qualitative choice (speeds, altitudes); the
+    parameters in ``maximize`` (bounded only from above by their relation) go to their bound."""
     try:
-        return problem.solve(objective or None, prefer="standard")
+        return problem.solve(prefer="standard", maximize=list(maximize or ()))
     except ConstraintError:  # no qualitative variable has a "standard" option (none was declared)
-        return problem.solve(objective or None)
+        return problem.solve(maximize=list(maximize or ()))
 
 
 def _fixed_values(node: TstNode, platform: Platform, sol: Solution) -> dict[str, Any]:

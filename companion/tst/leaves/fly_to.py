@@ -50,8 +50,7 @@ class FlyTo(LeafType):
     figure = "Fig. 12a"
     doc = "Bring the platform to a specified location."
     params = (
-        ParamSpec("position", "geopoint", "Geographical location of the target position (without one, "
-                  "delegation refuses the node).", required=False),
+        ParamSpec("position", "geopoint", "Geographical location of the target position.", required=True),
         ParamSpec("commanded_speed", "float", "Wanted speed in m/s.", unit="m/s", minimum=0.0),
         ParamSpec("speed", "qualitative", 'Qualitative specification: "slow", "standard", "fast".',
                   options=("slow", "standard", "fast")),

@@ -1,8 +1,7 @@
 """take-off (seed 000 Sec. VI-A, Fig. 11): make the platform airborne.
 
-Fig. 11 has no input parameters: the altitude is the platform's (``takeoff_altitude``: 2 m indoor, 5 m
-outdoor); ours, an ``altitude`` parameter (m above home) overrides it. Without either, delegation refuses the
-node (no made-up altitude). The executor asks for the
+No input parameters: the altitude is the platform's (``takeoff_altitude``: 2 m indoor, 5 m outdoor); a
+platform without one (``takeoff_altitude: null``) refuses the node (no made-up altitude). The executor asks for the
 TAKE_OFF behavior (V_Pos, take-off flag, E_V). Fig. 4: "cannot be paused, aborted, or stopped after it
 has been initiated ... all the execution information flags to false" (VI-A).
 """
@@ -16,7 +15,6 @@ from companion.tst.constraints import ConstraintProblem
 from companion.tst.executor import TstExecutor
 from companion.tst.leaves.base import LeafType
 from companion.tst.leaves.common import finish_plan, var, where
-from companion.tst.param_spec import ParamSpec
 from companion.tst.plan import NodePlan, Vec3
 from companion.tst.platform import Platform
 from companion.tst.status import NodeExecutionInfo
@@ -33,10 +31,9 @@ class TakeOffExecutor(TstExecutor):
 class TakeOff(LeafType):
     name = "take-off"
     figure = "Fig. 11"
-    doc = ("Make the platform airborne; the altitude is the platform's (2 m indoor, 5 m outdoor) unless "
-           "``altitude`` (ours) gives one.")
-    params = (ParamSpec("altitude", "float", "Take-off altitude above home (ours; default: the platform's "
-                        "takeoff_altitude).", unit="m", minimum=0.0),)
+    doc = ("Make the platform airborne; no input parameters (the altitude is the platform's: 2 m indoor, "
+           "5 m outdoor; a platform without one refuses the node).")
+
     info = NodeExecutionInfo(can_be_aborted=False, can_be_paused=False, can_be_enoughed=False)
     executor = TakeOffExecutor
     has_floor = False  # it starts on the ground
@@ -44,8 +41,8 @@ class TakeOff(LeafType):
     def check(self, node: TstNode, platform: Platform) -> list[str]:
         out = super().check(node, platform)
         if _altitude(node, platform) is None:
-            out.append(f"{where(node)}: no altitude: the take-off gives no altitude and platform "
-                       f"{platform.name} has no takeoff_altitude")
+            out.append(f"{where(node)}: no altitude: platform {platform.name} has no takeoff_altitude "
+                       "(a take-off has no altitude parameter, Fig. 11)")
         return out
 
     def altitude_variables(self, node: TstNode, platform: Platform, problem: ConstraintProblem
@@ -68,9 +65,8 @@ class TakeOff(LeafType):
 
 
 def _altitude(node: TstNode, platform: Platform) -> float | None:
-    """The node's ``altitude``, else the platform's ``takeoff_altitude``; None when neither is > 0."""
-    given = node.params.get("altitude")
-    value = given if isinstance(given, int | float) and not isinstance(given, bool) else platform.takeoff_altitude
+    """The platform's ``takeoff_altitude``; None when it has none (> 0)."""
+    value = platform.takeoff_altitude
     return float(value) if value is not None and value > 0 else None
 
 
