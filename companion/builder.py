@@ -224,8 +224,8 @@ def queue_envelope(config: CompanionConfig) -> tuple[Limits | None, Envelope | N
                                   source="envelope")
     if config.flight_config is not None:
         limits, envelope = config.flight_config.narrow(limits, envelope)
-    log.info("queue envelope from platform %s: %s; %g m/s, %g m/s up/down", platform.name, envelope.describe(),
-             limits.horizontal_speed, limits.vertical_speed)
+    log.info("queue envelope from platform %s: %s; %g m/s, %g m/s up/down", platform.name,
+             envelope.describe(), limits.horizontal_speed, limits.vertical_speed)
     return limits, envelope
 
 

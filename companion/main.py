@@ -55,8 +55,8 @@ def add_companion_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--source-system", type=int, default=None,
                         help="our MAVLink system id (default: the autopilot's own)")
     parser.add_argument("--flight-config", default=None, metavar="YAML",
-                        help="limits and operational envelope (companion.flight.limits); with the mission layer it "
-                             "may only narrow the platform's (a wider field is refused)")
+                        help="limits and operational envelope (companion.flight.limits); with the "
+                             "mission layer it may only narrow the platform's (a wider field is refused)")
     parser.add_argument("--pause-routines", default=None, metavar="YAML",
                         help="extra pause routines of the queue (seed 000 Sec. V)")
     parser.add_argument("--behavior-catalog", default=None, metavar="YAML",

@@ -17,7 +17,7 @@ import pytest
 
 from companion.tst.delegation import delegate
 from companion.tst.delegation_plan import local_to_geopoint
-from companion.tst.platform import bundled_platform
+from companion.tst.platform import Platform, bundled_platform
 from companion.tst.spec import mission_from_dict
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -25,7 +25,7 @@ INDOOR = bundled_platform("indoor")
 OUTDOOR = bundled_platform("outdoor")
 
 
-def geo(n: float, e: float, up: float | None = None, platform=INDOOR) -> list[float]:  # type: ignore[no-untyped-def]
+def geo(n: float, e: float, up: float | None = None, platform: Platform = INDOOR) -> list[float]:
     lat, lon, alt = local_to_geopoint((n, e, up or 0.0), platform)
     return [lat, lon] if up is None else [lat, lon, alt]
 
@@ -38,12 +38,13 @@ def tree(*children: dict) -> object:
 def test_a_c_node_whose_branches_both_fly_is_refused_naming_it() -> None:
     both = {"type": "C", "id": "both", "children": [
         {"type": "fly-to", "id": "a", "params": {"position": geo(5, 0, 2)}},
-        {"type": "S", "id": "b", "children": [{"type": "fly-to", "id": "b1", "params": {"position": geo(0, 5, 2)}}]},
+        {"type": "S", "id": "b", "children": [
+            {"type": "fly-to", "id": "b1", "params": {"position": geo(0, 5, 2)}}]},
     ]}
     d = delegate(tree(both), INDOOR)
     assert not d.accepted
-    assert any(r.startswith("node both (C): concurrent flight") and "a (a: fly-to)" in r and "b (b1: fly-to)" in r
-               for r in d.reasons), d.reasons
+    assert any(r.startswith("node both (C): concurrent flight") and "a (a: fly-to)" in r
+               and "b (b1: fly-to)" in r for r in d.reasons), d.reasons
     # one flying branch beside a wait is fine
     fine = {"type": "C", "id": "fine", "children": [
         {"type": "fly-to", "id": "a", "params": {"position": geo(5, 0, 2)}},
@@ -65,11 +66,11 @@ def test_no_silent_fallback_for_a_fly_to_without_a_position_or_a_take_off_withou
 
 
 def test_a_speed_above_the_envelope_is_refused_and_an_interval_is_clamped_and_shown() -> None:
-    d = delegate(tree({"type": "fly-to", "id": "fast", "params": {"position": geo(5, 0, 2), "commanded_speed": 5}}),
-                 INDOOR)
+    fast = {"type": "fly-to", "id": "fast", "params": {"position": geo(5, 0, 2), "commanded_speed": 5}}
+    d = delegate(tree(fast), INDOOR)
     assert not d.accepted
-    assert any(r.startswith("node fast (fly-to): bad speed: commanded_speed 5 m/s is above the envelope's speed "
-                            "limit 2 m/s") for r in d.reasons), d.reasons
+    assert any(r.startswith("node fast (fly-to): bad speed: commanded_speed 5 m/s is above the envelope's "
+                            "speed limit 2 m/s") for r in d.reasons), d.reasons
     d = delegate(tree({"type": "fly-to", "id": "band", "params": {
         "position": geo(5, 0, 2), "commanded_speed": {"interval": [1, 3]}}}), INDOOR)
     assert d.accepted and d.plans["band"].speed_m_s is not None and d.plans["band"].speed_m_s <= 2.0
@@ -141,8 +142,8 @@ def test_mission_check_prints_every_refusal_with_node_and_reason(tmp_path: Path)
     text = (ROOT / "mission_specs" / "platform_indoor.yaml").read_text()
     platform.write_text(text.replace("profile: indoor ", "takeoff_altitude: null\nprofile: indoor "))
     done = subprocess.run([sys.executable, "-m", "taskflight.cli", "mission", "check", str(mission),
-                           "--platform", str(platform)], cwd=ROOT, capture_output=True, text=True, timeout=120,
-                          stdin=subprocess.DEVNULL)
+                           "--platform", str(platform)], cwd=ROOT, capture_output=True, text=True,
+                          timeout=120, stdin=subprocess.DEVNULL)
     assert done.returncode == 1, done.stderr
     out = done.stdout
     assert "REJECTED" in out
@@ -150,3 +151,55 @@ def test_mission_check_prints_every_refusal_with_node_and_reason(tmp_path: Path)
 "node fast (fly-to): bad speed",
                      "node high (fly-to): bad altitude"):
         assert f"  - {expected}" in out, out
+
+
+PLAIN = """
+mission: plain
+tree:
+  type: S
+  children:
+    - {type: take-off, id: to}
+    - type: S
+      id: legs
+      children:
+        - {type: fly-to, id: fly, params: {position: [-35.36, 149.16, 3]}}
+        - {type: wait, id: rest, params: {duration: 5}}
+    - {type: land, id: land}
+"""
+
+
+def test_prepare_rechecks_readiness_against_the_rest_of_the_plan() -> None:
+    """Fig. 3 prepare(): before each node the vehicle is checked against the plan left from it; a node
+    that is not ready fails with the reason and never asks for its behavior."""
+    from companion.tst.execution import TstExecutionSystem
+    from companion.tst.plan import NodePlan
+    from companion.tst.spec import mission_from_yaml
+    from harness.behaviors import World
+
+    w = World()
+    asked: list[tuple[str, float]] = []
+
+    def readiness(node_id: str, seconds_left: float) -> str | None:
+        asked.append((node_id, seconds_left))
+        if seconds_left > 100:
+            return f"battery: {seconds_left:.0f} s of plan left, 100 s of endurance"
+        return None
+
+    ts = TstExecutionSystem(w.layer, readiness=readiness)
+    w.layer.cycle_listeners.append(ts.tick)
+    plans = [NodePlan("to", "take-off", altitude_m=3.0, expected_s=5.0),
+             NodePlan("fly", "fly-to", position_neu=(60.0, 0.0, 3.0), speed_m_s=1.0, expected_s=150.0),
+             NodePlan("rest", "wait", duration_s=5.0, expected_s=5.0),
+             NodePlan("land", "land", expected_s=4.0)]
+    ts.load(mission_from_yaml(PLAIN, "m.yaml"), {p.node_id: p for p in plans})
+    mission = ts.mission
+    assert mission is not None
+    nodes = {str(n.id): n for n in mission.root.iter()}
+    assert ts.seconds_left(nodes["fly"]) == pytest.approx(159.0)  # fly + rest + land
+    assert ts.seconds_left(nodes["rest"]) == pytest.approx(9.0)
+    ts.start()
+    status = ts.status()
+    assert status["state"] == "failed", status
+    assert "not ready: battery: 164 s of plan left" in status["fail_reason"]
+    assert asked == [("to", pytest.approx(164.0))]
+    assert not w.layer.coordinator.ended and w.layer.coordinator.activation("TAKE_OFF") is None

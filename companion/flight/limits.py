@@ -266,10 +266,10 @@ class FlightConfig:
     altitude_ceiling: float | None = None
 
     def narrow(self, limits: Limits, envelope: Envelope) -> tuple[Limits, Envelope]:
-        """``limits`` and ``envelope`` narrowed by this file; ``ValueError`` naming the first field that
-        would widen them (nothing is changed then)."""
-        return narrow(limits, envelope, self.limits, self.envelope, self.altitude_floor, self.altitude_ceiling,
-                      source=self.file)
+        """``limits`` and ``envelope`` narrowed by this file; ``ValueError`` naming the first field
+        that would widen them (nothing is changed then)."""
+        return narrow(limits, envelope, self.limits, self.envelope, self.altitude_floor,
+                      self.altitude_ceiling, source=self.file)
 
     def standalone(self) -> tuple[Limits, Envelope]:
         """The file on its own (no platform): the limits it names over the defaults, its envelope."""

@@ -116,9 +116,10 @@ def executive_reasons(root: TstNode, plans: dict[str, NodePlan], catalog: Behavi
             continue
         limit = executive_time_limit(catalog, behavior)
         if limit is not None and plan.expected_s > limit:
-            out.append(f"{where(n)}: longer than the executive layer allows: {plan.expected_s:.0f} s expected "
-                       f"(path {plan.length_m or 0:.0f} m at {plan.speed_m_s or 0:g} m/s), and {behavior} times "
-                       f"out after {limit:g} s (behavior catalog): split the task or fly it faster")
+            out.append(f"{where(n)}: longer than the executive layer allows: {plan.expected_s:.0f} s "
+                       f"expected (path {plan.length_m or 0:.0f} m at {plan.speed_m_s or 0:g} m/s), and "
+                       f"{behavior} times out after {limit:g} s (behavior catalog): split the task or fly it "
+                       "faster")
     return out
 
 
