@@ -1,9 +1,9 @@
 """take-off (seed 000 Sec. VI-A, Fig. 11): make the platform airborne.
 
 No input parameters: the altitude is the platform's (``takeoff_altitude``: 2 m indoor, 5 m outdoor);
-a platform without one (``takeoff_altitude: null``) refuses the node (no made-up altitude). The executor
-asks for the TAKE_OFF behavior (V_Pos, take-off flag, E_V). Fig. 4: "cannot be paused, aborted, or stopped after it
-has been initiated ... all the execution information flags to false" (VI-A).
+a platform without one (``takeoff_altitude: null``) refuses the node (no made-up altitude). The
+executor asks for the TAKE_OFF behavior (V_Pos, take-off flag, E_V). Fig. 4: "cannot be paused,
+aborted, or stopped after it has been initiated ... all the execution information flags to false" (VI-A).
 """
 
 from __future__ import annotations
