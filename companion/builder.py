@@ -28,6 +28,7 @@ from companion.behaviors.catalog import BehaviorCatalog
 from companion.behaviors.system import ExecutiveLayer
 from companion.flight import Envelope, FlightCommand, Limits, PauseRoutineCatalog
 from companion.flight.external import DEFAULT_MAX_VALIDITY_S
+from companion.flight.limits import FlightConfig, narrow
 from companion.flightlog import FlightRecorder
 from companion.http import ControlServer
 from companion.mission_service import MissionService
@@ -36,7 +37,7 @@ from companion.sensing.scenario import Scenario
 from companion.team.join import join_team
 from companion.team.member import TeamMember
 from companion.team.transport import open_transport
-from companion.tst.platform import Platform
+from companion.tst.platform import Platform, bundled_platform
 from companion.tst.spec import Mission
 
 log = logging.getLogger(__name__)
@@ -55,9 +56,12 @@ class CompanionConfig:
     source_system: int | None = None
     #: longest validity an external-data sample may claim (s)
     max_validity_s: float = DEFAULT_MAX_VALIDITY_S
-    #: the queue's limits and operational envelope (None: the defaults)
+    #: the queue's limits and operational envelope (None: the defaults). With the mission layer served they
+    #: and ``flight_config`` only *narrow* the platform's (:func:`queue_envelope`)
     limits: Limits | None = None
     envelope: Envelope | None = None
+    #: ``--flight-config``: the limits and envelope parts a file names
+    flight_config: FlightConfig | None = None
     #: the queue's pause routines (None: the bundled ones; seed 000 Sec. V)
     pause_routines: PauseRoutineCatalog | None = None
     #: serve the executive layer (seed 001); False: the queue is driven through the QAPI only
@@ -194,6 +198,37 @@ class Companion:
         return member
 
 
+def queue_envelope(config: CompanionConfig) -> tuple[Limits | None, Envelope | None]:
+    """The limits and operational envelope the queue flies (seed 000 Sec. IV-D's P_env).
+
+    With the mission layer served, the platform (``config.platform``, else the bundled indoor one) is their
+    one source, the same envelope and limits delegation checks (:meth:`Platform.flight_envelope`,
+    :meth:`Platform.flight_limits`): ``limits`` / ``envelope`` / ``flight_config`` may narrow them, and
+    one that would widen them is a ``ValueError`` naming the field. Without it the queue flies ``limits``
+    / ``envelope`` / ``flight_config`` as given (None: the defaults).
+    """
+    if not (config.behaviors and config.missions):
+        if config.flight_config is not None:
+            return config.flight_config.standalone()
+        return config.limits, config.envelope
+    platform = config.platform or bundled_platform("indoor")
+    limits, envelope = platform.flight_limits(), platform.flight_envelope()
+    if config.limits is not None:
+        defaults = Limits()  # a field left at its default was not given
+        given = {f: getattr(config.limits, f) for f in config.limits.__dataclass_fields__
+                 if getattr(config.limits, f) != getattr(defaults, f)}
+        limits, envelope = narrow(limits, envelope, given, source="limits")
+    if config.envelope is not None:
+        e = config.envelope
+        limits, envelope = narrow(limits, envelope, None, e, e.altitude_floor, e.altitude_ceiling,
+                                  source="envelope")
+    if config.flight_config is not None:
+        limits, envelope = config.flight_config.narrow(limits, envelope)
+    log.info("queue envelope from platform %s: %s; %g m/s, %g m/s up/down", platform.name,
+             envelope.describe(), limits.horizontal_speed, limits.vertical_speed)
+    return limits, envelope
+
+
 def build_companion(config: CompanionConfig) -> Companion:
     """The companion ``config`` describes, made and not started (ValueError or OSError if it cannot be).
 
@@ -201,7 +236,8 @@ def build_companion(config: CompanionConfig) -> Companion:
     """
     if config.team:
         open_transport(config.team, member=0, position_of=lambda m: None).close()
-    node = QuadNode(config.autopilot, rate_hz=config.rate_hz, limits=config.limits, envelope=config.envelope,
+    limits, envelope = queue_envelope(config)
+    node = QuadNode(config.autopilot, rate_hz=config.rate_hz, limits=limits, envelope=envelope,
                     catalog=config.pause_routines, baud=config.baud, source_system=config.source_system,
                     max_validity_s=config.max_validity_s)
     recorder = FlightRecorder(node, config.flight_log) if config.flight_log else None

@@ -55,7 +55,8 @@ def add_companion_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--source-system", type=int, default=None,
                         help="our MAVLink system id (default: the autopilot's own)")
     parser.add_argument("--flight-config", default=None, metavar="YAML",
-                        help="limits and operational envelope (companion.flight.limits)")
+                        help="limits and operational envelope (companion.flight.limits); with the "
+                             "mission layer it may only narrow the platform's (a wider field is refused)")
     parser.add_argument("--pause-routines", default=None, metavar="YAML",
                         help="extra pause routines of the queue (seed 000 Sec. V)")
     parser.add_argument("--behavior-catalog", default=None, metavar="YAML",
@@ -99,17 +100,17 @@ def config_from_args(args: argparse.Namespace) -> CompanionConfig:
     # companion's stack (pymavlink, FastAPI, scipy) takes seconds to import
     from companion.behaviors.catalog import load_catalog as load_behavior_catalog
     from companion.builder import CompanionConfig
-    from companion.flight import load_catalog, load_commands, load_flight_config
+    from companion.flight import load_catalog, load_commands
     from companion.flight.external import DEFAULT_MAX_VALIDITY_S
+    from companion.flight.limits import load_flight_config_fields
     from companion.sensing.scenario import Scenario
     from companion.tst.platform import load_platform
     from companion.tst.spec import load_mission
 
-    limits, envelope = load_flight_config(args.flight_config) if args.flight_config else (None, None)
     return CompanionConfig(
         autopilot=args.autopilot, rate_hz=args.rate, baud=args.baud, source_system=args.source_system,
         max_validity_s=DEFAULT_MAX_VALIDITY_S if args.max_validity is None else args.max_validity,
-        limits=limits, envelope=envelope,
+        flight_config=load_flight_config_fields(args.flight_config) if args.flight_config else None,
         pause_routines=load_catalog(args.pause_routines) if args.pause_routines else None,
         commands=tuple(load_commands(args.commands)) if args.commands else (),
         behaviors=not args.no_behaviors,

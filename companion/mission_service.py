@@ -40,7 +40,7 @@ class MissionService:
         self.node = node
         self.layer = layer
         self.base_platform = platform or bundled_platform("indoor")
-        self.execution = TstExecutionSystem(layer, mark=self._mark)
+        self.execution = TstExecutionSystem(layer, mark=self._mark, readiness=self.readiness)
         self.recorder = recorder
         if recorder is not None:
             recorder.active_node = self.execution.active_node
@@ -62,13 +62,26 @@ class MissionService:
             p = p.with_battery(float(s.battery_remaining))
         return p
 
+    def readiness(self, node_id: str, seconds_left: float) -> str | None:
+        """Fig. 3 prepare()'s re-check before node ``node_id`` starts: the autopilot link, the estimate,
+        and the battery against the ``seconds_left`` of the plan from that node; None when ready."""
+        if not self.node.link.connected:
+            return "the link to the autopilot is lost"
+        if self.layer.beliefs.holds("localization(self, unhealthy)"):
+            return "the autopilot's position estimate is unhealthy"
+        endurance = self.platform().endurance_s
+        if seconds_left > endurance:
+            return (f"battery: {seconds_left:.0f} s of plan left from {node_id}, {endurance:.0f} s of "
+                    f"endurance ({self.platform().endurance_source})")
+        return None
+
     # --- the mission ---------------------------------------------------------------------------------------
     def submit(self, mission: Mission) -> Delegation:
         """Delegate ``mission`` to this platform; load it when accepted (nothing changes when rejected)."""
         with self._lock:
             if self.execution.running:
                 raise ExecutionRequestError("a mission is running: abort it or let it finish first")
-            result = delegate(mission, self.platform())
+            result = delegate(mission, self.platform(), catalog=self.layer.catalog)
             if result.accepted:
                 self.execution.load(result.mission, result.plans)
                 self.delegation = result

@@ -158,6 +158,29 @@ class Envelope:
     def bounded_horizontally(self) -> bool:
         return self._poly is not None
 
+    def covers_envelope(self, other: Envelope) -> bool:
+        """True when ``other``'s horizontal area lies inside this one's (an unbounded one covers all)."""
+        if self._poly is None:
+            return True
+        return other._poly is not None and bool(self._poly.covers(other._poly))
+
+    def intersected(self, polygon: list[tuple[float, float]]) -> Envelope:
+        """This envelope with its horizontal area cut to ``polygon`` (the altitudes kept)."""
+        cut = Polygon(polygon) if self._poly is None else self._poly.intersection(Polygon(polygon))
+        if not isinstance(cut, Polygon) or cut.is_empty:
+            raise ValueError("envelope: the fence and the polygon do not overlap in one area")
+        return Envelope(list(cut.exterior.coords)[:-1], altitude_floor=self.altitude_floor,
+                        altitude_ceiling=self.altitude_ceiling)
+
+    def describe(self) -> str:
+        """A short text of the envelope for logs."""
+        if self._poly is None:
+            horizontal = "unbounded horizontally"
+        else:
+            n0, e0, n1, e1 = self._poly.bounds
+            horizontal = f"north {n0:g}..{n1:g} m, east {e0:g}..{e1:g} m"
+        return f"{horizontal}, floor {self.altitude_floor}, ceiling {self.altitude_ceiling}"
+
     def contains_ne(self, ne: tuple[float, float] | np.ndarray) -> bool:
         if self._poly is None:
             return True
@@ -228,6 +251,90 @@ class Envelope:
                 normal = np.array([ab[i, 1], -ab[i, 0]]) / math.sqrt(denom[i])
             out.append((normal, float(dist[i])))
         return out
+
+
+@dataclass(frozen=True)
+class FlightConfig:
+    """What a flight-config file gives, field by field (:func:`load_flight_config_fields`): the limits it
+    names and the parts of the envelope it names, so that it can *narrow* another source (the platform)
+    without its defaults standing in for what it left out."""
+
+    file: str
+    limits: dict[str, float]
+    envelope: Envelope | None = None  # its horizontal area (None: not given)
+    altitude_floor: float | None = None
+    altitude_ceiling: float | None = None
+
+    def narrow(self, limits: Limits, envelope: Envelope) -> tuple[Limits, Envelope]:
+        """``limits`` and ``envelope`` narrowed by this file; ``ValueError`` naming the first field
+        that would widen them (nothing is changed then)."""
+        return narrow(limits, envelope, self.limits, self.envelope, self.altitude_floor,
+                      self.altitude_ceiling, source=self.file)
+
+    def standalone(self) -> tuple[Limits, Envelope]:
+        """The file on its own (no platform): the limits it names over the defaults, its envelope."""
+        vertices = self.envelope.vertices if self.envelope is not None else None
+        return Limits(**{**{f.name: getattr(Limits(), f.name) for f in fields(Limits)}, **self.limits}), \
+            Envelope(list(vertices) if vertices else None, altitude_floor=self.altitude_floor,
+                     altitude_ceiling=self.altitude_ceiling)
+
+
+def narrow(limits: Limits, envelope: Envelope, new_limits: dict[str, float] | None = None,
+           area: Envelope | None = None, floor: float | None = None, ceiling: float | None = None,
+           source: str = "flight config") -> tuple[Limits, Envelope]:
+    """Narrow ``limits`` / ``envelope`` (the platform's, seed 000 Sec. IV-D's P_env) by the given parts.
+
+    Each given limit must not exceed the one it replaces, ``area`` must lie inside the envelope's area, a
+    ``ceiling`` not above its ceiling, a ``floor`` not below its floor; otherwise ``ValueError`` names the
+    field: a second source may narrow the envelope, never widen it.
+    """
+    values = {f.name: getattr(limits, f.name) for f in fields(Limits)}
+    for name, value in (new_limits or {}).items():
+        if name not in values:
+            raise ValueError(f"{source}: limits.{name}: unknown limit")
+        if value > values[name] + 1e-9:
+            raise ValueError(f"{source}: limits.{name}: {value:g} widens the platform's {values[name]:g} "
+                             "(a flight config may narrow the platform's envelope, never widen it)")
+        values[name] = float(value)
+    base_floor, base_ceiling = envelope.altitude_floor, envelope.altitude_ceiling
+    if ceiling is not None and base_ceiling is not None and ceiling > base_ceiling + 1e-9:
+        raise ValueError(f"{source}: envelope.altitude_ceiling: {ceiling:g} m is above the platform's "
+                         f"ceiling {base_ceiling:g} m (a flight config may narrow it, never widen it)")
+    if floor is not None and base_floor is not None and floor < base_floor - 1e-9:
+        raise ValueError(f"{source}: envelope.altitude_floor: {floor:g} m is below the platform's floor "
+                         f"{base_floor:g} m (a flight config may narrow it, never widen it)")
+    if area is not None and area.bounded_horizontally and not envelope.covers_envelope(area):
+        raise ValueError(f"{source}: envelope.box/polygon: reaches outside the platform's fence "
+                         f"({envelope.describe()}; a flight config may narrow it, never widen it)")
+    new_floor = floor if floor is not None else base_floor
+    new_ceiling = ceiling if ceiling is not None else base_ceiling
+    vertices = area.vertices if area is not None and area.bounded_horizontally else envelope.vertices
+    try:
+        out = Envelope(list(vertices) if vertices else None, altitude_floor=new_floor,
+                       altitude_ceiling=new_ceiling)
+    except ValueError as exc:
+        raise ValueError(f"{source}: {exc}") from None
+    return Limits(**values), out
+
+
+def load_flight_config_fields(path: str | Path) -> FlightConfig:
+    """Read a flight-config file keeping what it names (:class:`FlightConfig`); errors name file, line and
+    field."""
+    data = load_yaml(path)
+    if data is None:
+        return FlightConfig(str(path), {})
+    root = Fields(data, "", str(path))
+    root.unknown(["limits", "envelope"])
+    given: dict[str, float] = {}
+    if root.has("limits"):
+        Limits.from_fields(root.sub("limits"))  # the same checks (names, numbers)
+        lim = root.sub("limits")
+        given = {str(k): lim.number(str(k), positive=True) for k in lim.data}
+    if not root.has("envelope"):
+        return FlightConfig(str(path), given)
+    env = Envelope.from_fields(root.sub("envelope"))
+    area = env if env.bounded_horizontally else None
+    return FlightConfig(str(path), given, area, env.altitude_floor, env.altitude_ceiling)
 
 
 def load_flight_config(path: str | Path) -> tuple[Limits, Envelope]:

@@ -262,16 +262,23 @@ class ConstraintProblem:
 
     # --- solving ---------------------------------------------------------------------------------------
 
-    def solve(self, objective: Mapping[str, float] | None = None, prefer: str | None = None) -> Solution:
+    def solve(self, objective: Mapping[str, float] | None = None, prefer: str | None = None,
+              maximize: Iterable[str] = ()) -> Solution:
         """Check all constraints together; fix the free parameters or name the conflict.
 
         ``objective``: coefficients of variables to minimise (the default objective of the module
         docstring breaks ties); ``prefer``: an option (e.g. ``"standard"``), ``"max"`` or ``"min"``,
-        preferred by every qualitative variable that has it, in place of each variable's own preference.
+        preferred by every qualitative variable that has it, in place of each variable's own preference;
+        ``maximize``: variables taken to their upper bound (a parameter a relation bounds only from above),
+        at the weight of rule 2 of the default objective.
         """
         t0 = time.perf_counter()
         n = len(self._columns)
         c = self._default_objective(prefer)
+        for name in maximize:
+            if name not in self._index or "#" in name:
+                raise ConstraintError(f"maximize: unknown variable {name!r}")
+            c[self._index[name]] -= 2 * _MID_WEIGHT  # beats rule 2 pulling a half-bounded one to lo
         aux_rows, aux_cost = self._middle_rows(n)
         if objective:
             user = np.zeros(n)

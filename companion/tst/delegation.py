@@ -7,7 +7,9 @@ for consistency with a constraint solver". :func:`delegate` does that for a whol
 mission:
 
 1. ``check()`` of every node (:func:`~companion.tst.delegation_checks.check`): unknown task, a point or
-   area outside the fence, a bad altitude, a missing sensor, follow-ground without a range sensor;
+   area outside the fence, a bad altitude, a speed above the envelope's limit, a missing sensor,
+   follow-ground without a range sensor, a fly-to without a position, a take-off without an altitude, a
+   C node whose branches both fly;
 2. ``get_constraints()`` of every leaf, solved once (:class:`~companion.tst.constraints.ConstraintProblem`,
    HiGHS): fixes the free parameters (qualitative speeds and altitudes, intervals, relations) or names
    the constraints in conflict;
@@ -17,8 +19,13 @@ mission:
 4. the durations with the real path lengths and the mission-wide ``mission duration <= endurance_left``
    constraint, solved again (qualitative speeds still free, so the solver flies only as many legs
    faster as the endurance needs);
-5. ``expand()`` of every leaf (a scan-ground's waypoints become ``fly-to`` children), the free parameters
+5. every leaf's expected time against what the executive layer allows (its behavior's catalog
+   time-out: a plan the executive layer would kill mid-flight is refused here, naming the node);
+6. ``expand()`` of every leaf (a scan-ground's waypoints become ``fly-to`` children), the free parameters
    of the copy replaced by their values.
+
+A parameter bounded only from above by its relation (``duration: "duration <= endurance_left"``) is
+taken to that bound (then checked against the endurance like any duration), never to its lower limit.
 
 It either accepts, with every node's :class:`~companion.tst.plan.NodePlan`, or rejects with the
 reasons. Durations over control nodes: S sums its children, C and IF take the longest child, WHILE counts
@@ -32,14 +39,16 @@ import itertools
 import logging
 import time
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from companion.tst.constraints import ConstraintError, ConstraintProblem, Linear, Solution
 from companion.tst.delegation_checks import (
     check,
     declare_platform,
+    executive_reasons,
     get_constraints,
     get_relations,
+    upper_bounded,
     var,
     where,
 )
@@ -49,6 +58,9 @@ from companion.tst.platform import Platform
 from companion.tst.registry import leaf_type
 from companion.tst.spec import Mission
 from companion.tst.tree import ControlType, TstNode
+
+if TYPE_CHECKING:
+    from companion.behaviors.catalog import BehaviorCatalog
 
 __all__ = ["ENDURANCE_LABEL", "Delegation", "NodePlan", "check", "delegate", "expand", "get_constraints"]
 
@@ -110,8 +122,11 @@ def _attach(tree: Any, plans: dict[str, NodePlan]) -> None:
             _attach(item, plans)
 
 
-def delegate(mission: Mission, platform: Platform) -> Delegation:
-    """Delegate ``mission`` to ``platform``: check, constrain, solve, plan, expand (module docstring)."""
+def delegate(mission: Mission, platform: Platform, catalog: BehaviorCatalog | None = None) -> Delegation:
+    """Delegate ``mission`` to ``platform``: check, constrain, solve, plan, expand (module docstring).
+
+    ``catalog``: the executive layer's behavior catalog whose time-outs the plan must fit (None: the
+    bundled one)."""
     t0 = time.perf_counter()
     mission = copy.deepcopy(mission)
     root = mission.root
@@ -139,8 +154,12 @@ def delegate(mission: Mission, platform: Platform) -> Delegation:
         return reject([f"bad parameters: {exc}"])
     if reasons:
         return reject(reasons)
-    first = _solve(problem)
+    upper = {k: v for n in nodes for k, v in upper_bounded(n).items() if k in problem.variables}
+    first = _solve(problem, upper)
     if not first.ok:
+        if upper and not first.conflict:
+            return reject([f"bad parameters: a relation bounds {', '.join(upper)} only from above and "
+                           f"nothing bounds it: {first.message}"], first)
         return reject(_conflict_reasons(first, {}), first)
     values = {str(n.id): _fixed_values(n, platform, first) for n in nodes if n.is_leaf_task}
     # 3. plans with those values, the position followed through the tree
@@ -177,6 +196,9 @@ def delegate(mission: Mission, platform: Platform) -> Delegation:
             kids = expand_with_plans(n, platform, values[str(n.id)], plans[str(n.id)], word)
             for child, child_plan in kids:
                 plans[str(child.id)] = child_plan
+    reasons = executive_reasons(root, plans, catalog)
+    if reasons:
+        return reject(reasons, second)
     expected = _tree_seconds(root, {k: p.expected_s or 0.0 for k, p in plans.items()})
     seconds = time.perf_counter() - t0
     log.info("delegation of %s to %s accepted in %.1f ms: %d nodes, expected %.1f s of %.1f s endurance",
@@ -186,12 +208,13 @@ def delegate(mission: Mission, platform: Platform) -> Delegation:
                       platform.name)
 
 
-def _solve(problem: ConstraintProblem) -> Solution:
-    """Solve preferring the ``standard`` option of every qualitative choice (speeds, altitudes)."""
+def _solve(problem: ConstraintProblem, maximize: dict[str, float] | None = None) -> Solution:
+    """Solve preferring the ``standard`` option of every qualitative choice (speeds, altitudes); the
+    parameters in ``maximize`` (bounded only from above by their relation) go to their bound."""
     try:
-        return problem.solve(prefer="standard")
+        return problem.solve(prefer="standard", maximize=list(maximize or ()))
     except ConstraintError:  # no qualitative variable has a "standard" option (none was declared)
-        return problem.solve()
+        return problem.solve(maximize=list(maximize or ()))
 
 
 def _fixed_values(node: TstNode, platform: Platform, sol: Solution) -> dict[str, Any]:

@@ -18,7 +18,8 @@ the relations between nodes are here.
 
 from __future__ import annotations
 
-from typing import Any
+import functools
+from typing import TYPE_CHECKING, Any
 
 from companion.tst.constraints import ConstraintProblem, Linear
 from companion.tst.leaves.common import var, where
@@ -28,7 +29,15 @@ from companion.tst.platform import Platform
 from companion.tst.registry import leaf_type
 from companion.tst.tree import CONTROL_TYPES, ControlType, TstNode
 
-__all__ = ["check", "get_constraints", "get_relations", "var", "where"]
+if TYPE_CHECKING:
+    from companion.behaviors.catalog import BehaviorCatalog
+
+__all__ = ["check", "executive_reasons", "get_constraints", "get_relations", "upper_bounded", "var", "where"]
+
+#: The behavior a leaf's executor activates for the bulk of its time (the executive layer's time-out applies
+#: to each activation: a repeated scan restarts FOLLOW_PATH for each pass).
+LEAF_BEHAVIORS = {"fly-to": "GO_TO_POINT", "scan-ground": "FOLLOW_PATH", "take-off": "TAKE_OFF",
+                  "land": "LAND"}  # WAIT's time-out is a margin over its duration
 
 #: The platform quantities a relation may name (``duration <= endurance_left``).
 PLATFORM_QUANTITIES = ("endurance_left", "max_speed", "ceiling", "floor", "takeoff_altitude")
@@ -38,16 +47,93 @@ PLATFORM_QUANTITIES = ("endurance_left", "max_speed", "ceiling", "floor", "takeo
 def check(node: TstNode, platform: Platform) -> list[str]:
     """Seed 000 Sec. III-A ``check()``: why ``platform`` cannot run ``node`` itself (empty: it can).
 
-    Control nodes (S, C, IF, WHILE) are always runnable here; their children are checked on their own. A
-    leaf needs the platform to have its executor, then its task type's own check
-    (:meth:`~companion.tst.leaves.base.LeafType.check`).
+    Control nodes (S, IF, WHILE) are runnable here, their children checked on their own; a C node whose
+    branches would fly at the same time is not (:func:`concurrency_reasons`). A leaf needs the platform to
+    have its executor, then its task type's own check (:meth:`~companion.tst.leaves.base.LeafType.check`).
     """
     if node.type in CONTROL_TYPES:
-        return []
+        return concurrency_reasons(node)
     if node.type not in platform.tasks:
         return [f"{where(node)}: unknown task: platform {platform.name} has no executor for '{node.type}' "
                 f"(it runs: {', '.join(platform.tasks)})"]
     return leaf_type(node.type).check(node, platform)
+
+
+def flying_leaves(node: TstNode) -> list[TstNode]:
+    """The leaves under ``node`` that move the vehicle (:attr:`~companion.tst.leaves.base.LeafType.flies`)."""
+    out = []
+    for n in node.iter():
+        if n.is_leaf_task:
+            try:
+                flies = leaf_type(n.type).flies
+            except (KeyError, ValueError):
+                flies = True  # an unknown type: check() refuses it anyway
+            if flies:
+                out.append(n)
+    return out
+
+
+def concurrency_reasons(node: TstNode) -> list[str]:
+    """A C node runs its branches at once on one vehicle with one flight-command queue: two branches that
+    both fly would replace each other's behavior (the second evicts the first), so it is refused."""
+    if node.control is not ControlType.C:
+        return []
+    flying = [(child, leaves) for child in node.children if (leaves := flying_leaves(child))]
+    if len(flying) < 2:
+        return []
+    names = ", ".join(f"{child.id} ({leaves[0].id}: {leaves[0].type})" for child, leaves in flying)
+    return [f"{where(node)}: concurrent flight: branches {names} would fly at the same time on one vehicle "
+            "(one flight behavior at a time: put them in an S node, or keep one flying branch)"]
+
+
+# --- what the executive layer allows -------------------------------------------------------------------
+@functools.lru_cache(maxsize=1)
+def _bundled_catalog() -> BehaviorCatalog:
+    from companion.behaviors.catalog import load_catalog
+
+    return load_catalog()
+
+
+def executive_time_limit(catalog: BehaviorCatalog | None, behavior: str) -> float | None:
+    """The longest one activation of ``behavior`` may run before the executive layer ends it with
+    ``time_out`` (the catalog's ``timeout``; None: no limit). The bundled catalog when ``catalog`` is None."""
+    cat = catalog if catalog is not None else _bundled_catalog()
+    try:
+        return cat.get(behavior).timeout_s
+    except (KeyError, ValueError):
+        return None
+
+
+def executive_reasons(root: TstNode, plans: dict[str, NodePlan], catalog: BehaviorCatalog | None = None
+                      ) -> list[str]:
+    """Why the executive layer would end a planned leaf before it is done: its expected time (the plan's
+    ``expected_s``, the time model delegation checks the endurance with) above its behavior's time-out."""
+    out = []
+    for n in root.iter():
+        behavior = LEAF_BEHAVIORS.get(n.type)
+        plan = plans.get(str(n.id))
+        if behavior is None or plan is None or not n.is_leaf_task or plan.expected_s is None:
+            continue
+        limit = executive_time_limit(catalog, behavior)
+        if limit is not None and plan.expected_s > limit:
+            out.append(f"{where(n)}: longer than the executive layer allows: {plan.expected_s:.0f} s "
+                       f"expected (path {plan.length_m or 0:.0f} m at {plan.speed_m_s or 0:g} m/s), and "
+                       f"{behavior} times out after {limit:g} s (behavior catalog): split the task or fly it "
+                       "faster")
+    return out
+
+
+def upper_bounded(node: TstNode) -> dict[str, float]:
+    """The solver objective that takes each parameter bounded only from above by its own relation
+    (``duration: "duration <= endurance_left"``) to that bound, not to its lower limit (0 s)."""
+    out: dict[str, float] = {}
+    for pname, value in node.params.items():
+        if not isinstance(value, LinearRelation):
+            continue
+        own = dict(value.coefficients).get(pname, 0.0)
+        if (value.op == "<=" and own > 0) or (value.op == ">=" and own < 0):
+            out[var(node, pname)] = -1.0
+    return out
 
 
 # --- get_constraints() ------------------------------------------------------------------------------
@@ -94,8 +180,9 @@ def declare_platform(problem: ConstraintProblem, platform: Platform) -> None:
     if platform.ceiling[0] != float("inf"):
         problem.variable("ceiling", value=platform.ceiling[0], label=f"ceiling = {platform.ceiling[0]:g} m")
     problem.variable("floor", value=platform.floor[0], label=f"floor = {platform.floor[0]:g} m")
-    problem.variable("takeoff_altitude", value=platform.takeoff_altitude,
-                     label=f"takeoff_altitude = {platform.takeoff_altitude:g} m")
+    if platform.takeoff_altitude is not None:
+        problem.variable("takeoff_altitude", value=platform.takeoff_altitude,
+                         label=f"takeoff_altitude = {platform.takeoff_altitude:g} m")
 
 
 def get_relations(node: TstNode, problem: ConstraintProblem, ids: dict[str, TstNode]) -> list[str]:

@@ -216,6 +216,17 @@ class ControlRun:
 Run = ControlRun | TstExecutor
 
 
+def _subtree_s(node: TstNode, plans: dict[str, NodePlan]) -> float:
+    """Expected seconds of a subtree: S and WHILE (one pass) sum, C and IF take the longest child."""
+    if not node.is_control:
+        plan = plans.get(str(node.id))
+        return (plan.expected_s or 0.0) if plan is not None else 0.0
+    kids = [_subtree_s(c, plans) for c in node.children if c.parent is node]
+    if node.control in (ControlType.S, ControlType.WHILE):
+        return sum(kids)
+    return max(kids, default=0.0)
+
+
 def _quietly(fn: Callable[..., Any], *args: Any) -> None:
     try:
         fn(*args)
@@ -226,9 +237,12 @@ def _quietly(fn: Callable[..., Any], *args: Any) -> None:
 class TstExecutionSystem:
     """Runs one delegated mission at a time on the executive layer (see module docstring)."""
 
-    def __init__(self, layer: Any, mark: Callable[..., None] | None = None) -> None:
+    def __init__(self, layer: Any, mark: Callable[..., None] | None = None,
+                 readiness: Callable[[str, float], str | None] | None = None) -> None:
         self.layer = layer
         self.mark = mark or (lambda event, **fields: None)
+        #: (node id, seconds of plan left from it) -> why the vehicle is not ready, or None
+        self.readiness = readiness
         self.mission: Mission | None = None
         self.plans: dict[str, NodePlan] = {}
         self.root_run: Run | None = None
@@ -270,11 +284,30 @@ class TstExecutionSystem:
                 raise ExecutionRequestError("no mission loaded")
             if self.running:
                 raise ExecutionRequestError("the mission is already running")
-            ctx = ExecContext(self.layer, self.mark, break_in_control)
+            ctx = ExecContext(self.layer, self.mark, break_in_control, readiness=self._ready)
             self.runs = {}
             self.root_run = self.make_run(self.mission.root, ctx)
             self.mark("mission_started", mission=self.mission.name)
             return self.root_run.start()
+
+    def _ready(self, node: TstNode) -> str | None:
+        if self.readiness is None:
+            return None
+        return self.readiness(str(node.id), self.seconds_left(node))
+
+    def seconds_left(self, node: TstNode) -> float:
+        """The plan's expected seconds from ``node``'s start to the mission's end: the node, and after it
+        what its S ancestors still have to run (a WHILE counts the rest of its pass: its passes have no
+        bound; a repeated scan counts one pass)."""
+        total = _subtree_s(node, self.plans)
+        child = node
+        parent = node.parent
+        while parent is not None:
+            if parent.control is ControlType.S:
+                kids = list(parent.children)
+                total += sum(_subtree_s(k, self.plans) for k in kids[kids.index(child) + 1:])
+            child, parent = parent, parent.parent
+        return total
 
     def pause(self, control: str | None = None) -> NodeExecutionStatus:
         return self._request(lambda r: r.pause_requested(control))

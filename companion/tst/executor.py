@@ -65,6 +65,9 @@ class ExecContext:
     mark: Callable[..., None] = lambda event, **fields: None
     break_in_control: str = "joystick"
     bindings: dict[str, Any] = field(default_factory=dict)
+    #: the re-check before a node starts (Fig. 3 prepare()): why the vehicle is not ready to run ``node``
+    #: and the rest of the plan after it (link, estimate, battery), or None
+    readiness: Callable[[TstNode], str | None] = lambda node: None
 
     @property
     def coordinator(self) -> BehaviorCoordinator:
@@ -118,6 +121,11 @@ class TstExecutor(ABC):
     def prepare(self) -> NodeExecutionStatus:
         return self.lifecycle.prepare()
 
+    def not_ready(self) -> str | None:
+        """Fig. 3 prepare()'s re-check: why the vehicle cannot start this node now (the context's
+        ``readiness``: link, estimate, battery against the rest of the plan), or None."""
+        return self.ctx.readiness(self.node)
+
     def start(self) -> NodeExecutionStatus:
         """Fig. 3 start(): the behavior is asked for. A rejection for precedence (a behavior it needs is
         not active yet, e.g. SELF_LOCALIZE before the autopilot's estimate is healthy) or for its
@@ -126,13 +134,18 @@ class TstExecutor(ABC):
         rejection (a higher-priority behavior active, a bad request) fails it with the reason."""
         if not self.lifecycle.status.active:
             self.prepare()
+        why = self.not_ready()
+        if why is not None:
+            self.lifecycle.start()
+            self._fail(f"not ready: {why}")
+            return self.status
         try:
             self.on_start()
+            text = self.activation()
         except ValueError as exc:
             self.lifecycle.start()
             self._fail(str(exc))
             return self.status
-        text = self.activation()
         result = self.ctx.coordinator.activate(text, "mission")
         if not result.accepted and _transient(result.reason):
             self.lifecycle.start(wait_conditions_met=False)

@@ -11,7 +11,8 @@ present". A :class:`Platform` holds those facts for one vehicle:
   (:class:`~companion.flight.limits.Limits`, the maximum speeds and accelerations);
 * the qualitative ``speeds`` (``slow | standard | fast``, m/s) and ``altitudes`` (``low | standard |
   high``, m above home) the task parameters of Fig. 12a / 14a map to;
-* ``takeoff_altitude`` (Sec. VI-A: 2 m indoor, 5 m outdoor; ``profile`` picks the default), and the
+* ``takeoff_altitude`` (Sec. VI-A: 2 m indoor, 5 m outdoor; ``profile`` picks the default; ``null``: none,
+  each take-off node gives its ``altitude`` or is refused), and the
   allowed flight altitudes ``altitude_min`` / ``altitude_max``;
 * ``sensors`` (sensor type -> :class:`~companion.sensing.footprint.Sensor`) and ``range_sensor`` (a
   ground range finder: without one, follow-ground flight is refused, Sec. VI-B);
@@ -77,7 +78,7 @@ class Platform:
     altitudes: Mapping[str, float] = field(
         default_factory=lambda: {"low": 3.0, "standard": 5.0, "high": 10.0})
     profile: str = "outdoor"
-    takeoff_altitude: float = 5.0
+    takeoff_altitude: float | None = 5.0
     altitude_min: float = 0.0
     altitude_max: float | None = None
     sensors: Mapping[str, Sensor] = field(default_factory=lambda: {"camera": Sensor()})
@@ -165,6 +166,28 @@ class Platform:
             return "the straight line leaves the operational envelope (fence)"
         return None
 
+    # --- the one envelope: what the queue flies is what delegation checks --------------------------------
+    def flight_limits(self) -> Limits:
+        """The queue's limits (seed 000 Sec. IV-D v_env, a_env): ``limits`` tightened by the autopilot's
+        parameters, the same maxima delegation plans with (``max_speed``, ``max_climb``, ...)."""
+        return dataclasses.replace(self.limits, horizontal_speed=self.max_speed[0],
+                                   vertical_speed=min(self.max_climb, self.max_descent),
+                                   horizontal_acceleration=self.max_accel)
+
+    def flight_envelope(self) -> Envelope:
+        """The queue's operational envelope (p_env): the fence (``envelope``'s box or polygon, cut to a
+        polygon inscribed in ``FENCE_RADIUS`` when given), the ceiling and floor delegation checks."""
+        ceiling, floor = self.ceiling[0], self.floor[0]
+        env = Envelope(list(self.envelope.vertices) if self.envelope.vertices else None,
+                       altitude_floor=floor if floor > 0 else None,
+                       altitude_ceiling=ceiling if math.isfinite(ceiling) else None)
+        radius = self.autopilot_params.get("FENCE_RADIUS")
+        if radius is not None:
+            n = 64  # inscribed: every point of the polygon is inside the circle
+            angles = [2 * math.pi * k / n for k in range(n)]
+            env = env.intersected([(radius * math.cos(a), radius * math.sin(a)) for a in angles])
+        return env
+
     # --- helpers the companion uses with its MAVLink mirror ----------------------------------------------
     def with_battery(self, percent: float) -> Platform:
         """This platform with ``percent`` of the battery left (0-100)."""
@@ -234,8 +257,10 @@ def platform_from_dict(data: Any, file: str | None = None) -> Platform:
     alt_max = f.number("altitude_max", None) if f.raw("altitude_max", None) is not None else None
     if alt_max is not None and alt_max <= alt_min:
         raise f.error("altitude_max", f"must be above altitude_min {alt_min:g}")
-    takeoff = f.number("takeoff_altitude", PROFILES[profile], positive=True)
-    if alt_max is not None and takeoff > alt_max:
+    takeoff: float | None = None  # ``takeoff_altitude: null``: each take-off node must give its altitude
+    if not (f.has("takeoff_altitude") and f.raw("takeoff_altitude") is None):
+        takeoff = f.number("takeoff_altitude", PROFILES[profile], positive=True)
+    if alt_max is not None and takeoff is not None and takeoff > alt_max:
         raise f.error("takeoff_altitude", f"above altitude_max {alt_max:g}")
     sensors, range_sensor = _sensors(f)
     cap, percent, reserve = _battery(f)

@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 from companion.tst.constraints import ConstraintProblem, Linear, Solution
 from companion.tst.executor import ExecContext, TstExecutor
-from companion.tst.leaves.common import declare_number, qualitative_allowed, var, where
+from companion.tst.leaves.common import declare_number, qualitative_allowed, speed_reasons, var, where
 from companion.tst.param_spec import ParamSpec
 from companion.tst.params import ParamError, is_free
 from companion.tst.plan import NodePlan, Vec3
@@ -61,6 +61,9 @@ class LeafType:
     has_speed: ClassVar[bool] = False
     #: The platform's altitude floor bounds this type's altitude variables (not a take-off's).
     has_floor: ClassVar[bool] = True
+    #: A node of this type moves the vehicle (a flight behavior): two such branches of one C node would
+    #: replace each other on the one queue, so delegation refuses them.
+    flies: ClassVar[bool] = True
 
     # --- parameters (the mission file loader) ----------------------------------------------------------
     def param(self, name: str) -> ParamSpec | None:
@@ -100,10 +103,11 @@ class LeafType:
     # --- delegation: check() and get_constraints() (Sec. III-A) ----------------------------------------
     def check(self, node: TstNode, platform: Platform) -> list[str]:
         """Why ``platform`` cannot run ``node`` (empty: it can). Overrides add to this."""
+        out = speed_reasons(node, platform) if self.has_speed else []
         if node.params.get("follow_ground_flag") and not platform.range_sensor:
-            return [f"{where(node)}: no range sensor: follow_ground_flag needs a ground range sensor and "
-                    f"platform {platform.name} has none"]
-        return []
+            out.append(f"{where(node)}: no range sensor: follow_ground_flag needs a ground range sensor and "
+                       f"platform {platform.name} has none")
+        return out
 
     def altitude_variables(self, node: TstNode, platform: Platform, problem: ConstraintProblem
                            ) -> list[tuple[str, str]]:
@@ -121,10 +125,14 @@ class LeafType:
         if self.has_speed:
             if "commanded_speed" in p:
                 given = p["commanded_speed"]
+                note = "given"
                 if plan is not None:
-                    given = (fixed or {}).get("commanded_speed", given)
+                    chosen = (fixed or {}).get("commanded_speed", given)
+                    if chosen is not given and not isinstance(given, int | float):
+                        note = f"chosen by delegation from {given}"  # an interval or relation, not given
+                    given = chosen
                 declare_number(problem, speed, given, f"{nid}.commanded_speed",
-                               lo=min(platform.speeds.values()), hi=platform.max_speed[0])
+                               lo=min(platform.speeds.values()), hi=platform.max_speed[0], note=note)
             else:
                 allowed = qualitative_allowed(p.get("speed"), dict(platform.speeds))
                 problem.qualitative(speed, dict(platform.speeds), allowed=allowed, prefer="standard",

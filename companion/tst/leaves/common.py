@@ -61,6 +61,19 @@ def point_reasons(at: str, what: str, point: Any, platform: Platform, altitude: 
     return out
 
 
+def speed_reasons(node: TstNode, platform: Platform) -> list[str]:
+    """Why the node's given speed cannot be flown: a ``commanded_speed`` (a number, or an interval wholly)
+    above the envelope's speed limit, the one the queue flies (:meth:`Platform.flight_limits`)."""
+    given = node.params.get("commanded_speed")
+    top, src = platform.max_speed
+    low = given.lo if isinstance(given, Interval) else given
+    if isinstance(low, int | float) and not isinstance(low, bool) and low > top + 1e-9:
+        shown = f"{given:g}" if isinstance(given, int | float) else str(given)
+        return [f"{where(node)}: bad speed: commanded_speed {shown} m/s is above the envelope's speed limit "
+                f"{top:g} m/s ({src})"]
+    return []
+
+
 def qualitative_allowed(value: Any, options: dict[str, float]) -> list[str] | None:
     """The options a mission allows: a word, a Qualitative set, or None (free: unspecified / absent)."""
     if isinstance(value, Qualitative):
@@ -71,7 +84,7 @@ def qualitative_allowed(value: Any, options: dict[str, float]) -> list[str] | No
 
 
 def declare_number(problem: ConstraintProblem, name: str, value: Any, label: str, lo: float | None = None,
-                   hi: float | None = None) -> None:
+                   hi: float | None = None, note: str = "given") -> None:
     """Declare a numeric parameter: a given value, an interval, or free in ``[lo, hi]`` (a relation
     constrains it; the solver's default objective puts it in the middle, or at ``lo`` without ``hi``)."""
     if isinstance(value, Interval):
@@ -82,7 +95,7 @@ def declare_number(problem: ConstraintProblem, name: str, value: Any, label: str
     elif isinstance(value, LinearRelation) or value is None:
         problem.variable(name, lo=lo, label=f"{label} >= {lo:g}" if lo is not None else None)
     else:
-        problem.variable(name, value=float(value), label=f"{label} = {float(value):g} (given)")
+        problem.variable(name, value=float(value), label=f"{label} = {float(value):g} ({note})")
 
 
 def leg_time(length_m: float, speed: float, accel: float) -> float:

@@ -36,7 +36,9 @@ def rounded(p: tuple[float, float, float]) -> tuple[float, float, float]:
 
 class FlyToExecutor(TstExecutor):
     def activation(self) -> str:
-        params: dict[str, Any] = {"coordinate": rounded(self.plan.position_neu or (0.0, 0.0, 2.0)),
+        if self.plan.position_neu is None:  # delegation refuses it: never fly a made-up point
+            raise ValueError(f"node {self.node.id} (fly-to): no position to fly to")
+        params: dict[str, Any] = {"coordinate": rounded(self.plan.position_neu),
                                   "straight_line": self.plan.straight_line}
         if self.plan.speed_m_s:
             params["speed"] = self.plan.speed_m_s
@@ -68,6 +70,9 @@ class FlyTo(LeafType):
         check_follow_ground(p)
 
     def check(self, node: TstNode, platform: Platform) -> list[str]:
+        if node.params.get("position") is None:
+            return [*super().check(node, platform),
+                    f"{where(node)}: no position: a fly-to needs the position to fly to (Fig. 12a)"]
         return [*super().check(node, platform),
                 *point_reasons(where(node), "position", node.params["position"], platform, altitude=True)]
 

@@ -49,6 +49,7 @@ class Wait(LeafType):
                         unit="s", minimum=0.0),)
     info = NodeExecutionInfo(can_be_aborted=True, can_be_paused=False, can_be_enoughed=True)
     executor = WaitExecutor
+    flies = False  # all channels DNU
 
     def plan(self, node: TstNode, platform: Platform, values: dict[str, Any], start: Vec3,
              speed_m_s: float | None) -> tuple[NodePlan, Vec3]:
