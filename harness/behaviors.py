@@ -42,10 +42,10 @@ class SimBeliefs(BeliefUpdater):
 
 class World:
     def __init__(self, catalog: BehaviorCatalog | str | None = None, envelope: Envelope | None = None,
-                 frozen: bool = False, scenario: Any = None) -> None:
+                 frozen: bool = False, scenario: Any = None, limits: Limits | None = None) -> None:
         if isinstance(catalog, str):
             catalog = catalog_from_yaml(catalog, "test_catalog.yaml")
-        self.queue = CommandQueue(Limits(), envelope)
+        self.queue = CommandQueue(limits or Limits(), envelope)
         self.sim = FlightSim(self.queue, dt=0.05)
         self.localized = True
         self.frozen = frozen  # the vehicle does not follow (measured state stays where it was)

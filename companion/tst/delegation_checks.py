@@ -94,14 +94,22 @@ def _bundled_catalog() -> BehaviorCatalog:
     return load_catalog()
 
 
-def executive_time_limit(catalog: BehaviorCatalog | None, behavior: str) -> float | None:
-    """The longest one activation of ``behavior`` may run before the executive layer ends it with
-    ``time_out`` (the catalog's ``timeout``; None: no limit). The bundled catalog when ``catalog`` is None."""
+def executive_time_limit(catalog: BehaviorCatalog | None, behavior: str, expected_s: float) -> float | None:
+    """The longest one activation of ``behavior`` expected to take ``expected_s`` may run before the
+    executive layer ends it with ``time_out`` (None: no limit). A catalog time-out planned from the
+    behavior's motion (``timeout: {factor, margin_s}``, :mod:`companion.behaviors.timeouts`) grows with
+    the plan: factor x ``expected_s`` + margin; a fixed ``timeout`` is that number. The bundled catalog
+    when ``catalog`` is None."""
     cat = catalog if catalog is not None else _bundled_catalog()
     try:
-        return cat.get(behavior).timeout_s
+        d = cat.get(behavior)
     except (KeyError, ValueError):
         return None
+    if d.category != "goal_based":
+        return None
+    if d.timeout_plan:
+        return d.timeout_plan.get("factor", 1.0) * expected_s + d.timeout_plan.get("margin_s", 0.0)
+    return d.timeout_s
 
 
 def executive_reasons(root: TstNode, plans: dict[str, NodePlan], catalog: BehaviorCatalog | None = None
@@ -114,7 +122,7 @@ def executive_reasons(root: TstNode, plans: dict[str, NodePlan], catalog: Behavi
         plan = plans.get(str(n.id))
         if behavior is None or plan is None or not n.is_leaf_task or plan.expected_s is None:
             continue
-        limit = executive_time_limit(catalog, behavior)
+        limit = executive_time_limit(catalog, behavior, plan.expected_s)
         if limit is not None and plan.expected_s > limit:
             out.append(f"{where(n)}: longer than the executive layer allows: {plan.expected_s:.0f} s "
                        f"expected (path {plan.length_m or 0:.0f} m at {plan.speed_m_s or 0:g} m/s), and "
