@@ -1,9 +1,9 @@
 """Missions that fail safely and can be followed: retries, on_failure, resume, the event stream.
 
 A real queue, executive layer and behaviors with the kinematic vehicle of :mod:`harness.behaviors`;
-plans by hand (delegation has its own tests). A test leaf type, ``guarded-fly-to``, is a fly-to that
-fails at its start while the belief ``clearance(self, granted)`` does not hold (a precondition the
-operator can fix), so a node fails for a reason the test controls.
+plans by hand (delegation has its own tests). The test leaf type ``guarded-fly-to``
+(:mod:`harness.guarded_leaf`) fails at its start while the belief ``clearance(self, granted)`` does not
+hold (a precondition the operator can fix), so a node fails for a reason the test controls.
 """
 
 from __future__ import annotations
@@ -17,39 +17,19 @@ import pytest
 
 from companion.tst.events import EventStream
 from companion.tst.execution import TstExecutionSystem
-from companion.tst.leaves.fly_to import FlyTo, FlyToExecutor
 from companion.tst.plan import NodePlan
-from companion.tst.registry import register, unregister
 from companion.tst.resume import ResumeError, remainder
 from companion.tst.spec import mission_from_yaml, mission_to_dict
 from companion.tst.status import ExecutionRequestError
-from taskflight_common.yamlio import ConfigError
 from harness.behaviors import World
-
-CLEARANCE = "clearance(self, granted)"
-
-
-class GuardedFlyToExecutor(FlyToExecutor):
-    """A fly-to that fails at its start without the operator's clearance."""
-
-    def on_start(self) -> None:
-        if not self.ctx.layer.beliefs.holds(CLEARANCE):
-            raise ValueError(f"no clearance: {CLEARANCE} does not hold")
-
-
-class GuardedFlyTo(FlyTo):
-    name = "guarded-fly-to"
-    doc = "A fly-to that needs the operator's clearance (a test leaf)."
-    executor = GuardedFlyToExecutor
+from harness.guarded_leaf import CLEARANCE, GuardedFlyTo, guarded_leaf
+from taskflight_common.yamlio import ConfigError
 
 
 @pytest.fixture
 def guarded() -> Iterator[GuardedFlyTo]:
-    leaf = register(GuardedFlyTo())
-    try:
+    with guarded_leaf() as leaf:
         yield leaf
-    finally:
-        unregister(leaf.name)
 
 
 def mission_text(on_failure: str = "land", retries: int = 2, parent_retries: int = 0) -> str:

@@ -54,6 +54,8 @@ class StreamEvents(BaseModel):
     last_seq: int
 
 
+SINCE_Q = Query(ge=0, description="the last sequence number seen (0: from the oldest kept)")
+TIMEOUT_Q = Query(ge=0, le=MAX_WAIT_S, description="wait up to this long (s) while nothing is new")
 _behavior_streams: weakref.WeakKeyDictionary[BehaviorCoordinator, EventStream] = weakref.WeakKeyDictionary()
 _streams_lock = threading.Lock()
 
@@ -124,13 +126,11 @@ def router(node: QuadNode, closing: threading.Event, missions: MissionService | 
                 waiters.release()
         return StreamEvents(events=found, last_seq=max([last] + [e["seq"] for e in found]))
 
-    since_q = Query(ge=0, description="the last sequence number seen (0: from the oldest kept)")
-    timeout_q = Query(ge=0, le=MAX_WAIT_S, description="wait up to this long (s) while nothing is new")
     if missions is not None:
         mission_stream = missions.events
 
         @api.get("/mission/events", response_model=StreamEvents)
-        def mission_events(since: Annotated[int, since_q] = 0, timeout: Annotated[float, timeout_q] = 0.0
+        def mission_events(since: Annotated[int, SINCE_Q] = 0, timeout: Annotated[float, TIMEOUT_Q] = 0.0
                            ) -> StreamEvents:
             return long_poll(mission_stream, since, timeout)
 
@@ -138,8 +138,8 @@ def router(node: QuadNode, closing: threading.Event, missions: MissionService | 
         behavior_stream = behavior_events(behaviors)
 
         @api.get("/behaviors/events", response_model=StreamEvents)
-        def behavior_events_route(since: Annotated[int, since_q] = 0,
-                                  timeout: Annotated[float, timeout_q] = 0.0) -> StreamEvents:
+        def behavior_events_route(since: Annotated[int, SINCE_Q] = 0,
+                                  timeout: Annotated[float, TIMEOUT_Q] = 0.0) -> StreamEvents:
             return long_poll(behavior_stream, since, timeout)
 
     @api.get("/events", response_model=EventsResponse)
