@@ -52,6 +52,14 @@ def guarded() -> Iterator[GuardedFlyTo]:
         yield leaf
 
 
+def on_ground(f: FlightSession) -> None:
+    """Landed and disarmed as the companion sees it (every test here ends on the ground; a vehicle still
+    flying is landed through the executive layer, which owns the queue)."""
+    if f.armed() and f.alt() > 0.5:
+        f.post("/behaviors/activate", {"text": "LAND", "requester": "operator"})
+    wait_for(lambda: not f.armed(), f.wall(60), "landed and disarmed (the companion's mirror)")
+
+
 def state(f: FlightSession) -> dict[str, Any]:
     return f.http.get("/mission").json()
 
@@ -84,7 +92,7 @@ def test_a_companion_without_its_autopilot_refuses_missions_with_503(tmp_path: A
 def test_retries_then_land_then_resume_from_the_failed_node(flight_session: FlightSession,
                                                             guarded: GuardedFlyTo) -> None:
     f = flight_session
-    f.ensure_on_ground()
+    on_ground(f)
     assert f.missions is not None and f.layer is not None
     f.missions.base_platform = bundled_platform("indoor").with_tasks(
         (*bundled_platform("indoor").tasks, guarded.name))
@@ -121,7 +129,7 @@ def test_retries_then_land_then_resume_from_the_failed_node(flight_session: Flig
 
 def test_abort_with_on_failure_land_lands(flight_session: FlightSession) -> None:
     f = flight_session
-    f.ensure_on_ground()
+    on_ground(f)
     far = [-35.363126, 149.165230, 3.0]  # 15 m north: long enough to abort on the way
     body = mission("land", {"type": "fly-to", "id": "go", "params": {"position": far, "speed": "slow",
                                                                     "fly_straight_line_flag": True}})
@@ -158,7 +166,7 @@ def test_mission_events_long_poll(flight_session: FlightSession) -> None:
 
 def test_behavior_events_long_poll(flight_session: FlightSession) -> None:
     f = flight_session
-    f.ensure_on_ground()
+    on_ground(f)
     last = f.http.get("/behaviors/events").json()["last_seq"]
     r = f.http.get("/behaviors/events", params={"since": last, "timeout": 0.5})
     assert r.json()["events"] == []
@@ -182,3 +190,4 @@ def test_behavior_events_long_poll(flight_session: FlightSession) -> None:
     assert any(e["event"] == "started" and e["activation_id"] == aid for e in seen)
     (ended,) = [e for e in seen if e["event"] == "ended" and e["activation_id"] == aid]
     assert ended["cause"] == "goal_achieved" and ended["behavior"] == "TAKE_OFF"
+    on_ground(f)
