@@ -10,6 +10,13 @@
   executive layer's monitor cycle, its executors asking the behavior coordinator for behaviors,
 * the flight log (:class:`~companion.flightlog.FlightRecorder`, optional): every streamed setpoint with
   the measured position and the active node, and the mission's events.
+
+It says yes only to what it can fly: a mission is refused (:class:`NotReadyError`, HTTP 503) while the
+autopilot is not ready (:meth:`MissionService.readiness`: the link hears no heartbeat, no home, no healthy
+position estimate), and a mission whose ``on_failure`` asks for a behavior the executive layer does not
+have is rejected by delegation. A failed or aborted mission can be resumed from a node
+(:meth:`MissionService.resume`): the part left (:func:`~companion.tst.resume.remainder`) is delegated
+again and started.
 """
 
 from __future__ import annotations
@@ -19,8 +26,10 @@ import threading
 from typing import TYPE_CHECKING, Any
 
 from companion.tst.delegation import Delegation, delegate
+from companion.tst.events import EventStream
 from companion.tst.execution import TstExecutionSystem
 from companion.tst.platform import Platform, bundled_platform
+from companion.tst.resume import first_leaf, remainder
 from companion.tst.spec import Mission
 from companion.tst.status import ExecutionRequestError, NodeExecutionStatus
 
@@ -31,6 +40,13 @@ if TYPE_CHECKING:
 
 log = logging.getLogger(__name__)
 
+#: the behavior each ``on_failure`` policy asks for (hover: the default KEEP_HOVERING, nothing to ask)
+POLICY_BEHAVIORS = {"land": "LAND", "rtl": "RTL"}
+
+
+class NotReadyError(ExecutionRequestError):
+    """The autopilot is not ready to fly a mission (no link, no home, no healthy estimate): HTTP 503."""
+
 
 class MissionService:
     """See module docstring. Thread-safe: the execution system orders requests and ticks."""
@@ -40,11 +56,12 @@ class MissionService:
         self.node = node
         self.layer = layer
         self.base_platform = platform or bundled_platform("indoor")
-        self.execution = TstExecutionSystem(layer, mark=self._mark, readiness=self.readiness)
+        self.execution = TstExecutionSystem(layer, mark=self._mark, readiness=self.node_readiness)
         self.recorder = recorder
         if recorder is not None:
             recorder.active_node = self.execution.active_node
         self.delegation: Delegation | None = None
+        self.submitted: Mission | None = None  # the mission as given (resume builds the rest from it)
         self._lock = threading.Lock()
         layer.cycle_listeners.append(self.execution.tick)
 
@@ -62,7 +79,7 @@ class MissionService:
             p = p.with_battery(float(s.battery_remaining))
         return p
 
-    def readiness(self, node_id: str, seconds_left: float) -> str | None:
+    def node_readiness(self, node_id: str, seconds_left: float) -> str | None:
         """Fig. 3 prepare()'s re-check before node ``node_id`` starts: the autopilot link, the estimate,
         and the battery against the ``seconds_left`` of the plan from that node; None when ready."""
         if not self.node.link.connected:
@@ -75,20 +92,58 @@ class MissionService:
                     f"endurance ({self.platform().endurance_source})")
         return None
 
+    # --- readiness ----------------------------------------------------------------------------------------
+    def readiness(self) -> str | None:
+        """Why the vehicle cannot fly a mission now (None: it can): the link to the autopilot hears no
+        heartbeat, the autopilot has not told its home, or its position estimate is not healthy (the
+        executive layer's SELF_LOCALIZE, which every motion behavior needs, is not active)."""
+        link = self.node.link
+        if not link.connected:
+            heard = link.target_system is not None
+            return (f"the autopilot link ({link.url}) is not connected: "
+                    + ("no heartbeat for more than 3 s" if heard else "no heartbeat heard yet"))
+        s = link.mirror.snapshot()
+        if s.home is None:
+            return "the autopilot has not reported its home yet (HOME_POSITION)"
+        if s.position is None:
+            return "no position estimate from the autopilot yet (LOCAL_POSITION_NED)"
+        if not self.layer.coordinator.is_active("SELF_LOCALIZE"):
+            return ("the autopilot's position estimate is not healthy (SELF_LOCALIZE is not active: no "
+                    "recent LOCAL_POSITION_NED)")
+        return None
+
+    def _require_ready(self, what: str) -> None:
+        why = self.readiness()
+        if why is not None:
+            raise NotReadyError(f"{what} refused: {why}")
+
     # --- the mission ---------------------------------------------------------------------------------------
     def submit(self, mission: Mission) -> Delegation:
-        """Delegate ``mission`` to this platform; load it when accepted (nothing changes when rejected)."""
+        """Delegate ``mission`` to this platform; load it when accepted (nothing changes when rejected).
+        :class:`NotReadyError` while the autopilot is not ready (:meth:`readiness`)."""
         with self._lock:
             if self.execution.running:
                 raise ExecutionRequestError("a mission is running: abort it or let it finish first")
-            result = delegate(mission, self.platform(), catalog=self.layer.catalog)
+            self._require_ready("mission")
+            result = self._delegate(mission)
             if result.accepted:
-                self.execution.load(result.mission, result.plans)
-                self.delegation = result
-                self._mark("plan", mission=mission.name, **self._plan_fields(result))
-            verdict = "accepted" if result.accepted else "rejected: " + "; ".join(result.reasons)
-            log.info("mission %s delegated in %.1f ms: %s", mission.name, result.seconds * 1000, verdict)
+                self.submitted = mission
             return result
+
+    def _delegate(self, mission: Mission) -> Delegation:
+        behavior = POLICY_BEHAVIORS.get(mission.on_failure)
+        if behavior is not None and behavior not in self.layer.catalog:
+            reason = (f"on_failure: {mission.on_failure} needs the {behavior} behavior, which this "
+                      "companion's behavior catalog does not have")
+            return Delegation(False, [reason], mission, {}, None, 0.0, platform=self.base_platform.name)
+        result = delegate(mission, self.platform(), catalog=self.layer.catalog)
+        if result.accepted:
+            self.execution.load(result.mission, result.plans)
+            self.delegation = result
+            self._mark("plan", mission=mission.name, **self._plan_fields(result))
+        verdict = "accepted" if result.accepted else "rejected: " + "; ".join(result.reasons)
+        log.info("mission %s delegated in %.1f ms: %s", mission.name, result.seconds * 1000, verdict)
+        return result
 
     @staticmethod
     def _plan_fields(result: Delegation) -> dict[str, Any]:
@@ -101,6 +156,7 @@ class MissionService:
         return {"area_ne": area, "waypoints_neu": waypoints, "nodes": nodes}
 
     def start(self, break_in: str = "joystick") -> NodeExecutionStatus:
+        self._require_ready("mission start")
         return self.execution.start(break_in)
 
     def pause(self, control: str | None = None) -> NodeExecutionStatus:
@@ -112,11 +168,60 @@ class MissionService:
     def enough(self) -> NodeExecutionStatus:
         return self.execution.enough()
 
-    def abort(self, reason: str = "operator") -> NodeExecutionStatus:
-        return self.execution.abort(reason)
+    def abort(self, reason: str = "operator", policy: str | None = None) -> NodeExecutionStatus:
+        """Abort; then the mission's ``on_failure`` policy (or ``policy``) is applied."""
+        return self.execution.abort(reason, policy)
+
+    def resume(self, node_id: str | None = None, take_off: bool = False,
+               break_in: str = "joystick") -> Delegation:
+        """Fly the rest of the failed or aborted mission from ``node_id`` (None: the node that failed):
+        the part left is delegated again and, when accepted, started. ``take_off``: fly a take-off first
+        (the vehicle is on the ground and the rest does not begin with one). A refusal
+        (:class:`ExecutionRequestError` naming why, :class:`~companion.tst.resume.ResumeError` for a bad
+        node) changes nothing."""
+        with self._lock:
+            ex = self.execution
+            root = ex.root_status()
+            if ex.running:
+                raise ExecutionRequestError("resume refused: the mission is running")
+            if self.submitted is None or root is None or root.succeeded:
+                raise ExecutionRequestError("resume refused: no failed or aborted mission to resume")
+            self._require_ready("resume")
+            node_id = node_id or ex.failed_node()
+            if node_id is None:
+                raise ExecutionRequestError("resume refused: no node failed or was aborted")
+            outcome = {k: r.status.state for k, r in ex.runs.items()}
+            rest = remainder(self.submitted, node_id, outcome.get)
+            begins = first_leaf(rest.root)
+            on_ground = self.node.vehicle_status().on_ground
+            if take_off and not on_ground:
+                raise ExecutionRequestError("resume refused: take_off: the vehicle is flying")
+            if take_off and begins is not None and begins.type == "take-off":
+                raise ExecutionRequestError(f"resume refused: take_off: the rest begins with a take-off "
+                                            f"({begins.id})")
+            if on_ground and not take_off and (begins is None or begins.type != "take-off"):
+                raise ExecutionRequestError(
+                    f"resume refused: the vehicle is on the ground and the rest begins with "
+                    f"{begins.type if begins else 'nothing'} ({begins.id if begins else node_id}): resume "
+                    "with take_off: true, or from a take-off node")
+            if take_off:
+                rest = remainder(self.submitted, node_id, outcome.get, take_off={"type": "take-off"})
+            result = self._delegate(rest)
+            if not result.accepted:
+                return result
+            self.submitted = rest  # a later resume continues from this part
+            ex.mark("mission_resumed", mission=rest.name, node=node_id, take_off=take_off)
+            ex.start(break_in)
+            return result
+
+    @property
+    def events(self) -> EventStream:
+        """The mission's events (:class:`~companion.tst.events.EventStream`)."""
+        return self.execution.events
 
     def status(self) -> dict[str, Any]:
         out = self.execution.status()
+        out["readiness"] = self.readiness() or "ready"
         if self.delegation is not None:
             out["delegation"] = {"seconds": round(self.delegation.seconds, 4),
                                  "waypoints": self.delegation.waypoints}

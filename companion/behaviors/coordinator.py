@@ -133,6 +133,7 @@ class BehaviorCoordinator:
         self.requests: deque[dict[str, Any]] = deque(maxlen=keep)
         self.coordination_times: list[float] = []  # seconds (wall), one per accepted activation
         self.listeners: list[Callable[[str, Activation], None]] = []  # ("started" | "ended", activation)
+        self.record_listeners: list[Sink] = []  # every record the sink gets (requests, starts, ends)
         self._start_error = ""
         self.controllers: dict[str, BehaviorExecutionController] = {}
         for d in catalog:
@@ -346,8 +347,11 @@ class BehaviorCoordinator:
         return ActivationResult(accepted, reason, aid, behavior, stopped, started)
 
     def _emit(self, record: dict[str, Any]) -> None:
+        stamped = {"t": round(self.ctx.now(), 4), **record}
         if self._sink is not None:
-            self._sink({"t": round(self.ctx.now(), 4), **record})
+            self._sink(stamped)
+        for fn in list(self.record_listeners):
+            fn(stamped)
 
 
 def jsonable(value: Any) -> Any:

@@ -115,7 +115,7 @@ def create_app(node: QuadNode, token: str | None = None, behaviors: ExecutiveLay
 
     app.include_router(status.router(node, behaviors))
     app.include_router(queue.router(node))
-    app.include_router(events.router(node, closing))
+    app.include_router(events.router(node, closing, missions, behaviors))
     app.include_router(pause_routines.router(node))
     if behaviors is not None:
         app.include_router(behaviors_api.router(behaviors))

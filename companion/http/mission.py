@@ -11,12 +11,24 @@
                                  "hover"}`` (default joystick: all channels from the operator's feed)
 ``POST /mission/continue``       resume where it stopped
 ``POST /mission/enough``         end the running task as done; the mission goes on with the next node
-``POST /mission/abort``          abort the mission (the vehicle hovers: KEEP_HOVERING)
+``POST /mission/abort``          abort the mission, then apply its ``on_failure`` policy (hover: the
+                                 vehicle hovers, KEEP_HOVERING; land: LAND; rtl: RTL); optional
+                                 ``{"on_failure": "hover" | "land" | "rtl"}`` for this abort
+``POST /mission/resume``         fly the rest of a failed or aborted mission: optional ``{"node": id}``
+                                 (default: the node that failed or was aborted), ``"take_off": true``
+                                 (the vehicle is on the ground and the rest does not begin with a
+                                 take-off); delegated again -> as ``POST /mission``, and started
 ``GET  /mission``                the expanded tree: each node's id, type, parameters, plan, Fig. 4 flags,
-                                 Fig. 5 status and progress (e.g. "waypoint 4 of 12")
+                                 Fig. 5 status and progress (e.g. "waypoint 4 of 12"), what a waiting
+                                 node waits for (``waiting_for``), retries and attempt; the mission's
+                                 ``readiness``, ``on_failure``, the ``failure_policy`` applied and the
+                                 ``failed_node``
 ===============================  =====================================================================
 
-A request the Fig. 4 flags or the mission's state forbid answers 409 with the reason.
+A request the Fig. 4 flags or the mission's state forbid answers 409 with the reason. While the autopilot
+is not ready (its link hears no heartbeat, no home, no healthy position estimate) ``POST /mission``,
+``/mission/start`` and ``/mission/resume`` answer 503 with the reason and change nothing. What happened is
+streamed by ``GET /mission/events`` (:mod:`companion.http.events`).
 """
 
 from __future__ import annotations
@@ -28,8 +40,9 @@ from fastapi import APIRouter, Request
 from fastapi.responses import JSONResponse
 from pydantic import BaseModel, ConfigDict, Field
 
-from companion.mission_service import MissionService
+from companion.mission_service import MissionService, NotReadyError
 from companion.team.member import TeamMember
+from companion.tst.resume import ResumeError
 from companion.tst.spec import mission_from_dict, mission_from_yaml
 from companion.tst.status import ExecutionRequestError, NodeExecutionStatus
 from companion.tst.tree import TreeError
@@ -50,6 +63,19 @@ class StartRequest(_Strict):
 
 class PauseMissionRequest(_Strict):
     routine_id: str = Field(default="joystick", pattern="^(joystick|hover)$")
+
+
+class AbortRequest(_Strict):
+    on_failure: str | None = Field(default=None, pattern="^(hover|land|rtl)$",
+                                   description="what this abort does then (default: the mission's "
+                                               "on_failure)")
+
+
+class ResumeRequest(_Strict):
+    node: str | None = Field(default=None, description="the node to fly again from (default: the one that "
+                                                       "failed or was aborted)")
+    take_off: bool = Field(default=False, description="take off first (the vehicle is on the ground)")
+    break_in: str = Field(default="joystick", pattern="^(joystick|hover)$")
 
 
 class MissionVerbResponse(BaseModel):
@@ -79,12 +105,21 @@ def router(service: MissionService, team: TeamMember | None = None) -> APIRouter
     def verb(fn: Any, *args: Any) -> MissionVerbResponse:
         try:
             st: NodeExecutionStatus = fn(*args)
+        except NotReadyError as exc:
+            raise ApiError(503, str(exc)) from None
         except ExecutionRequestError as exc:
             raise ApiError(409, str(exc)) from None
         return MissionVerbResponse(ok=True, state=st.state, status=st.to_dict())
 
+    def answer(result: Any) -> Any:
+        if not result.accepted:
+            return JSONResponse(status_code=422, content={
+                "error": "rejected: " + "; ".join(result.reasons), "reasons": result.reasons})
+        return MissionAccepted(accepted=True, tree=service.status()["tree"], delegation=result.to_dict())
+
     @app.post("/mission", response_model=MissionAccepted,
-              responses={422: {"description": "rejected by delegation: {error, reasons}"}})
+              responses={422: {"description": "rejected by delegation: {error, reasons}"},
+                         503: {"description": "the autopilot is not ready: {error}"}})
     async def submit(request: Request) -> Any:
         raw = (await request.body()).decode("utf-8", errors="replace")
         kind = request.headers.get("content-type", "").split(";")[0].strip().lower()
@@ -99,18 +134,24 @@ def router(service: MissionService, team: TeamMember | None = None) -> APIRouter
             raise ApiError(400, f"malformed JSON: {exc}") from None
         except (ConfigError, TreeError, ValueError) as exc:
             raise ApiError(400, str(exc)) from None
+        why = service.readiness()
+        if why is not None:  # before the team lets the vehicle go
+            raise ApiError(503, f"mission refused: {why}")
         directed()
         try:
             result = service.submit(mission)
+        except NotReadyError as exc:
+            raise ApiError(503, str(exc)) from None
         except ExecutionRequestError as exc:
             raise ApiError(409, str(exc)) from None
-        if not result.accepted:
-            return JSONResponse(status_code=422, content={
-                "error": "rejected: " + "; ".join(result.reasons), "reasons": result.reasons})
-        return MissionAccepted(accepted=True, tree=service.status()["tree"], delegation=result.to_dict())
+        return answer(result)
 
-    @app.post("/mission/start", response_model=MissionVerbResponse)
+    @app.post("/mission/start", response_model=MissionVerbResponse,
+              responses={503: {"description": "the autopilot is not ready: {error}"}})
     def start(body: StartRequest | None = None) -> MissionVerbResponse:
+        why = service.readiness()
+        if why is not None:
+            raise ApiError(503, f"mission start refused: {why}")
         directed()
         return verb(service.start, (body or StartRequest()).break_in)
 
@@ -127,8 +168,24 @@ def router(service: MissionService, team: TeamMember | None = None) -> APIRouter
         return verb(service.enough)
 
     @app.post("/mission/abort", response_model=MissionVerbResponse)
-    def abort() -> MissionVerbResponse:
-        return verb(service.abort, "operator")
+    def abort(body: AbortRequest | None = None) -> MissionVerbResponse:
+        return verb(service.abort, "operator", (body or AbortRequest()).on_failure)
+
+    @app.post("/mission/resume", response_model=MissionAccepted,
+              responses={422: {"description": "the rest rejected by delegation: {error, reasons}"},
+                         503: {"description": "the autopilot is not ready: {error}"}})
+    def resume(body: ResumeRequest | None = None) -> Any:
+        b = body or ResumeRequest()
+        directed()
+        try:
+            result = service.resume(b.node, b.take_off, b.break_in)
+        except NotReadyError as exc:
+            raise ApiError(503, str(exc)) from None
+        except ResumeError as exc:
+            raise ApiError(400, str(exc)) from None
+        except ExecutionRequestError as exc:
+            raise ApiError(409, str(exc)) from None
+        return answer(result)
 
     @app.get("/mission")
     def mission() -> dict[str, Any]:

@@ -135,7 +135,7 @@ class TeamMember:
                 return
             self.taken_reason = None
             if self.switchboard.controller is Controller.DIRECTED and self.missions.execution.running:
-                self.missions.abort("released to the team")
+                self.missions.abort("released to the team", policy="hover")
             self.switchboard.hand_to(Controller.LOITER)
             self._set_status(MemberStatus.IDLE, "released")
 

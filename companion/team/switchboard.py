@@ -126,7 +126,7 @@ class Switchboard:
     def _stop_tree(self) -> None:
         if self.missions.execution.running:
             try:
-                self.missions.abort("switchboard: hand-over")
+                self.missions.abort("switchboard: hand-over", policy="hover")
             except ExecutionRequestError as exc:  # finished meanwhile
                 log.debug("%s", exc)
 

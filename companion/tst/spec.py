@@ -4,6 +4,7 @@ A mission file (``mission_specs/*.yaml``)::
 
     mission: scan-and-search             # the mission's name (required)
     description: Fig. 15 of seed 000     # optional
+    on_failure: land                     # optional: hover (default) | land | rtl, see below
     tree:                                # the root node (required)
       type: S
       id: root                           # optional on every node; default n1, n2, ... in preorder
@@ -24,11 +25,17 @@ A mission file (``mission_specs/*.yaml``)::
         - {type: land, params: {land_at_current_position_flag: true}}
 
 Node keys: ``type`` (a control type S, C, IF, WHILE or a task type of
-:mod:`companion.tst.registry`), ``id``, ``params`` (leaves), ``children`` (S, C), ``condition``
+:mod:`companion.tst.registry`), ``id``, ``retries`` (every node: how often a failed execution is tried
+again, 0..10, default 0), ``params`` (leaves), ``children`` (S, C), ``condition``
 (IF, WHILE), ``then`` / ``else`` (IF), ``body`` (WHILE), and ``expansion`` (leaves: the nodes ``expand()``
 appended, as :func:`mission_to_dict` writes them, so that a dumped expanded tree loads again). Parameter
 values and constraints are those of :mod:`companion.tst.params` (``speed: "slow | standard"``,
 ``commanded_speed: {interval: [1, 3]}``, ``duration: "duration <= endurance_left"``).
+
+What a failure does (ours; seed 000 leaves it to the platform): once the mission fails (a node failed
+after its retries) or is aborted, the execution system applies ``on_failure``: ``hover`` holds where the
+vehicle is (the executive layer's default KEEP_HOVERING, as before), ``land`` asks for LAND, ``rtl`` for the
+RTL behavior (:mod:`companion.tst.execution`).
 
 Every problem is a :class:`~taskflight_common.yamlio.ConfigError` ``file:line: field: reason``: unknown
 keys, an
@@ -54,6 +61,7 @@ from companion.tst.registry import is_leaf_type
 from companion.tst.tree import (
     CONDITIONAL_TYPES,
     CONTROL_TYPES,
+    MAX_RETRIES,
     ControlType,
     TreeError,
     TstNode,
@@ -64,14 +72,16 @@ from taskflight_common.yamlio import ConfigError, Fields, LineList, load_yaml, l
 
 log = logging.getLogger(__name__)
 
-MISSION_KEYS = ("mission", "description", "tree")
+MISSION_KEYS = ("mission", "description", "on_failure", "tree")
+#: What a failed or aborted mission does (``on_failure``); the first is the default.
+FAILURE_POLICIES = ("hover", "land", "rtl")
 #: The keys a node of each kind may have.
 NODE_KEYS: dict[str, tuple[str, ...]] = {
-    "S": ("type", "id", "children"),
-    "C": ("type", "id", "children"),
-    "IF": ("type", "id", "condition", "then", "else"),
-    "WHILE": ("type", "id", "condition", "body"),
-    "leaf": ("type", "id", "params", "expansion"),
+    "S": ("type", "id", "retries", "children"),
+    "C": ("type", "id", "retries", "children"),
+    "IF": ("type", "id", "retries", "condition", "then", "else"),
+    "WHILE": ("type", "id", "retries", "condition", "body"),
+    "leaf": ("type", "id", "retries", "params", "expansion"),
 }
 
 
@@ -82,6 +92,12 @@ class Mission:
     name: str
     root: TstNode
     description: str = ""
+    #: what a failure or an abort does: one of :data:`FAILURE_POLICIES`
+    on_failure: str = FAILURE_POLICIES[0]
+
+    def __post_init__(self) -> None:
+        if self.on_failure not in FAILURE_POLICIES:
+            raise ValueError(f"on_failure: one of {', '.join(FAILURE_POLICIES)}, got {self.on_failure!r}")
 
 
 def load_mission(path: str | Path) -> Mission:
@@ -105,8 +121,9 @@ def mission_from_dict(data: Any, file: str | None = None) -> Mission:
     if not name.strip():
         raise top.error("mission", "the mission needs a name")
     description = top.string("description", "")
+    on_failure = top.string("on_failure", FAILURE_POLICIES[0], choices=FAILURE_POLICIES)
     root = _Builder(top.file).node(top.sub("tree"))
-    return Mission(name, root, description)
+    return Mission(name, root, description, on_failure)
 
 
 def mission_to_dict(mission: Mission) -> dict[str, Any]:
@@ -114,6 +131,8 @@ def mission_to_dict(mission: Mission) -> dict[str, Any]:
     out: dict[str, Any] = {"mission": mission.name}
     if mission.description:
         out["description"] = mission.description
+    if mission.on_failure != FAILURE_POLICIES[0]:
+        out["on_failure"] = mission.on_failure
     out["tree"] = mission.root.to_dict()
     return out
 
@@ -131,11 +150,13 @@ class _Builder:
             raise f.error("type", f"unknown task type '{node_type}' (known: {', '.join(known_types())})")
         f.unknown(NODE_KEYS.get(node_type, NODE_KEYS["leaf"]))
         node_id = self._id(f)
+        retries = f.integer("retries", 0, lo=0, hi=MAX_RETRIES)
         condition = self._condition(f, node_type) if node_type in CONDITIONAL_TYPES else None
         children = self._children(f, node_type)
         params = self._params(f, node_type) if is_leaf_type(node_type) else {}
         try:
-            return TstNode(node_type, params=params, children=children, id=node_id, condition=condition)
+            return TstNode(node_type, params=params, children=children, id=node_id, condition=condition,
+                           retries=retries)
         except ParamError as exc:
             raise self._param_error(f, exc) from None
         except TreeError as exc:

@@ -12,6 +12,11 @@ domain-specific tasks to be executed". Every node has an id, a type, parameters 
   may get children only by ``expand()`` ("These are then returned and appended to the tree", Sec. III-A),
   through :meth:`TstNode.append_child`.
 
+Every node may say how often its execution is tried again when it fails (``retries``, ours: seed 000 has no
+retry; 0 by default, at most :data:`MAX_RETRIES`): a failed node is run again from its start up to
+``retries`` times before its failure ends its parent (:mod:`companion.tst.execution`). An aborted node is
+never retried.
+
 Ids are unique in a tree. A node built without one gets an automatic id ``n1``, ``n2``, ... in preorder
 (explicit ids are kept and skipped); a duplicate explicit id is refused with :class:`TreeError`. Nodes
 appended later (``append_child``) keep the ids already handed out and get the next free numbers.
@@ -56,6 +61,8 @@ def control_type(node_type: str) -> ControlType | None:
     return ControlType(node_type) if node_type in CONTROL_TYPES else None
 
 _AUTO_ID = re.compile(r"n(\d+)")
+#: the most retries a node may ask for
+MAX_RETRIES = 10
 
 
 class TreeError(ValueError):
@@ -84,6 +91,8 @@ class TstNode:
     condition: str | None = None
     parent: TstNode | None = field(default=None, repr=False)
     _auto_id: bool = field(default=False, repr=False)
+    #: how many times a failed execution of this node is started again (module docstring)
+    retries: int = 0
 
     def __post_init__(self) -> None:
         if self.type not in CONTROL_TYPES and not is_leaf_type(self.type):
@@ -97,6 +106,9 @@ class TstNode:
                                 f"got {len(self.children)}")
         else:
             self.params = leaf_type(self.type).validate(self.params)
+        if isinstance(self.retries, bool) or not isinstance(self.retries, int) \
+                or not 0 <= self.retries <= MAX_RETRIES:
+            raise TreeError(f"retries: a whole number from 0 to {MAX_RETRIES}, got {self.retries!r}")
         if self.condition is not None and self.type not in CONDITIONAL_TYPES:
             raise TreeError(f"only IF and WHILE nodes have a condition, not {self.type}")
         if self.id is None:
@@ -207,6 +219,8 @@ class TstNode:
     def to_dict(self) -> dict[str, Any]:
         """The JSON form of this subtree (the mission format of :mod:`companion.tst.spec`)."""
         out: dict[str, Any] = {"id": self.id, "type": self.type}
+        if self.retries:
+            out["retries"] = self.retries
         if self.condition is not None:
             out["condition"] = self.condition
         if self.is_leaf_task:
