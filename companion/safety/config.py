@@ -55,6 +55,8 @@ class SafetyConfig:
     estimate_action: Action = Action.LAND
     # --- the link to the autopilot -----------------------------------------------------------------------
     link: bool = True
+    #: wall seconds the autopilot stays unheard beyond the link's own time-out (3 s) before it counts as lost
+    link_lost_s: float = 5.0
     link_action: Action = Action.REPORT
     # --- the autopilot's own failsafe (it switched itself to RTL, LAND, SMART_RTL, BRAKE) -------------------
     autopilot_failsafe: bool = True
@@ -69,7 +71,7 @@ class SafetyConfig:
     rtl_altitude: float | None = None
 
     def __post_init__(self) -> None:
-        for name in ("period_s", "battery_margin", "descent_speed", "estimate_unhealthy_s"):
+        for name in ("period_s", "battery_margin", "descent_speed", "estimate_unhealthy_s", "link_lost_s"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"safety.{name}: must be > 0, got {getattr(self, name)}")
         for name in ("battery_capacity_mah", "cruise_speed", "rtl_altitude"):

@@ -13,7 +13,8 @@ trigger                when (thresholds: :class:`~companion.safety.config.Safety
                        needs x ``battery_margin``: (distance home / cruise speed + height /   cannot cover it
                        descent speed) x the current drawn now (SYS_STATUS current_battery)
 ``estimate``           SYS_STATUS's AHRS health bit (the EKF) off for ``estimate_unhealthy_s``  LAND
-``link``               the autopilot not heard within the link's time-out while it flew        report
+``link``               the autopilot not heard within the link's time-out, ``link_lost_s``     report
+                       more, while it flew
 ``autopilot_failsafe`` the autopilot left GUIDED for RTL, LAND, SMART_RTL or BRAKE by itself   report
 ``fence``              the vehicle cannot stop (at the queue's acceleration) within             RTL
                        ``fence_margin_m`` beyond the envelope, or the autopilot's geofence
@@ -34,6 +35,7 @@ from __future__ import annotations
 import logging
 import math
 import threading
+import time
 from collections import deque
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
@@ -103,6 +105,8 @@ class SafetyMonitor:
         self._acted = -1  # the strongest action's severity in this flight (-1 none)
         self._reported: set[str] = set()
         self._unhealthy_since: float | None = None
+        self._unheard_since: float | None = None  # wall (the autopilot's clock stops with its messages)
+        self._wall = time.monotonic
         self._was_armed_in_air = False
         self._activation: str | None = None  # the emergency activation this flight, while it may escalate
         self._current_a: float | None = None
@@ -167,9 +171,15 @@ class SafetyMonitor:
     # --- the triggers ------------------------------------------------------------------------------------
     def _link(self, s: VehicleStatus) -> Trigger | None:
         if not self.config.link or s.link_connected:
+            self._unheard_since = None
+            return None
+        now = self._wall()
+        since = self._unheard_since = self._unheard_since if self._unheard_since is not None else now
+        if now - since < self.config.link_lost_s:
             return None
         return Trigger("link", self.config.link_action,
-                       "the autopilot is not heard (link lost); its own failsafes (GUID_TIMEOUT, FS_*) act")
+                       f"the autopilot is not heard (link lost for more than {now - since + 3:.0f} s); "
+                       "its own failsafes (GUID_TIMEOUT, FS_*) act")
 
     def _failsafe(self, s: VehicleStatus) -> Trigger | None:
         if not self.config.autopilot_failsafe or not s.overridden or s.mode not in FAILSAFE_MODES:
