@@ -68,7 +68,7 @@ def test_post_rtl_brings_the_vehicle_home_and_it_lands(flight_session: FlightSes
     assert rtl["requester"] == "operator" and rtl["return_altitude"] == 8.0, rtl
     t0 = f.sim_time()
     # the independent observer: disarmed, on the ground, at home
-    f.gcs.wait(lambda: not f.gcs.armed(), f.wall(120), "disarmed after the RTL")
+    f.gcs.wait_autopilot_disarmed(f.wall(120))
     n, e, d = f.gcs.ned()
     assert math.hypot(n, e) < 2.0 and -d < 0.5, (n, e, d)
     top = max(alt for _, _, alt in f.heard_since(t0))
@@ -94,5 +94,5 @@ def test_lower_requesters_cannot_replace_an_emergency_land(flight_session: Fligh
     assert not inhibit["accepted"] and "priority" in inhibit["reason"], inhibit
     active = {a["behavior"]: a["requester"] for a in f.http.get("/behaviors").json()["active"]}
     assert active.get("LAND") == "emergency", active
-    f.gcs.wait(lambda: not f.gcs.armed(), f.wall(90), "disarmed after the emergency landing")
+    f.gcs.wait_autopilot_disarmed(f.wall(90))
     assert wait_end(f, str(land.activation_id), 10)["cause"] == "goal_achieved"

@@ -83,7 +83,7 @@ def test_the_safety_monitor_lands_a_vehicle_whose_battery_cannot_bring_it_home(
         assert r.status_code == 200 and not r.json()["accepted"], r.text
         assert "emergency" in r.json()["reason"], r.text
     # judged on the vehicle, by the independent observer
-    f.gcs.wait(lambda: not f.gcs.armed(), f.wall(90), "disarmed after the emergency landing")
+    f.gcs.wait_autopilot_disarmed(f.wall(90))
     assert -f.gcs.ned()[2] < 0.5
     ended = [e for e in f.http.get("/behaviors").json()["ended"]
              if e["activation_id"] == decision["activation_id"]]
