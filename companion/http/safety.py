@@ -50,9 +50,9 @@ def router(layer: ExecutiveLayer, monitor: SafetyMonitor | None) -> APIRouter:
     """The routes above; without a monitor ``GET /safety`` says it is off."""
     app = APIRouter(tags=["safety"])
 
-    @app.post("/rtl", response_model=ActivationAnswer,
-              responses={409: {"description": "refused by the coordinator, with its reason"}})
+    @app.post("/rtl", response_model=ActivationAnswer)
     def rtl(body: RtlRequest | None = None) -> ActivationAnswer:
+        """Return home and land: the RTL behavior as the caller's requester (409 with the reason if refused)."""
         body = body or RtlRequest.model_validate({})
         if body.requester == EMERGENCY:
             raise ApiError(403, "requester: emergency is the companion's own safety monitor, not a caller")
@@ -69,6 +69,7 @@ def router(layer: ExecutiveLayer, monitor: SafetyMonitor | None) -> APIRouter:
 
     @app.get("/safety", response_model=SafetyView)
     def safety() -> SafetyView:
+        """The safety monitor: what it watches, its thresholds, its last values and decisions."""
         if monitor is None:
             return SafetyView(enabled=False, watching=[], thresholds={}, checks=0, values={},
                               last_decision=None, decisions=[])
