@@ -52,7 +52,7 @@ def router(layer: ExecutiveLayer, monitor: SafetyMonitor | None) -> APIRouter:
 
     @app.post("/rtl", response_model=ActivationAnswer)
     def rtl(body: RtlRequest | None = None) -> ActivationAnswer:
-        """Return home and land: the RTL behavior as the caller's requester (409 with the reason if refused)."""
+        """Return home and land: the RTL behavior as the caller's requester (refused: 409, the reason)."""
         body = body or RtlRequest.model_validate({})
         if body.requester == EMERGENCY:
             raise ApiError(403, "requester: emergency is the companion's own safety monitor, not a caller")
