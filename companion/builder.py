@@ -123,9 +123,11 @@ class Companion:
 
     def _on_safety(self, decision: SafetyDecision) -> None:
         """The safety monitor takes the vehicle: the team member gives its task back, the mission is
-        aborted with the reason (before the emergency behavior is asked for)."""
+        aborted with the reason (before the emergency behavior is asked for). A report (the autopilot's own
+        failsafe took the vehicle, the link is lost) aborts the mission; the team member's own tiers already
+        give the task back while the vehicle is overridden, and take it up again once back in GUIDED."""
         reason = f"{decision.check}: {decision.reason}"
-        if self.member is not None:
+        if self.member is not None and decision.action != "report":
             self.member.safety_stop(reason)
         if self.missions is not None:
             self.missions.safety_stop(reason)

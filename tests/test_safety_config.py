@@ -109,3 +109,20 @@ def test_off_means_not_attached() -> None:
     r = Rig(enabled=False)
     r.monitor.attach()
     assert r.monitor._attached is False and r.monitor.status()["enabled"] is False
+
+
+def test_the_builder_wires_the_monitor_to_the_mission_and_the_team() -> None:
+    from companion.builder import CompanionConfig, build_companion
+
+    companion = build_companion(CompanionConfig("udpout:127.0.0.1:9", control_port=None))
+    assert companion.safety is not None and companion._on_safety in companion.safety.listeners
+    taken: list[str] = []
+    companion.member = SimpleNamespace(safety_stop=taken.append)  # type: ignore[assignment]
+    act = SafetyDecision(1.0, "battery", "land", "the battery cannot bring the vehicle home", None, None,
+                         "acting")
+    companion._on_safety(act)
+    assert taken == ["battery: the battery cannot bring the vehicle home"]  # the team task given back
+    companion._on_safety(dataclasses.replace(act, check="link", action="report"))
+    assert len(taken) == 1  # a report leaves the team member to its own tiers
+    direct = build_companion(CompanionConfig("udpout:127.0.0.1:9", control_port=None, behaviors=False))
+    assert direct.safety is None
