@@ -85,6 +85,9 @@ def test_the_safety_monitor_lands_a_vehicle_whose_battery_cannot_bring_it_home(
     # judged on the vehicle, by the independent observer
     f.gcs.wait_autopilot_disarmed(f.wall(90))
     assert -f.gcs.ned()[2] < 0.5
-    ended = [e for e in f.http.get("/behaviors").json()["ended"]
-             if e["activation_id"] == decision["activation_id"]]
-    assert ended and ended[0]["cause"] == "goal_achieved", ended
+
+    def ended() -> list[dict[str, Any]]:
+        return [e for e in f.http.get("/behaviors").json()["ended"]
+                if e["activation_id"] == decision["activation_id"]]
+    wait_for(lambda: ended(), f.wall(10), "the emergency LAND's end")
+    assert ended()[0]["cause"] == "goal_achieved", ended()
