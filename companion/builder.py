@@ -33,6 +33,7 @@ from companion.flightlog import FlightRecorder
 from companion.http import ControlServer
 from companion.mission_service import MissionService
 from companion.node import QuadNode
+from companion.safety import SafetyConfig, SafetyDecision, SafetyMonitor
 from companion.sensing.scenario import Scenario
 from companion.team.join import join_team
 from companion.team.member import TeamMember
@@ -92,6 +93,8 @@ class CompanionConfig:
     control_port: int | None = 8765
     control_host: str = "127.0.0.1"
     control_token: str | None = None
+    #: the safety monitor's thresholds (``enabled=False``: off, said at start); it needs the executive layer
+    safety: SafetyConfig = field(default_factory=SafetyConfig)
 
     def __post_init__(self) -> None:
         if self.mission is not None and not self.behaviors:
@@ -116,6 +119,22 @@ class Companion:
         self.missions = missions
         self.member: TeamMember | None = None
         self.server: ControlServer | None = None
+        #: the safety monitor (the emergency requester), with the executive layer
+        self.safety: SafetyMonitor | None = None
+        if layer is not None:
+            self.safety = SafetyMonitor(node, layer, config.safety)
+            self.safety.listeners.append(self._on_safety)
+
+    def _on_safety(self, decision: SafetyDecision) -> None:
+        """The safety monitor takes the vehicle: the team member gives its task back, the mission is
+        aborted with the reason (before the emergency behavior is asked for). A report (the autopilot's own
+        failsafe took the vehicle, the link is lost) aborts the mission; the team member's own tiers already
+        give the task back while the vehicle is overridden, and take it up again once back in GUIDED."""
+        reason = f"{decision.check}: {decision.reason}"
+        if self.member is not None and decision.action != "report":
+            self.member.safety_stop(reason)
+        if self.missions is not None:
+            self.missions.safety_stop(reason)
 
     def control_server(self, port: int | None = None, host: str | None = None,
                        token: str | None = None) -> ControlServer:
@@ -125,7 +144,8 @@ class Companion:
         return ControlServer(self.node, port if port is not None else (c.control_port or 0),
                              host=host if host is not None else c.control_host,
                              token=token if token is not None else c.control_token,
-                             behaviors=self.layer, missions=self.missions, team=self.member)
+                             behaviors=self.layer, missions=self.missions, team=self.member,
+                             safety=self.safety)
 
     def start(self, stop: threading.Event | None = None) -> Companion:
         """Start the parts in order (module docstring). ``stop`` ends the waits for the vehicle (the
@@ -135,6 +155,10 @@ class Companion:
         self.node.start()
         if self.layer is not None:
             self.layer.start()
+        if self.safety is not None:
+            self.safety.attach()
+        elif c.safety.enabled:
+            log.warning("safety monitor off: it needs the executive layer (--no-behaviors)")
         if self.missions is not None:
             if c.mission is not None:
                 self._fly_mission(self.missions, c.mission, stop)
@@ -156,6 +180,8 @@ class Companion:
             self.member.close()
         if self.missions is not None:
             self.missions.close()
+        if self.safety is not None:
+            self.safety.detach()
         if self.layer is not None:
             self.layer.close()
         self.node.close()

@@ -8,7 +8,9 @@ over HTTP on ``--control-host`` (default ``127.0.0.1``) port P (see :mod:`compan
 users cannot read from the process list) makes every endpoint require ``Authorization: Bearer
 <token>``; serving on a non-loopback host without one logs a warning. ``--max-validity S`` caps the
 validity of external-data samples. ``--commands FILE`` queues a YAML list of flight commands at
-start; ``--run`` starts executing them. ``--team URL`` joins a team (seed 003;
+start; ``--run`` starts executing them. ``--safety FILE`` sets the safety monitor's thresholds
+(:mod:`companion.safety`); ``--no-safety-monitor`` turns it off, and the companion says so at start.
+``--team URL`` joins a team (seed 003;
 :mod:`companion.team.join`): the vehicle shares its state on the team link and flies the team tasks the
 allocation gives it.
 
@@ -20,6 +22,7 @@ the companion, as for every other user of a companion.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import logging
 import os
 from typing import TYPE_CHECKING
@@ -83,6 +86,12 @@ def add_companion_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--team-policy", default="greedy", choices=("greedy", "cbba"),
                         help="task allocation policy (default greedy, seed 003 Sec. III-B)")
     parser.add_argument("--name", default="", help="the vehicle's name in the team (default uav<sysid>)")
+    parser.add_argument("--safety", default=None, metavar="YAML",
+                        help="the safety monitor's thresholds and actions (companion.safety.config; default: "
+                             "its defaults)")
+    parser.add_argument("--no-safety-monitor", action="store_true",
+                        help="no safety monitor (the emergency requester): only the autopilot's own "
+                             "failsafes act on a low battery, a bad estimate, a fence ahead (said at start)")
     parser.add_argument("--commands", default=None, metavar="YAML", help="flight commands to queue at start")
     parser.add_argument("--run", action="store_true", help="run the queue at start")
 
@@ -103,10 +112,14 @@ def config_from_args(args: argparse.Namespace) -> CompanionConfig:
     from companion.flight import load_catalog, load_commands
     from companion.flight.external import DEFAULT_MAX_VALIDITY_S
     from companion.flight.limits import load_flight_config_fields
+    from companion.safety import SafetyConfig, load_safety_config
     from companion.sensing.scenario import Scenario
     from companion.tst.platform import load_platform
     from companion.tst.spec import load_mission
 
+    safety = load_safety_config(args.safety) if args.safety else SafetyConfig()
+    if args.no_safety_monitor:
+        safety = dataclasses.replace(safety, enabled=False)
     return CompanionConfig(
         autopilot=args.autopilot, rate_hz=args.rate, baud=args.baud, source_system=args.source_system,
         max_validity_s=DEFAULT_MAX_VALIDITY_S if args.max_validity is None else args.max_validity,
@@ -123,7 +136,7 @@ def config_from_args(args: argparse.Namespace) -> CompanionConfig:
         team=args.team, team_policy=args.team_policy, name=args.name,
         flight_log=args.flight_log, run=args.run,
         control_port=args.control_port if args.control_port >= 0 else None,
-        control_host=args.control_host, control_token=control_token(args))
+        control_host=args.control_host, control_token=control_token(args), safety=safety)
 
 
 def run_companion(args: argparse.Namespace) -> int:

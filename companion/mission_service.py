@@ -219,6 +219,17 @@ class MissionService:
         """The mission's events (:class:`~companion.tst.events.EventStream`)."""
         return self.execution.events
 
+    def safety_stop(self, reason: str) -> None:
+        """The companion's safety monitor takes the vehicle: a running mission is aborted with the monitor's
+        reason (its status and the flight log say why), before the emergency behavior replaces its own."""
+        self._mark("safety", reason=reason)
+        if not self.execution.running:
+            return
+        try:
+            self.execution.abort(f"safety monitor: {reason}")
+        except ExecutionRequestError as exc:  # not abortable: it fails once its behavior is replaced
+            log.warning("safety monitor: the mission was not aborted: %s", exc)
+
     def status(self) -> dict[str, Any]:
         out = self.execution.status()
         out["readiness"] = self.readiness() or "ready"

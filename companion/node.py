@@ -79,6 +79,10 @@ class VehicleStatus:
     home); ``home`` (lat, lon, alt AMSL); ``mode`` the ArduCopter mode's name; ``on_ground``: disarmed or
     reported on the ground; ``overridden``: a ground station took the vehicle out of GUIDED;
     ``battery_remaining`` percent (None when unknown); ``time_s`` the autopilot's clock at the snapshot.
+    For the safety monitor: ``battery_voltage`` (V), ``battery_current`` (A) and ``battery_consumed_mah``
+    (None when unknown); ``estimate_healthy`` SYS_STATUS's AHRS health bit (the autopilot's EKF; None
+    before a SYS_STATUS); ``fence_breached`` the autopilot reports its geofence breached (SYS_STATUS);
+    ``link_connected`` the autopilot heard within the link's time-out.
     """
 
     time_s: float
@@ -96,16 +100,29 @@ class VehicleStatus:
     battery_remaining: int | None
     #: what the command queue's tick wants (None before a position)
     state: VehicleState | None
+    battery_voltage: float | None = None
+    battery_current: float | None = None
+    battery_consumed_mah: float | None = None
+    estimate_healthy: bool | None = None
+    fence_breached: bool = False
+    link_connected: bool = True
 
     @classmethod
-    def of(cls, s: MirrorState, time_s: float = 0.0, overridden: bool = False) -> VehicleStatus:
+    def of(cls, s: MirrorState, time_s: float = 0.0, overridden: bool = False,
+           connected: bool = True) -> VehicleStatus:
         """The status of a link's mirror state ``s``."""
+        ahrs, fence = M.MAV_SYS_STATUS_AHRS, M.MAV_SYS_STATUS_GEOFENCE
         return cls(time_s=time_s, armed=s.armed, mode=s.mode_name, flight=flight_state(s),
                    on_ground=s.landed_state == M.MAV_LANDED_STATE_ON_GROUND or not s.armed,
                    overridden=overridden, position=s.position, position_time_ms=s.position_time_ms,
                    velocity=(float(s.velocity[0]), float(s.velocity[1]), float(s.velocity[2])),
                    yaw=s.yaw, global_position=s.global_position, home=s.home,
-                   battery_remaining=s.battery_remaining, state=s.vehicle_state())
+                   battery_remaining=s.battery_remaining, state=s.vehicle_state(),
+                   battery_voltage=s.battery_voltage, battery_current=s.battery_current,
+                   battery_consumed_mah=s.battery_consumed_mah,
+                   estimate_healthy=bool(s.sensors_health & ahrs) if s.sensors_present & ahrs else None,
+                   fence_breached=bool(s.sensors_present & fence) and not s.sensors_health & fence,
+                   link_connected=connected)
 
 
 def flight_state(state: MirrorState) -> FlightState:
@@ -255,7 +272,7 @@ class QuadNode:
     def vehicle_status(self) -> VehicleStatus:
         """The vehicle as the upper layers see it (a frozen snapshot; see :class:`VehicleStatus`)."""
         return VehicleStatus.of(self.link.mirror.snapshot(), self.clock.now(),
-                                self.supervisor.phase is Phase.OVERRIDDEN)
+                                self.supervisor.phase is Phase.OVERRIDDEN, self.link.connected)
 
     def qapi_status(self) -> QueueStatus:
         return self.queue.status()

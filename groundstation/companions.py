@@ -32,6 +32,7 @@ VERBS: dict[str, tuple[str, str, Any]] = {
     "user_confirm": ("POST", "/user_confirm", None),
     "abort": ("POST", "/mission/abort", None),
     "land": ("POST", "/behaviors/activate", {"text": "LAND", "requester": "operator"}),
+    "rtl": ("POST", "/rtl", {"requester": "operator"}),
 }
 
 

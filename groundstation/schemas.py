@@ -187,7 +187,8 @@ class CommandAnswer(BaseModel):
 
 
 class MultiCommand(_Strict):
-    command: Literal["start", "take", "release", "pause", "resume", "enough", "user_confirm", "abort", "land"]
+    command: Literal["start", "take", "release", "pause", "resume", "enough", "user_confirm", "abort", "land",
+                     "rtl"]
     vehicles: list[int] = Field(..., min_length=1, max_length=256)
 
 

@@ -43,7 +43,7 @@ STREAM_GROUPS: dict[int, tuple[str, ...]] = {
     M.MAV_DATA_STREAM_RC_CHANNELS: ("RC_CHANNELS",),
     M.MAV_DATA_STREAM_POSITION: ("GLOBAL_POSITION_INT", "LOCAL_POSITION_NED"),
     M.MAV_DATA_STREAM_EXTRA1: ("ATTITUDE",),
-    M.MAV_DATA_STREAM_EXTRA3: ("SYSTEM_TIME", "EXTENDED_SYS_STATE", "HOME_POSITION"),
+    M.MAV_DATA_STREAM_EXTRA3: ("SYSTEM_TIME", "EXTENDED_SYS_STATE", "HOME_POSITION", "BATTERY_STATUS"),
 }
 _POS_IGNORED = (M.POSITION_TARGET_TYPEMASK_X_IGNORE | M.POSITION_TARGET_TYPEMASK_Y_IGNORE
                 | M.POSITION_TARGET_TYPEMASK_Z_IGNORE)
@@ -128,6 +128,7 @@ class FakeAutopilot:
             "SYS_STATUS": self._sys_status, "HOME_POSITION": self._home_position,
             "RC_CHANNELS": self._rc_channels, "GPS_RAW_INT": self._gps_raw,
             "SYSTEM_TIME": self._system_time, "POSITION_TARGET_LOCAL_NED": self._position_target,
+            "BATTERY_STATUS": self._battery_status,
         }
 
     # --- lifecycle -----------------------------------------------------------------------------------
@@ -381,6 +382,11 @@ class FakeAutopilot:
     def _sys_status(self) -> Any:
         return M.MAVLink_sys_status_message(_SENSORS, _SENSORS, _SENSORS, 100, 12600, 1000, 80,
                                             0, 0, 0, 0, 0, 0, 0, 0, 0)
+
+    def _battery_status(self) -> Any:
+        """As SYS_STATUS: 10 A drawn, 80 % left (1000 mAh used of a 5000 mAh pack)."""
+        return M.MAVLink_battery_status_message(0, M.MAV_BATTERY_FUNCTION_ALL, M.MAV_BATTERY_TYPE_LIPO, 32767,
+                                                [12600] + [65535] * 9, 1000, 1000, -1, 80)
 
     def _home_position(self) -> Any:
         lat, lon, alt = self.home

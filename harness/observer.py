@@ -242,6 +242,15 @@ class Gcs:
         self.wait(lambda: (m := self.last.get("HEARTBEAT")) is not None
                   and not m.base_mode & M.MAV_MODE_FLAG_SAFETY_ARMED, self.wall(sim_s), "disarmed")
 
+    def wait_autopilot_disarmed(self, timeout_s: float) -> None:
+        """The autopilot's own HEARTBEAT says disarmed: ArduCopter routes a companion's heartbeats (same
+        system id) to this station too; those are told apart by their MAV_AUTOPILOT_INVALID."""
+        def disarmed() -> bool:
+            m = self.last.get("HEARTBEAT")
+            return (m is not None and m.autopilot != M.MAV_AUTOPILOT_INVALID
+                    and not m.base_mode & M.MAV_MODE_FLAG_SAFETY_ARMED)
+        self.wait(disarmed, timeout_s, "the autopilot disarmed")
+
     # --- flying --------------------------------------------------------------------------------------
     def takeoff(self, alt: float) -> None:
         """GUIDED, arm, take off; returns when at altitude."""

@@ -33,6 +33,9 @@ process-unique command ids (:mod:`companion.flight.events`).
                                            the queue's routes: :mod:`companion.http.queue`
 ``/behaviors/...``, ``/beliefs``           the executive layer (seed 001), when served: see
                                            :mod:`companion.http.behaviors`
+``POST /rtl``, ``GET /safety``             return home and land (the RTL behavior, as the caller's
+                                           requester); the safety monitor's watch and decisions
+                                           (:mod:`companion.http.safety`)
 ``/mission``, ``/mission/...``             the mission layer (seed 000 Sec. III, VII), when served:
                                            see :mod:`companion.http.mission`
 ``/team``, ``/team/...``, ``/processes``,  the process monitor (seed 003 Fig. 1): the team member when
@@ -75,9 +78,11 @@ from fastapi import FastAPI
 from companion.behaviors.system import ExecutiveLayer
 from companion.http import behaviors as behaviors_api
 from companion.http import events, mission, params, pause_routines, queue, status, team
+from companion.http import safety as safety_api
 from companion.http.models import UNION_TAGS
 from companion.mission_service import MissionService
 from companion.node import QuadNode
+from companion.safety import SafetyMonitor
 from companion.team.member import TeamMember
 from taskflight_common.httpapi import (
     BearerAuth,
@@ -92,12 +97,14 @@ OPEN_PATHS = frozenset({"/openapi.json", "/docs", "/docs/oauth2-redirect", "/red
 
 
 def create_app(node: QuadNode, token: str | None = None, behaviors: ExecutiveLayer | None = None,
-               missions: MissionService | None = None, team_member: TeamMember | None = None) -> FastAPI:
+               missions: MissionService | None = None, team_member: TeamMember | None = None, *,
+               safety: SafetyMonitor | None = None) -> FastAPI:
     """The FastAPI application serving ``node``'s QAPI (see module docstring).
 
     ``token``: require ``Authorization: Bearer <token>`` on every endpoint (None: no authentication).
     ``behaviors``: also serve the executive layer (:mod:`companion.http.behaviors`); ``missions``: the
-    mission layer (:mod:`companion.http.mission`); ``team_member``: the vehicle's team member (the process
+    mission layer (:mod:`companion.http.mission`); ``safety``: the safety monitor (``GET /safety``;
+    ``POST /rtl`` is served with the executive layer); ``team_member``: the vehicle's team member (the process
     monitor's routes, :mod:`companion.http.team`). Autopilot parameters are always served.
     ``app.state.closing`` (a :class:`threading.Event`) ends pending ``/events/wait`` requests when set.
     """
@@ -119,6 +126,7 @@ def create_app(node: QuadNode, token: str | None = None, behaviors: ExecutiveLay
     app.include_router(pause_routines.router(node))
     if behaviors is not None:
         app.include_router(behaviors_api.router(behaviors))
+        app.include_router(safety_api.router(behaviors, safety))
     if missions is not None:
         app.include_router(mission.router(missions, team_member))
     if team_member is not None:

@@ -13,6 +13,7 @@ from companion.behaviors.system import ExecutiveLayer
 from companion.http.app import create_app
 from companion.mission_service import MissionService
 from companion.node import QuadNode
+from companion.safety import SafetyMonitor
 from companion.team.member import TeamMember
 from taskflight_common.tokens import TOKEN_ENV
 
@@ -34,8 +35,9 @@ class ControlServer:
 
     def __init__(self, node: QuadNode, port: int = 8765, host: str = "127.0.0.1",
                  token: str | None = None, behaviors: ExecutiveLayer | None = None,
-                 missions: MissionService | None = None, team: TeamMember | None = None) -> None:
-        self.app = create_app(node, token, behaviors, missions, team)
+                 missions: MissionService | None = None, team: TeamMember | None = None,
+                 safety: SafetyMonitor | None = None) -> None:
+        self.app = create_app(node, token, behaviors, missions, team, safety=safety)
         config = uvicorn.Config(self.app, host=host, port=port, log_level="warning", lifespan="off",
                                 timeout_graceful_shutdown=2)
         self.server = uvicorn.Server(config)

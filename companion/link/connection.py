@@ -79,6 +79,7 @@ def stream_plan(rate_hz: float) -> list[tuple[int, float]]:
         (M.MAVLINK_MSG_ID_EXTENDED_SYS_STATE, 5.0),
         (M.MAVLINK_MSG_ID_POSITION_TARGET_LOCAL_NED, 10.0),
         (M.MAVLINK_MSG_ID_SYS_STATUS, 2.0),
+        (M.MAVLINK_MSG_ID_BATTERY_STATUS, 1.0),
         (M.MAVLINK_MSG_ID_GLOBAL_POSITION_INT, 5.0),
         (M.MAVLINK_MSG_ID_GPS_RAW_INT, 2.0),
         (M.MAVLINK_MSG_ID_SYSTEM_TIME, 2.0),

@@ -2,7 +2,7 @@
 
 Seed 000 Fig. 10: the QuadNode derives its topics from the platform's telemetry. The mirror folds
 the autopilot's messages into one :class:`MirrorState` (position, velocity, attitude, mode, armed,
-landed state, battery, home, GPS, the last POSITION_TARGET_LOCAL_NED echo, STATUSTEXTs); readers
+landed state, battery, sensors, home, GPS, the last POSITION_TARGET_LOCAL_NED echo, STATUSTEXTs); readers
 take an immutable :meth:`VehicleMirror.snapshot`. Units are MAVLink's SI units (m, m/s, rad);
 positions are local NED from the EKF origin, as LOCAL_POSITION_NED reports them.
 """
@@ -69,6 +69,10 @@ class MirrorState:
     attitude: Vec3 | None = None  # roll, pitch, yaw (rad)
     battery_voltage: float | None = None
     battery_remaining: int | None = None
+    battery_current: float | None = None  # A (SYS_STATUS / BATTERY_STATUS current_battery; None unknown)
+    battery_consumed_mah: float | None = None  # BATTERY_STATUS current_consumed (None unknown)
+    sensors_present: int = 0  # SYS_STATUS onboard_control_sensors_present / _health (MAV_SYS_STATUS_*)
+    sensors_health: int = 0
     home: tuple[float, float, float] | None = None  # lat, lon (deg), alt AMSL (m)
     gps_fix_type: int = 0
     gps_satellites: int = 0
@@ -110,6 +114,7 @@ class MirrorState:
             "position": list(self.position) if self.position else None, "velocity": list(self.velocity),
             "attitude": list(self.attitude) if self.attitude else None,
             "battery_voltage": self.battery_voltage, "battery_remaining": self.battery_remaining,
+            "battery_current": self.battery_current, "battery_consumed_mah": self.battery_consumed_mah,
             "home": list(self.home) if self.home else None,
             "gps_fix_type": self.gps_fix_type, "gps_satellites": self.gps_satellites,
             "global_position": list(self.global_position) if self.global_position else None,
@@ -149,7 +154,16 @@ class VehicleMirror:
             changes = {"landed_state": msg.landed_state}
         elif t == "SYS_STATUS":
             volt = msg.voltage_battery / 1000.0 if msg.voltage_battery != 65535 else None
-            changes = {"battery_voltage": volt, "battery_remaining": msg.battery_remaining}
+            changes = {"battery_voltage": volt, "battery_remaining": msg.battery_remaining,
+                       "sensors_present": msg.onboard_control_sensors_present,
+                       "sensors_health": msg.onboard_control_sensors_health}
+            if msg.current_battery >= 0:
+                changes["battery_current"] = msg.current_battery / 100.0
+        elif t == "BATTERY_STATUS" and msg.id == 0:
+            used = float(msg.current_consumed) if msg.current_consumed >= 0 else None
+            changes = {"battery_consumed_mah": used}
+            if msg.current_battery >= 0:
+                changes["battery_current"] = msg.current_battery / 100.0
         elif t == "HOME_POSITION":
             changes = {"home": (msg.latitude * 1e-7, msg.longitude * 1e-7, msg.altitude * 1e-3)}
         elif t == "GPS_RAW_INT":

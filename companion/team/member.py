@@ -128,6 +128,11 @@ class TeamMember:
             self.switchboard.hand_to(Controller.DIRECTED)
             self._set_status(MemberStatus.TAKEN, reason)
 
+    def safety_stop(self, reason: str) -> None:
+        """The companion's safety monitor takes the vehicle (RTL or LAND as emergency): out of the team, its
+        task given back (no claims published, so the others re-allocate it)."""
+        self.take(f"safety monitor: {reason}")
+
     def release(self) -> None:
         """Back into the team: a directed tree still running is aborted, the team allocates again."""
         with self._lock:

@@ -1,4 +1,5 @@
-"""``/api/commands``: one command to several vehicles, answered per vehicle."""
+"""``/api/commands``: one command to several vehicles, answered per vehicle; ``/api/fleet/rtl``: every vehicle
+home."""
 
 from __future__ import annotations
 
@@ -19,18 +20,38 @@ router = APIRouter(tags=["commands"])
 def command_many(request: Request, body: MultiCommand) -> Any:
     """Every target named in the request; each answers on its own (one unreachable does not stop the
     others). Each vehicle's command is audited."""
+    return {"results": _many(request, body.command, list(dict.fromkeys(body.vehicles)))}
+
+
+@router.post("/fleet/rtl", response_model=MultiCommandAnswer)
+def fleet_rtl(request: Request) -> Any:
+    """Every vehicle of the fleet (registered or heard) home: each companion's RTL as the operator, each
+    answering on its own (one unreachable or refusing does not stop the others); audited per vehicle, and
+    one ``rtl`` event with every answer."""
+    svc = service_of(request)
+    targets = [v["id"] for v in svc.fleet.snapshot()]
+    if not targets:
+        raise ApiError(409, "no vehicle in the fleet")
+    results = _many(request, "rtl", targets)
+    ok = [r["vehicle"] for r in results if r["ok"]]
+    refused = {r["vehicle"]: r["error"] for r in results if not r["ok"]}
+    svc.emit("rtl", f"fleet RTL: {len(ok)} of {len(results)} vehicles returning"
+             + (f"; refused: {refused}" if refused else ""),
+             severity="warning" if refused else "info", data={"returning": ok, "refused": refused})
+    return {"results": results}
+
+
+def _many(request: Request, command: str, targets: list[int]) -> list[dict[str, Any]]:
     svc, who = service_of(request), principal_of(request)
-    targets = list(dict.fromkeys(body.vehicles))
 
     def one(vid: int) -> dict[str, Any]:
         try:
-            out = svc.command(vid, body.command)
+            out = svc.command(vid, command)
         except ApiError as exc:
-            out = {"vehicle": vid, "command": body.command, "ok": False, "status": exc.status, "answer": None,
+            out = {"vehicle": vid, "command": command, "ok": False, "status": exc.status, "answer": None,
                    "error": exc.message}
-        svc.audit(who, body.command, f"vehicle {vid}", {"vehicles": targets}, out["status"], out)
+        svc.audit(who, command, f"vehicle {vid}", {"vehicles": targets}, out["status"], out)
         return out
 
     with ThreadPoolExecutor(max_workers=min(8, len(targets))) as pool:
-        results = list(pool.map(one, targets))
-    return {"results": results}
+        return list(pool.map(one, targets))

@@ -141,6 +141,20 @@ def land(request: Request, vid: VehicleId) -> Any:
     return _verb(request, vid, "land")
 
 
+@router.post("/vehicles/{vid}/rtl", response_model=CommandAnswer)
+def rtl(request: Request, vid: VehicleId) -> Any:
+    """Return home and land (the companion's RTL behavior, as the operator); an ``rtl`` event records it."""
+    svc = service_of(request)
+    try:
+        answer = _verb(request, vid, "rtl")
+    except ApiError as exc:
+        svc.emit("rtl", f"vehicle {vid}: RTL refused: {exc.message}", severity="warning", vehicle=vid)
+        raise
+    reply = answer["answer"] if isinstance(answer["answer"], dict) else {}
+    svc.emit("rtl", f"vehicle {vid}: RTL", vehicle=vid, data={"activation_id": reply.get("activation_id")})
+    return answer
+
+
 @router.get("/vehicles/{vid}/processes", response_model=list[dict[str, Any]])
 def processes(request: Request, vid: VehicleId) -> Any:
     """The vehicle's processes (seed 003: the Process Monitor "displays the status of individual software

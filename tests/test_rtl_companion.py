@@ -1,0 +1,98 @@
+"""RTL on the companion, flying each autopilot (the model; ArduCopter SITL with ``TASKFLIGHT_ARDUCOPTER``).
+
+``POST /rtl`` activates the RTL behavior as the caller's requester: the vehicle climbs to the return
+altitude, flies home inside the envelope and lands; the behavior ends ``goal_achieved`` only once the
+vehicle is measured on the ground at home, which an independent pymavlink ground station confirms
+(disarmed, at home). An emergency LAND (the safety monitor's requester, asked in-process: no HTTP caller
+may claim it) cannot be replaced by the mission or the operator, through ``/behaviors/activate`` or
+``/rtl``.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import pytest
+
+from companion.flight import Envelope
+from harness.flight_session import FlightSession, SessionSpec
+from harness.timing import wait_for
+
+pytestmark = pytest.mark.integration
+
+SPEEDUP = 5.0
+FLIGHT_SESSION = SessionSpec("rtl", SPEEDUP, localized=True, behaviors=True,
+                             envelope=Envelope.box(-40, 40, -40, 40, altitude_ceiling=30.0))
+
+
+def activate(f: FlightSession, text: str, requester: str = "mission") -> dict[str, Any]:
+    r = f.post("/behaviors/activate", {"text": text, "requester": requester})
+    assert r.status_code == 200, r.text
+    return r.json()
+
+
+def ended(f: FlightSession, activation_id: str) -> dict[str, Any] | None:
+    return next((e for e in f.http.get("/behaviors").json()["ended"] if e["activation_id"] == activation_id),
+                None)
+
+
+def wait_end(f: FlightSession, activation_id: str, sim_s: float) -> dict[str, Any]:
+    wait_for(lambda: ended(f, activation_id) is not None, f.wall(sim_s), f"end of {activation_id}")
+    end = ended(f, activation_id)
+    assert end is not None
+    return end
+
+
+def fly_out(f: FlightSession, point: tuple[float, float, float]) -> None:
+    if not f.armed() or f.alt() < 1.0:
+        take_off = activate(f, "TAKE_OFF altitude: 5")
+        assert take_off["accepted"], take_off
+        assert wait_end(f, take_off["activation_id"], 60)["cause"] == "goal_achieved"
+    go = activate(f, f"GO_TO_POINT coordinate: ({point[0]}, {point[1]}, {point[2]})")
+    assert go["accepted"], go
+    assert wait_end(f, go["activation_id"], 60)["cause"] == "goal_achieved"
+
+
+def test_post_rtl_brings_the_vehicle_home_and_it_lands(flight_session: FlightSession) -> None:
+    f = flight_session
+    r = f.post("/rtl")
+    assert r.status_code == 409 and "flight_state" in r.json()["error"], r.text  # on the ground: refused
+    fly_out(f, (15.0, 10.0, 5.0))
+    r = f.post("/rtl", {"altitude": 8})
+    assert r.status_code == 200, r.text
+    answer = r.json()
+    assert answer["accepted"] and answer["behavior"] == "RTL", answer
+    assert answer["stopped"] == ["KEEP_HOVERING"], answer
+    rtl = next(a for a in f.http.get("/behaviors").json()["active"] if a["behavior"] == "RTL")
+    assert rtl["requester"] == "operator" and rtl["return_altitude"] == 8.0, rtl
+    t0 = f.sim_time()
+    # the independent observer: disarmed, on the ground, at home
+    f.gcs.wait_autopilot_disarmed(f.wall(120))
+    n, e, d = f.gcs.ned()
+    assert math.hypot(n, e) < 2.0 and -d < 0.5, (n, e, d)
+    top = max(alt for _, _, alt in f.heard_since(t0))
+    assert top > 7.0, f"climbed to the return altitude first (highest {top:.1f} m)"
+    end = wait_end(f, answer["activation_id"], 10)
+    assert end["cause"] == "goal_achieved", end
+
+
+def test_lower_requesters_cannot_replace_an_emergency_land(flight_session: FlightSession) -> None:
+    f = flight_session
+    fly_out(f, (5.0, 0.0, 5.0))
+    assert f.layer is not None
+    land = f.layer.coordinator.activate("LAND", "emergency")  # as the safety monitor asks
+    assert land.accepted, land
+    for requester in ("mission", "operator"):
+        go = activate(f, "GO_TO_POINT coordinate: (10, 0, 5)", requester)
+        assert not go["accepted"] and "LAND (requested by emergency" in go["reason"], go
+        r = f.post("/rtl", {"requester": requester})
+        assert r.status_code == 409 and "emergency" in r.json()["error"], r.text
+    r = f.post("/rtl", {"requester": "emergency"})
+    assert r.status_code == 403, r.text
+    inhibit = f.post("/behaviors/inhibit", {"behavior": "LAND", "requester": "operator"}).json()
+    assert not inhibit["accepted"] and "priority" in inhibit["reason"], inhibit
+    active = {a["behavior"]: a["requester"] for a in f.http.get("/behaviors").json()["active"]}
+    assert active.get("LAND") == "emergency", active
+    f.gcs.wait_autopilot_disarmed(f.wall(90))
+    assert wait_end(f, str(land.activation_id), 10)["cause"] == "goal_achieved"
