@@ -21,6 +21,8 @@ from autopilot_model.airframe import DEFAULT_AIRFRAME
 from companion.builder import CompanionConfig, build_companion
 from companion.tst.platform import bundled_platform
 from companion.tst.spec import mission_from_yaml
+from harness.arducopter import ArduCopterSitl, requires_arducopter
+from harness.observer import Gcs
 from harness.timing import wait_for
 from taskflight_common.geo import ned_to_geodetic
 from taskflight_common.ports import free_ports
@@ -128,3 +130,53 @@ def test_follow_ground_holds_7_m_over_a_hill(flight: dict[str, Any]) -> None:
     assert rms < 0.5 and worst < 1.5
     assert true_rms < 0.5 and true_worst < 1.5
     assert max(s["age"] for s in leg) < 1.0  # the range was fresh over the whole leg
+
+
+# --- ArduCopter SITL: the same code over its flat ground ---------------------------------------------
+@requires_arducopter
+def test_follow_ground_holds_7_m_over_flat_ground_on_arducopter(tmp_path: Path) -> None:
+    """ArduCopter SITL's own range finder (RNGFND1_TYPE 100, RNGFND1_MAX 40 m) over its flat ground; an
+    independent pymavlink ground station watches DISTANCE_SENSOR and the altitude above home."""
+    companion_port, gcs_port = free_ports(2, socket.SOCK_DGRAM)
+    ap = ArduCopterSitl([companion_port, gcs_port], 1.0,
+                        params={"RNGFND1_TYPE": 100, "RNGFND1_MAX": 40, "RNGFND1_ORIENT": 25})
+    gcs = Gcs(0, 1.0, url=f"udpin:127.0.0.1:{gcs_port}", background=True)
+    companion = build_companion(CompanionConfig(f"udpin:127.0.0.1:{companion_port}",
+                                                platform=bundled_platform("outdoor"), control_port=None))
+    samples: list[tuple[float, float, float]] = []
+    try:
+        wait_for(lambda: gcs.last.get("HEARTBEAT") is not None, 60, "ArduCopter's first heartbeat")
+        gcs.request_streams(10)
+        companion.start()
+        missions, layer = companion.missions, companion.layer
+        assert missions is not None and layer is not None
+        wait_for(lambda: companion.node.link.mirror.snapshot().home is not None
+                 and layer.coordinator.is_active("SELF_LOCALIZE"), 120, "home and SELF_LOCALIZE")
+        lat = ned_to_geodetic(HOME, 40.0, 0.0, 0.0)[0]
+        text = mission_text().replace(f"{ned_to_geodetic(HOME, TARGET_NORTH, 0.0, 0.0)[0]:.8f}", f"{lat:.8f}")
+        result = missions.submit(mission_from_yaml(text))
+        assert result.accepted, result.reasons
+        missions.start()
+        t_end = time.monotonic() + 240
+        while time.monotonic() < t_end and missions.status()["state"] not in ("succeeded", "failed",
+                                                                               "aborted"):
+            ds, gp = gcs.last.get("DISTANCE_SENSOR"), gcs.last.get("GLOBAL_POSITION_INT")
+            node = str(missions.status().get("active_node"))
+            if ds is not None and gp is not None and node == "over-the-hill":
+                samples.append((ds.current_distance / 100.0, gp.relative_alt / 1000.0, time.monotonic()))
+            time.sleep(0.1)
+        status = missions.status()
+    finally:
+        companion.close()
+        gcs.close()
+        ap.stop()
+    assert status["state"] == "succeeded", status
+    settled = samples[len(samples) // 3:]  # after the climb from the 5 m take-off
+    assert len(settled) > 20
+    errors = [d - FOLLOW for d, _, _ in settled]
+    rms = (sum(e * e for e in errors) / len(errors)) ** 0.5
+    log.warning("ArduCopter SITL follow-ground: range error RMS %.3f m, max %.3f m; altitude %.2f..%.2f m",
+                rms, max(abs(e) for e in errors), min(a for _, a, _ in settled),
+                max(a for _, a, _ in settled))
+    assert rms < 0.5 and max(abs(e) for e in errors) < 1.5
+    assert all(abs(a - FOLLOW) < 1.5 for _, a, _ in settled)  # flat ground: 7 m above home too
