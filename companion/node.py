@@ -75,7 +75,7 @@ class RangeStatus:
     """The downward range finder as the upper layers read it (the autopilot's DISTANCE_SENSOR, rotation
     PITCH_270): ``distance_m`` the reading, ``age_s`` its age on the autopilot's clock, ``in_range`` inside
     the sensor's min/max distances, ``ground_alt`` the ground's altitude under the vehicle (m up, local
-    frame; None out of range)."""
+    frame; None out of range), ``vertical_m`` the reading made vertical (times cos roll x cos pitch)."""
 
     distance_m: float
     age_s: float
@@ -83,6 +83,7 @@ class RangeStatus:
     min_m: float
     max_m: float
     ground_alt: float | None
+    vertical_m: float = 0.0
 
 
 def range_status(s: MirrorState, t_ap: float) -> RangeStatus | None:
@@ -91,7 +92,7 @@ def range_status(s: MirrorState, t_ap: float) -> RangeStatus | None:
     if r is None:
         return None
     return RangeStatus(r.distance_m, max(0.0, t_ap - r.time_boot_ms / 1000.0), r.in_range, r.min_m, r.max_m,
-                       r.ground_altitude)
+                       r.ground_altitude, r.distance_m * r.cos_tilt)
 
 
 @dataclass(frozen=True)

@@ -3,6 +3,7 @@ reading of it, the V_GROUND flight mode, and delegation's refusal of follow-grou
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Any
 
@@ -155,3 +156,13 @@ tree:
     assert not d.accepted
     assert any("node hop (fly-to)" in r and "no range sensor" in r for r in d.reasons), d.reasons
     assert delegate(m, bundled_platform("outdoor")).accepted
+
+
+def test_a_tilted_reading_is_made_vertical_as_arducopter_does() -> None:
+    mav = mavlink2.MAVLink(None, 1, 1)
+    mirror = VehicleMirror()
+    mirror.update(mav.local_position_ned_encode(1000, 0, 0, -7.0, 0, 0, 0), 0.0)
+    mirror.update(mav.attitude_encode(1000, 0.0, 0.5, 0.0, 0, 0, 0), 0.0)  # pitched 0.5 rad
+    mirror.update(mav.distance_sensor_encode(1100, 20, 4000, 800, 0, 0, 25, 0), 0.0)
+    r = range_status(mirror.snapshot(), 1.2)
+    assert r is not None and r.ground_alt == pytest.approx(7.0 - 8.0 * math.cos(0.5))

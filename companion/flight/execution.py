@@ -305,10 +305,11 @@ class CommandExecution:
                 vertical = VelocityTarget((sample[2],))
         elif v.mode is VerticalMode.GROUND:
             assert self.ground is not None
-            ground_goal = self.ground.step(vehicle, dt)
+            ground_goal = self.ground.step(vehicle, dt, now_s)
             if ground_goal is not None:  # else hold: come to rest (ground.py)
-                moving.v_goal = ground_goal
-                vertical = AxisTarget(ground_goal, self.v_speed, 0.0)
+                moving.v_goal = ground_goal[0]
+                ground_v = max(-self.v_speed, min(self.v_speed, ground_goal[1]))
+                vertical = AxisTarget(ground_goal[0], self.v_speed, ground_v)
 
         # -- heading
         heading, hd_goal = self._heading_target(ref, now_s, ext, intended_dir)

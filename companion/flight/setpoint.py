@@ -69,9 +69,9 @@ class VehicleState:
     landed_state ON_GROUND), False when in the air, None when unknown.
 
     ``ground_alt``: the altitude (m up, local frame) of the ground under the vehicle from the downward
-    range finder (the altitude when the reading came minus the distance read), ``ground_age_s`` how old
-    that reading is (autopilot seconds); both None without an in-range reading (V_GROUND,
-    :mod:`companion.flight.execution`).
+    range finder (the altitude when the reading came minus the distance read, made vertical with the
+    tilt), ``ground_age_s`` how old that reading is (autopilot seconds); both None without an in-range
+    reading (V_GROUND, :mod:`companion.flight.execution`).
     """
 
     p: Vec3

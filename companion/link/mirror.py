@@ -56,13 +56,16 @@ class RangeReport:
 
     ``distance_m``, ``min_m``, ``max_m`` in metres (the message's centimetres); ``time_boot_ms`` the
     autopilot's time of the report; ``altitude_m`` the mirrored altitude (m up, -LOCAL_POSITION_NED z) when
-    it arrived, so ``ground_altitude`` = the ground under the vehicle, in the local frame."""
+    it arrived and ``cos_tilt`` the cosine of the vehicle's tilt then (cos roll x cos pitch, ATTITUDE), so
+    ``ground_altitude`` = the ground under the vehicle in the local frame, the slant reading made vertical
+    as ArduCopter's ``read_rangefinder`` does."""
 
     time_boot_ms: int
     distance_m: float
     min_m: float
     max_m: float
     altitude_m: float | None
+    cos_tilt: float = 1.0
 
     @property
     def in_range(self) -> bool:
@@ -74,7 +77,7 @@ class RangeReport:
         """The ground's altitude (m up in the local frame) under the vehicle, None when unknown."""
         if self.altitude_m is None or not self.in_range:
             return None
-        return self.altitude_m - self.distance_m
+        return self.altitude_m - self.distance_m * self.cos_tilt
 
 
 @dataclass(frozen=True)
@@ -200,8 +203,10 @@ class VehicleMirror:
                        "time_boot_ms": msg.time_boot_ms}
         elif t == "DISTANCE_SENSOR" and msg.orientation == M.MAV_SENSOR_ROTATION_PITCH_270:
             alt = -s.position[2] if s.position is not None else None
+            roll, pitch = (s.attitude[0], s.attitude[1]) if s.attitude is not None else (0.0, 0.0)
             changes = {"range_down": RangeReport(msg.time_boot_ms, msg.current_distance / 100.0,
-                                                 msg.min_distance / 100.0, msg.max_distance / 100.0, alt),
+                                                 msg.min_distance / 100.0, msg.max_distance / 100.0, alt,
+                                                 math.cos(roll) * math.cos(pitch)),
                        "time_boot_ms": msg.time_boot_ms}
         elif t == "STATUSTEXT":
             self._texts.append(msg.text)
