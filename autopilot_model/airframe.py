@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import NotRequired, TypedDict
 
+from autopilot_model.terrain import FLAT, Terrain, parse_terrain
 from taskflight_common.yamlio import ConfigError, Fields, load_yaml
 
 CONFIG_DIR = Path(__file__).parent / "config"
@@ -59,6 +60,8 @@ class Airframe:
     gust_max: float
     gust_tau: float
     gains: dict[str, float] = field(default_factory=dict)
+    terrain: Terrain = FLAT
+    """The ground under the vehicle (:mod:`autopilot_model.terrain`; flat by default)."""
     source: str = "<defaults>"
 
     @property
@@ -76,7 +79,7 @@ def load_airframe(path: str | Path | None = None) -> Airframe:
     data = load_yaml(p)
     f = Fields(data, file=str(p))
     f.unknown(("name", "frame", "mass", "inertia", "arm_length", "motors", "drag", "battery", "envelope",
-               "sensors", "wind", "gains", "modules"))
+               "sensors", "wind", "gains", "modules", "terrain"))
     frame = f.string("frame", "quad_x", choices=("quad_x",))
     del frame
     m = f.sub("motors")
@@ -150,6 +153,7 @@ def load_airframe(path: str | Path | None = None) -> Airframe:
         gust_max=w.number("gust_max", 0.0, lo=0.0),
         gust_tau=w.number("gust_tau", 2.0, positive=True),
         gains=gains,
+        terrain=parse_terrain(f.sub("terrain")) if f.has("terrain") else FLAT,
         source=str(p),
     )
     if 4 * af.thrust_max <= af.mass * 9.80665 * 1.2:

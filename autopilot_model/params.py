@@ -49,12 +49,17 @@ class ParamDef:
     kind: str = PARAM_FLOAT
     doc: str = ""
     value: float = math.nan
+    values: tuple[float, ...] = ()
+    """The only values allowed (ArduPilot's ``@Values`` where the model flies only some); empty: any
+    value in [lo, hi]."""
 
     def __post_init__(self) -> None:
         if len(self.name) > 16:
             raise ValueError(f"parameter name '{self.name}' is longer than MAVLink's 16 characters")
         if not (self.lo <= self.default <= self.hi):
             raise ValueError(f"parameter {self.name}: default {self.default} outside [{self.lo}, {self.hi}]")
+        if self.values and self.default not in self.values:
+            raise ValueError(f"parameter {self.name}: default {self.default} not one of {self.values}")
         if math.isnan(self.value):
             self.value = float(self.default)
 
@@ -73,11 +78,13 @@ class ParamStore:
 
     # --- definition ----------------------------------------------------------------------------
     def define(self, name: str, default: float, lo: float, hi: float, kind: str = PARAM_FLOAT,
-               doc: str = "") -> None:
-        """Declare a parameter; declaring it again keeps the current value (idempotent)."""
+               doc: str = "", values: tuple[float, ...] = ()) -> None:
+        """Declare a parameter; declaring it again keeps the current value (idempotent). ``values``: the
+        only values allowed (a set to refuse anything else, saying which are allowed and why in ``doc``)."""
         if name in self._defs:
             return
-        self._defs[name] = ParamDef(name, float(default), float(lo), float(hi), kind, doc)
+        self._defs[name] = ParamDef(name, float(default), float(lo), float(hi), kind, doc,
+                                    values=tuple(float(v) for v in values))
         if name in self._pending:
             self._load_value(name, self._pending.pop(name))
 
@@ -148,6 +155,9 @@ class ParamStore:
             v = float(round(v))
         if v < d.lo or v > d.hi:
             raise ParamError(f"{name}: {v:g} out of range [{d.lo:g}, {d.hi:g}]")
+        if d.values and v not in d.values:
+            allowed = ", ".join(f"{a:g}" for a in d.values)
+            raise ParamError(f"{name}: {v:g} not supported (allowed: {allowed}; {d.doc})")
         return v
 
     def _apply(self, d: ParamDef, v: float) -> bool:

@@ -43,10 +43,11 @@ from autopilot_model.modules.control import CascadedController
 from autopilot_model.modules.estimation import Estimator
 from autopilot_model.modules.guidance import Envelope, SetpointGenerator
 from autopilot_model.modules.navigation import LANDED_ON_GROUND, Navigator
+from autopilot_model.modules.rangefinder import RangeFinder
 from autopilot_model.modules.sensors import PROFILES, Barometer, Compass, Imu, PositionSensor
 from autopilot_model.params import ParamStore
 from autopilot_model.physics.battery import Battery
-from autopilot_model.physics.quadrotor import Quadrotor
+from autopilot_model.physics.quadrotor import P_GROUND, PX, PY, Quadrotor
 from autopilot_model.physics.wind import Wind
 from autopilot_model.quatmath import quat_yaw
 from autopilot_model.scheduler.errors import SchedulerError
@@ -93,7 +94,10 @@ class Vehicle:
         # --- world
         self.world = Quadrotor(af.mass, af.inertia, af.arm_length, af.k_t, af.k_q, af.motor_tau,
                                af.max_speed, af.drag_linear, af.drag_quadratic, af.drag_rotational)
-        self.world.place(yaw=math.radians(self.home_heading_deg))
+        self.terrain = af.terrain
+        """The ground (:mod:`autopilot_model.terrain`): ground contact and the range finder."""
+        self.world.place(down=-self.terrain.height(0.0, 0.0), yaw=math.radians(self.home_heading_deg))
+        self.world.prm[P_GROUND] = -self.terrain.height(0.0, 0.0)
         self.wind = Wind(af.wind_mean, af.gust_sigma, af.gust_max, af.gust_tau, seed=seed)
         self.battery = Battery(af.battery_cells, af.battery_capacity_mah, af.battery_r)
         # the main loop rate of the module library; the steps are set again from the built schedule
@@ -121,6 +125,9 @@ class Vehicle:
         """The position source (GPS or motion capture, as the resolver chose: ``gps.module``)."""
         self.baro = Barometer(self.world, noise, None if s is None else s + 2)
         self.compass = Compass(self.world, noise, None if s is None else s + 3)
+        self.rangefinder = RangeFinder(self.world, self.terrain, self.params, profile != "perfect",
+                                       None if s is None else s + 4)
+        """The downward range finder (RNGFND1_*; off unless RNGFND1_TYPE is set, as ArduCopter)."""
         self.state = StateInterface(origin=self.home)
         self.estimator = Estimator(self.imu, self.gps, self.baro, self.compass, self.dt, self.world,
                                    use_truth, out=self.state.estimate_buffer())
@@ -307,6 +314,9 @@ class Vehicle:
 
     def _world_step(self) -> None:
         self.wind.step(self.dt, self.world.wind)
+        if not self.terrain.flat:
+            x = self.world.x
+            self.world.prm[P_GROUND] = -self.terrain.height(float(x[PX]), float(x[PY]))
         self.world.step(self.dt)
         self._battery_acc += self.dt
         if self._battery_acc >= 0.1:

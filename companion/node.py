@@ -26,7 +26,7 @@ from __future__ import annotations
 import logging
 import threading
 from collections.abc import Callable, Iterable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from enum import StrEnum
 from typing import Any
 
@@ -71,6 +71,31 @@ class FlightState(StrEnum):
 
 
 @dataclass(frozen=True)
+class RangeStatus:
+    """The downward range finder as the upper layers read it (the autopilot's DISTANCE_SENSOR, rotation
+    PITCH_270): ``distance_m`` the reading, ``age_s`` its age on the autopilot's clock, ``in_range`` inside
+    the sensor's min/max distances, ``ground_alt`` the ground's altitude under the vehicle (m up, local
+    frame; None out of range), ``vertical_m`` the reading made vertical (times cos roll x cos pitch)."""
+
+    distance_m: float
+    age_s: float
+    in_range: bool
+    min_m: float
+    max_m: float
+    ground_alt: float | None
+    vertical_m: float = 0.0
+
+
+def range_status(s: MirrorState, t_ap: float) -> RangeStatus | None:
+    """The downward range of mirror state ``s`` at autopilot time ``t_ap`` (None: never reported)."""
+    r = s.range_down
+    if r is None:
+        return None
+    return RangeStatus(r.distance_m, max(0.0, t_ap - r.time_boot_ms / 1000.0), r.in_range, r.min_m, r.max_m,
+                       r.ground_altitude, r.distance_m * r.cos_tilt)
+
+
+@dataclass(frozen=True)
 class VehicleStatus:
     """What the upper layers (behaviors, missions, team) read of the vehicle: one consistent snapshot.
 
@@ -82,7 +107,8 @@ class VehicleStatus:
     For the safety monitor: ``battery_voltage`` (V), ``battery_current`` (A) and ``battery_consumed_mah``
     (None when unknown); ``estimate_healthy`` SYS_STATUS's AHRS health bit (the autopilot's EKF; None
     before a SYS_STATUS); ``fence_breached`` the autopilot reports its geofence breached (SYS_STATUS);
-    ``link_connected`` the autopilot heard within the link's time-out.
+    ``link_connected`` the autopilot heard within the link's time-out;
+    ``range_down`` the downward range finder, age-stamped (None: the autopilot reports none).
     """
 
     time_s: float
@@ -106,6 +132,7 @@ class VehicleStatus:
     estimate_healthy: bool | None = None
     fence_breached: bool = False
     link_connected: bool = True
+    range_down: RangeStatus | None = None
 
     @classmethod
     def of(cls, s: MirrorState, time_s: float = 0.0, overridden: bool = False,
@@ -117,12 +144,22 @@ class VehicleStatus:
                    overridden=overridden, position=s.position, position_time_ms=s.position_time_ms,
                    velocity=(float(s.velocity[0]), float(s.velocity[1]), float(s.velocity[2])),
                    yaw=s.yaw, global_position=s.global_position, home=s.home,
-                   battery_remaining=s.battery_remaining, state=s.vehicle_state(),
+                   battery_remaining=s.battery_remaining, state=with_ground(s, time_s),
                    battery_voltage=s.battery_voltage, battery_current=s.battery_current,
                    battery_consumed_mah=s.battery_consumed_mah,
                    estimate_healthy=bool(s.sensors_health & ahrs) if s.sensors_present & ahrs else None,
                    fence_breached=bool(s.sensors_present & fence) and not s.sensors_health & fence,
-                   link_connected=connected)
+                   link_connected=connected, range_down=range_status(s, time_s))
+
+
+def with_ground(s: MirrorState, t_ap: float) -> VehicleState | None:
+    """``s.vehicle_state()`` with the ground under the vehicle from the downward range finder (age-stamped
+    at autopilot time ``t_ap``), for the queue's V_GROUND mode."""
+    vs = s.vehicle_state()
+    r = range_status(s, t_ap)
+    if vs is None or r is None or r.ground_alt is None:
+        return vs
+    return replace(vs, ground_alt=r.ground_alt, ground_age_s=r.age_s)
 
 
 def flight_state(state: MirrorState) -> FlightState:
@@ -356,7 +393,7 @@ class QuadNode:
                 return
             self.queue_time.release(t_ap)  # airborne: the queue runs on from where it was held
         self._feed_rc(s)
-        vs = s.vehicle_state()
+        vs = with_ground(s, t_ap)
         if self.last_setpoint is None and vs is None:
             return
         # not streaming: an idle reference stays on the vehicle, so the next command starts from it

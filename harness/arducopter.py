@@ -60,11 +60,18 @@ class ArduCopterSitl:
     """ArduPilot's copter SITL in a temporary folder; SERIALn sends UDP to ``ports[n]`` on loopback."""
 
     def __init__(self, ports: list[int], speedup: float, instance: int | None = None,
-                 home: str = HOME) -> None:
+                 home: str = HOME, params: dict[str, float] | None = None) -> None:
+        """``params``: more defaults after ``copter.parm`` (a second defaults file: parameters that take
+        effect at boot only, such as RNGFND1_TYPE 100 for the SITL range finder, need no reboot)."""
         assert ARDUCOPTER is not None
         self.dir = tempfile.TemporaryDirectory(prefix="arducopter-")
         self.instance = _next_instance() if instance is None else instance
-        args = [ARDUCOPTER, "--model", "+", "--speedup", f"{speedup:g}", "--defaults", str(COPTER_PARM),
+        defaults = str(COPTER_PARM)
+        if params:
+            extra = Path(self.dir.name) / "extra.parm"
+            extra.write_text("".join(f"{name} {value:g}\n" for name, value in params.items()))
+            defaults += f",{extra}"
+        args = [ARDUCOPTER, "--model", "+", "--speedup", f"{speedup:g}", "--defaults", defaults,
                 f"-I{self.instance}", "--home", home, "-w"]
         for n, port in enumerate(ports):
             args += [f"--serial{n}", f"udpclient:127.0.0.1:{port}"]

@@ -129,6 +129,7 @@ class FakeAutopilot:
             "RC_CHANNELS": self._rc_channels, "GPS_RAW_INT": self._gps_raw,
             "SYSTEM_TIME": self._system_time, "POSITION_TARGET_LOCAL_NED": self._position_target,
             "BATTERY_STATUS": self._battery_status,
+            "DISTANCE_SENSOR": self._distance_sensor,
         }
 
     # --- lifecycle -----------------------------------------------------------------------------------
@@ -362,6 +363,13 @@ class FakeAutopilot:
 
     def _local_position(self) -> Any:
         return M.MAVLink_local_position_ned_message(self.time_boot_ms, *self.position, *self.velocity)
+
+    def _distance_sensor(self) -> Any:
+        """A downward range finder over flat ground at home's height (cm, rotation PITCH_270)."""
+        cm = int(max(0.0, min(655.35, -self.position[2])) * 100)
+        return M.MAVLink_distance_sensor_message(self.time_boot_ms, 20, 4000, cm, M.MAV_DISTANCE_SENSOR_LASER,
+                                                 0, M.MAV_SENSOR_ROTATION_PITCH_270, 0, 0.0, 0.0,
+                                                 [0.0, 0.0, 0.0, 0.0], 0)
 
     def _attitude(self) -> Any:
         return M.MAVLink_attitude_message(self.time_boot_ms, 0.0, 0.0, self.yaw, 0.0, 0.0, 0.0)

@@ -41,7 +41,8 @@ STREAM_GROUPS: dict[int, tuple[str, ...]] = {
     mavlink2.MAV_DATA_STREAM_EXTRA1: ("ATTITUDE",),
     mavlink2.MAV_DATA_STREAM_EXTRA2: ("VFR_HUD",),
     mavlink2.MAV_DATA_STREAM_EXTRA3: ("SYSTEM_TIME", "BATTERY_STATUS", "EKF_STATUS_REPORT",
-                                      "EXTENDED_SYS_STATE", "HOME_POSITION"),
+                                      "EXTENDED_SYS_STATE", "HOME_POSITION", "RANGEFINDER",
+                                      "DISTANCE_SENSOR"),
 }
 
 #: What a new link gets before it asks for anything (param TELEM_DEFAULTS=1), in Hz.

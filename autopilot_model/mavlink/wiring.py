@@ -31,6 +31,7 @@ from .guided import GuidedTargetsProtocol
 from .mission_protocol import MissionProtocol, finite_home
 from .params_protocol import ParamsProtocol
 from .pilot import PilotLink
+from .rangefinder_link import RangeFinderLink
 from .signing_setup import SigningSetup
 from .status_telemetry import FenceLink, StatusTelemetry
 from .stream_requests import StreamRequests
@@ -74,6 +75,7 @@ class VehicleLink:
     missions: MissionProtocol
     status: StatusTelemetry
     fence: FenceLink
+    rangefinder: RangeFinderLink | None = None
 
     @property
     def endpoint(self) -> MavlinkEndpoint:
@@ -110,7 +112,10 @@ def vehicle_link(endpoint: MavlinkEndpoint, vehicle: VehicleApi, modes: FlightMo
     telemetry.fence_state = lambda: (bool(fence.present()),
                                      fence.enabled and vehicle.params.get("FENCE_ACTION") != 0,
                                      bool(fence.breached))
-    link = VehicleLink(proto, telemetry, vehicle_commands, guided, pilot, missions, status, fence_link)
+    sensor = getattr(vehicle, "rangefinder", None)  # a kinematic test vehicle has none
+    ranges = RangeFinderLink(endpoint, streams, sensor, vehicle.clock) if sensor is not None else None
+    link = VehicleLink(proto, telemetry, vehicle_commands, guided, pilot, missions, status, fence_link,
+                       ranges)
     vehicle.register("mavlink.poll", endpoint.poll)
     vehicle.register("mavlink.telemetry", endpoint.telemetry)
     vehicle.register("mission.periodic", missions.periodic)

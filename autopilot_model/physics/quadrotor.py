@@ -10,7 +10,8 @@ body to NED. Motors are numbered as ArduCopter's Quad X: 1 front-right CCW, 2 ba
 
 Forces: thrust T_i = k_t * w_i^2 along -z body; reaction torque +-k_q * w_i^2 (a CCW propeller
 yaws the body clockwise, i.e. positive in NED); linear and quadratic drag on the air-relative velocity
-(wind); rotational damping; gravity; ground contact (flat ground at z = 0 that neither bounces nor
+(wind); rotational damping; gravity; ground contact (the ground at z = ``prm[P_GROUND]``, 0 unless
+the terrain under the vehicle is raised (:mod:`autopilot_model.terrain`); it neither bounces nor
 sinks: on contact the vertical velocity is removed, and while the thrust cannot lift the vehicle it
 rests, level, with zero velocity).
 """
@@ -32,8 +33,8 @@ STATE_SIZE = 13
 
 # indices into the parameter vector
 (P_MASS, P_IXX, P_IYY, P_IZZ, P_KT, P_KQ, P_TAU, P_WMAX, P_DRAG_LIN, P_DRAG_QUAD, P_DRAG_ROT,
- P_ARM) = range(12)
-PARAM_SIZE = 12
+ P_ARM, P_GROUND) = range(13)
+PARAM_SIZE = 13
 
 # Quad X geometry: angle of each arm from the nose (clockwise, degrees) and spin (+1 CCW, -1 CW)
 MOTOR_ANGLES_DEG = (45.0, 225.0, 315.0, 135.0)
@@ -126,10 +127,11 @@ def quad_step(x, w_mot, cmd, prm, wind, dt, mx, my, spin, out_f):  # pragma: no 
     wz += dwz * dt
 
     ground = False
-    if pz >= 0.0 and vz >= 0.0:
+    ground_d = prm[P_GROUND]  # the ground's down coordinate under the vehicle (terrain)
+    if pz >= ground_d and vz >= 0.0:
         # ground contact: no sinking, no bounce; resting while thrust cannot lift
         ground = True
-        pz = 0.0
+        pz = ground_d
         vz = 0.0
         accz = 0.0
         if thrust <= mass * 9.80665 * r22:

@@ -85,6 +85,9 @@ class VerticalMode(Enum):
     EXT_VEL = "EXT_VEL"
     RC_VEL = "RC_VEL"
     DNU = "DNU"
+    GROUND = "GROUND"
+    """Ours, for Fig. 12a / 14a's ``follow_ground_flag``: hold ``altitude`` metres above the ground the
+    downward range finder measures (:mod:`.execution`)."""
 
 
 class HeadingMode(Enum):
@@ -117,7 +120,7 @@ class SpeedModifier(Enum):
 
 #: Modes whose channel raises an end flag (Fig. 7, column "Output").
 H_END_MODES = frozenset({HorizontalMode.POS, HorizontalMode.EXT_POS, HorizontalMode.KEEP_DISTANCE})
-V_END_MODES = frozenset({VerticalMode.POS, VerticalMode.WITH_HOR, VerticalMode.EXT_POS})
+V_END_MODES = frozenset({VerticalMode.POS, VerticalMode.WITH_HOR, VerticalMode.EXT_POS, VerticalMode.GROUND})
 HD_END_MODES = frozenset({HeadingMode.POS, HeadingMode.EXT_POS, HeadingMode.POINT, HeadingMode.EXT_POINT})
 #: Velocity-type modes (streamed, not planned to a target).
 H_VEL_MODES = frozenset({HorizontalMode.EXT_VEL, HorizontalMode.RC_VEL})
@@ -140,8 +143,10 @@ _V_PARAMS: dict[VerticalMode, frozenset[str]] = {
     VerticalMode.EXT_VEL: frozenset(),
     VerticalMode.RC_VEL: frozenset(),
     VerticalMode.DNU: frozenset(),
+    VerticalMode.GROUND: frozenset({"altitude", "speed"}),
 }
-_V_REQUIRED = {VerticalMode.POS: ("altitude",), VerticalMode.WITH_HOR: ("altitude",)}
+_V_REQUIRED = {VerticalMode.POS: ("altitude",), VerticalMode.WITH_HOR: ("altitude",),
+               VerticalMode.GROUND: ("altitude",)}
 
 _HD_PARAMS: dict[HeadingMode, frozenset[str]] = {
     HeadingMode.POS: frozenset({"heading", "frame", "rate", "stop_at_heading", "use_sign"}),
@@ -272,7 +277,8 @@ class VerticalChannel:
     POS: ``altitude`` (m up), ``frame`` (absolute | relative; default absolute), ``speed``,
     ``end_speed``, ``speed_modified_by`` (``heading`` only).
     WITH_HOR: ``altitude`` (absolute). EXT_POS: ``offset`` (m above the external target), ``speed``,
-    ``speed_modified_by``. EXT_VEL, RC_VEL, DNU: no parameters.
+    ``speed_modified_by``. GROUND: ``altitude`` (m above the ground under the vehicle, > 0), ``speed``.
+    EXT_VEL, RC_VEL, DNU: no parameters.
     """
 
     mode: VerticalMode = VerticalMode.DNU
@@ -302,6 +308,8 @@ class VerticalChannel:
         _check_bool(f"{p}.take_off", self.take_off)
         _check_bool(f"{p}.allow_landing", self.allow_landing)
         _check_params(p, self, self.mode, _V_PARAMS[self.mode], _V_REQUIRED.get(self.mode, ()))
+        if self.mode is VerticalMode.GROUND and self.altitude is not None and self.altitude <= 0:
+            raise CommandError(f"{p}.altitude", f"height above the ground must be > 0, got {self.altitude:g}")
         if SpeedModifier.VERTICAL in self.speed_modified_by:
             raise CommandError(f"{p}.speed_modified_by", "the vertical channel cannot modify itself")
         if self.speed is not None and self.end_speed is not None and self.end_speed > self.speed:

@@ -36,6 +36,7 @@ from .commands import (
     VerticalMode,
 )
 from .external import ExternalData
+from .ground import GroundFollow
 from .limits import Limits
 from .reference import (
     AxisTarget,
@@ -94,6 +95,7 @@ class CommandExecution:
     h_end_dir: np.ndarray | None
     v_target_down: float | None  # vertical Pos / WithHor: metres down
     hd_target_abs: float | None  # heading Pos: yaw (rad)
+    ground: GroundFollow | None = None  # vertical GROUND: the range finder's moving goal (ground.py)
 
     def __init__(self, command: FlightCommand, start: Reference, limits: Limits) -> None:
         self.command = command
@@ -148,6 +150,7 @@ class CommandExecution:
                 self.h_target = np.array([ref.p[0] + h.north * cy - h.east * sy,
                                           ref.p[1] + h.north * sy + h.east * cy])
         self.v_target_down = None
+        self.ground = None
         self.v_speed = min(v.speed or L.vertical_speed, L.vertical_speed)
         self.v_end_speed = min(v.end_speed or 0.0, self.v_speed)
         if v.mode is VerticalMode.POS:
@@ -157,6 +160,9 @@ class CommandExecution:
         elif v.mode is VerticalMode.WITH_HOR:
             assert v.altitude is not None
             self.v_target_down = -float(v.altitude)
+        elif v.mode is VerticalMode.GROUND:
+            assert v.altitude is not None
+            self.ground = GroundFollow(v.altitude)
         self.hd_target_abs = None
         if hd.mode is HeadingMode.POS:
             assert hd.heading is not None
@@ -179,6 +185,8 @@ class CommandExecution:
             n = float(np.linalg.norm(d))
             self.h_end_dir = d / n if n > 1e-9 else None
         self.v_end_dir = 0.0
+        if self.ground is not None:
+            self.ground.resume()
         if self.v_target_down is not None and c.vertical.mode is VerticalMode.POS:
             self.v_end_dir = float(np.sign(self.v_target_down - ref.p[2]))
         # heading: fix the unwrapped target and the direction of rotation now
@@ -210,7 +218,7 @@ class CommandExecution:
     def step(self, ref: Reference, dt: float, elapsed_dt: float, now_s: float, ext: ExternalData,
              gen: ReferenceGenerator, vehicle: VehicleState | None) -> TickOutcome:
         """Advance one tick: targets, reference step, end flags, end condition."""
-        targets, moving = self._targets(ref, now_s, ext)
+        targets, moving = self._targets(ref, now_s, ext, vehicle, dt)
         result = gen.step(ref, targets, dt)
         self.elapsed_s += elapsed_dt
         self.flags = self._end_flags(result, moving, now_s, ext, vehicle)
@@ -218,7 +226,13 @@ class CommandExecution:
         return TickOutcome(result, self.flags, self.ended, self.land_now)
 
     # --- targets ------------------------------------------------------------------------------------------
-    def _targets(self, ref: Reference, now_s: float, ext: ExternalData) -> tuple[ChannelTargets, MovingGoals]:
+    @property
+    def failure(self) -> str | None:
+        """Why the command cannot go on (the queue fails it), None while it can: V_GROUND's lost range."""
+        return self.ground.failure if self.ground is not None else None
+
+    def _targets(self, ref: Reference, now_s: float, ext: ExternalData, vehicle: VehicleState | None = None,
+                 dt: float = 0.0) -> tuple[ChannelTargets, MovingGoals]:
         """This tick's P_t; ``moving`` records the moving-target goals for the end flags."""
         c = self.command
         h, v, hd = c.horizontal, c.vertical, c.heading
@@ -289,6 +303,13 @@ class CommandExecution:
             sample = ext.latest("ext_vel" if v.mode is VerticalMode.EXT_VEL else "rc_vel", now_s)
             if sample is not None:
                 vertical = VelocityTarget((sample[2],))
+        elif v.mode is VerticalMode.GROUND:
+            assert self.ground is not None
+            ground_goal = self.ground.step(vehicle, dt, now_s)
+            if ground_goal is not None:  # else hold: come to rest (ground.py)
+                moving.v_goal = ground_goal[0]
+                ground_v = max(-self.v_speed, min(self.v_speed, ground_goal[1]))
+                vertical = AxisTarget(ground_goal[0], self.v_speed, ground_v)
 
         # -- heading
         heading, hd_goal = self._heading_target(ref, now_s, ext, intended_dir)
@@ -421,7 +442,7 @@ class CommandExecution:
                     self.land_now = True
                 # touchdown ends the landing: the vehicle's report when it has one, else the reference
                 v_end = landed is True or (landed is None and self._v_latched)
-        elif v.mode is VerticalMode.EXT_POS and moving.v_goal is not None:
+        elif v.mode in (VerticalMode.EXT_POS, VerticalMode.GROUND) and moving.v_goal is not None:
             off = abs(ref.p[2] - moving.v_goal)
             v_end = off <= L.arrival_tolerance and not result.target_unreachable
         else:

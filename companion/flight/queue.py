@@ -440,6 +440,11 @@ class CommandQueue:
                 outcome = execution.step(self._ref, dt, elapsed, now_s, self._ext, self._gen, vehicle_state)
                 result = outcome.step
                 land_now = outcome.land_now
+                if execution.failure is not None:  # V_GROUND lost its range finder: altitude held
+                    self._ref = replace(result.reference, t_s=now_s)
+                    self.fail_current(execution.failure)
+                    self._last_setpoint = self._setpoint(None, False)
+                    return self._last_setpoint
             self._ref = replace(result.reference, t_s=now_s)
             self._limit_reached = result.limit_reached
             self._unreachable = result.target_unreachable

@@ -67,9 +67,16 @@ class VehicleState:
 
     ``landed``: True when the autopilot reports it is on the ground (EXTENDED_SYS_STATE
     landed_state ON_GROUND), False when in the air, None when unknown.
+
+    ``ground_alt``: the altitude (m up, local frame) of the ground under the vehicle from the downward
+    range finder (the altitude when the reading came minus the distance read, made vertical with the
+    tilt), ``ground_age_s`` how old that reading is (autopilot seconds); both None without an in-range
+    reading (V_GROUND, :mod:`companion.flight.execution`).
     """
 
     p: Vec3
     v: Vec3 = (0.0, 0.0, 0.0)
     yaw: float = 0.0
     landed: bool | None = None
+    ground_alt: float | None = None
+    ground_age_s: float | None = None

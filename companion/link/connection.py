@@ -53,7 +53,7 @@ M = mavutil.mavlink
 LINK_TIMEOUT_WALL_S = 3.0
 #: Messages whose time_boot_ms feeds the clock.
 _TIMED = frozenset({"LOCAL_POSITION_NED", "ATTITUDE", "SYSTEM_TIME", "GLOBAL_POSITION_INT",
-                    "POSITION_TARGET_LOCAL_NED", "RC_CHANNELS"})
+                    "POSITION_TARGET_LOCAL_NED", "RC_CHANNELS", "DISTANCE_SENSOR"})
 
 
 def parse_url(url: str, baud: int) -> tuple[str, int]:
@@ -85,6 +85,8 @@ def stream_plan(rate_hz: float) -> list[tuple[int, float]]:
         (M.MAVLINK_MSG_ID_SYSTEM_TIME, 2.0),
         (M.MAVLINK_MSG_ID_HOME_POSITION, 0.5),
         (M.MAVLINK_MSG_ID_RC_CHANNELS, 10.0),
+        # the downward range finder (follow-ground flight); an autopilot without one sends none
+        (M.MAVLINK_MSG_ID_DISTANCE_SENSOR, 10.0),
     ]
 
 

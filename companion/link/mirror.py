@@ -2,7 +2,8 @@
 
 Seed 000 Fig. 10: the QuadNode derives its topics from the platform's telemetry. The mirror folds
 the autopilot's messages into one :class:`MirrorState` (position, velocity, attitude, mode, armed,
-landed state, battery, sensors, home, GPS, the last POSITION_TARGET_LOCAL_NED echo, STATUSTEXTs); readers
+landed state, battery, sensors, home, GPS, the last POSITION_TARGET_LOCAL_NED echo, the downward
+DISTANCE_SENSOR, STATUSTEXTs); readers
 take an immutable :meth:`VehicleMirror.snapshot`. Units are MAVLink's SI units (m, m/s, rad);
 positions are local NED from the EKF origin, as LOCAL_POSITION_NED reports them.
 """
@@ -50,6 +51,36 @@ class RcReport:
 
 
 @dataclass(frozen=True)
+class RangeReport:
+    """The autopilot's downward DISTANCE_SENSOR (orientation 25, MAV_SENSOR_ROTATION_PITCH_270).
+
+    ``distance_m``, ``min_m``, ``max_m`` in metres (the message's centimetres); ``time_boot_ms`` the
+    autopilot's time of the report; ``altitude_m`` the mirrored altitude (m up, -LOCAL_POSITION_NED z) when
+    it arrived and ``cos_tilt`` the cosine of the vehicle's tilt then (cos roll x cos pitch, ATTITUDE), so
+    ``ground_altitude`` = the ground under the vehicle in the local frame, the slant reading made vertical
+    as ArduCopter's ``read_rangefinder`` does."""
+
+    time_boot_ms: int
+    distance_m: float
+    min_m: float
+    max_m: float
+    altitude_m: float | None
+    cos_tilt: float = 1.0
+
+    @property
+    def in_range(self) -> bool:
+        """Inside the sensor's reliable distances (ArduPilot's status Good)."""
+        return self.min_m <= self.distance_m <= self.max_m
+
+    @property
+    def ground_altitude(self) -> float | None:
+        """The ground's altitude (m up in the local frame) under the vehicle, None when unknown."""
+        if self.altitude_m is None or not self.in_range:
+            return None
+        return self.altitude_m - self.distance_m * self.cos_tilt
+
+
+@dataclass(frozen=True)
 class MirrorState:
     """One consistent view of the vehicle (None / 0 where not yet received)."""
 
@@ -79,6 +110,7 @@ class MirrorState:
     global_position: tuple[float, float, float, float] | None = None  # lat, lon, alt AMSL, rel. alt
     position_target: PositionTargetEcho | None = None
     rc: RcReport | None = None
+    range_down: RangeReport | None = None
     messages: int = 0
     texts: tuple[str, ...] = field(default_factory=tuple)
 
@@ -119,6 +151,7 @@ class MirrorState:
             "gps_fix_type": self.gps_fix_type, "gps_satellites": self.gps_satellites,
             "global_position": list(self.global_position) if self.global_position else None,
             "heartbeats": self.heartbeats, "messages": self.messages, "texts": list(self.texts[-5:]),
+            "range_down_m": self.range_down.distance_m if self.range_down is not None else None,
         }
 
 
@@ -181,6 +214,13 @@ class VehicleMirror:
             n = max(0, min(int(msg.chancount), 18))
             chans = tuple(int(getattr(msg, f"chan{i}_raw")) for i in range(1, n + 1))
             changes = {"rc": RcReport(msg.time_boot_ms, chans, int(msg.rssi)),
+                       "time_boot_ms": msg.time_boot_ms}
+        elif t == "DISTANCE_SENSOR" and msg.orientation == M.MAV_SENSOR_ROTATION_PITCH_270:
+            alt = -s.position[2] if s.position is not None else None
+            roll, pitch = (s.attitude[0], s.attitude[1]) if s.attitude is not None else (0.0, 0.0)
+            changes = {"range_down": RangeReport(msg.time_boot_ms, msg.current_distance / 100.0,
+                                                 msg.min_distance / 100.0, msg.max_distance / 100.0, alt,
+                                                 math.cos(roll) * math.cos(pitch)),
                        "time_boot_ms": msg.time_boot_ms}
         elif t == "STATUSTEXT":
             self._texts.append(msg.text)

@@ -39,11 +39,18 @@ def reference_neu(c: BehaviorExecutionController) -> Vec3:
     return (v.p[0], v.p[1], -v.p[2])
 
 
-def go_to(point: Vec3, speed: float | None = None, straight_line: bool = True) -> FlightCommand:
+def go_to(point: Vec3, speed: float | None = None, straight_line: bool = True,
+          follow_ground: float | None = None) -> FlightCommand:
     """Seed 000 Fig. 12b: H_Pos to ``point`` ((north, east, up), absolute), V_WithHor (the straight 3-D
-    line) or V_Pos (altitude on its own, ``straight_line`` false), Hd_DNU (heading kept), E_H and E_V."""
-    vertical = (VerticalChannel(VerticalMode.WITH_HOR, altitude=point[2]) if straight_line
-                else VerticalChannel(VerticalMode.POS, altitude=point[2]))
+    line) or V_Pos (altitude on its own, ``straight_line`` false), Hd_DNU (heading kept), E_H and E_V.
+    ``follow_ground`` (m; Fig. 12a's follow_ground_altitude): V_GROUND at that height above the ground the
+    range finder measures instead (``point``'s altitude is then not flown)."""
+    if follow_ground is not None:
+        vertical = VerticalChannel(VerticalMode.GROUND, altitude=float(follow_ground))
+    elif straight_line:
+        vertical = VerticalChannel(VerticalMode.WITH_HOR, altitude=point[2])
+    else:
+        vertical = VerticalChannel(VerticalMode.POS, altitude=point[2])
     return FlightCommand(HorizontalChannel(HorizontalMode.POS, north=point[0], east=point[1], speed=speed),
                          vertical, HeadingChannel(HeadingMode.DNU), EndCondition(e_h=True, e_v=True))
 

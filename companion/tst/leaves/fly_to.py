@@ -42,6 +42,8 @@ class FlyToExecutor(TstExecutor):
                                   "straight_line": self.plan.straight_line}
         if self.plan.speed_m_s:
             params["speed"] = self.plan.speed_m_s
+        if self.plan.extra.get("follow_ground_altitude") is not None:  # flown above the measured ground
+            params["follow_ground"] = float(self.plan.extra["follow_ground_altitude"])
         return format_activation("GO_TO_POINT", params)
 
 

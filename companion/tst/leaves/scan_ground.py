@@ -79,6 +79,8 @@ class ScanGroundExecutor(TstExecutor):
         params: dict[str, Any] = {"path": tuple(path)}
         if self.plan.speed_m_s:
             params["speed"] = self.plan.speed_m_s
+        if self.plan.extra.get("follow_ground_altitude") is not None:  # flown above the measured ground
+            params["follow_ground"] = float(self.plan.extra["follow_ground_altitude"])
         return format_activation("FOLLOW_PATH", params)
 
     def _camera(self) -> Any:
