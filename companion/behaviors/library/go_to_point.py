@@ -18,10 +18,11 @@ class GoToPoint(FlightBehavior):
     """Situation: flying. The trajectory planner checks the straight line inside the envelope; the
     motion controller flies it (seed 000 Fig. 12b: ``straight_line`` yes: V_WithHor, no: V_Pos; Hd_DNU;
     E_H and E_V; ``follow_ground``: V_GROUND, that height above the measured ground). Goal: the command
-    finished *and* the measured position is within the catalog's ``goal.tolerance_m`` of the point (short of it ``goal.settle_s`` later, e.g. held by the
-    autopilot's own fence: ``wrong_progress``). Performance: the time-out of its plan (distance over
-    the speed allowed) and the progress window on the measured distance to the point. A point the
-    planner cannot reach ends the behavior at its first check with ``wrong_progress``."""
+    finished *and* the measured position is within the catalog's ``goal.tolerance_m`` of the point
+    (short of it ``goal.settle_s`` later, e.g. held by the autopilot's own fence: ``wrong_progress``).
+    Performance: the time-out of its plan (distance over the speed allowed) and the progress window on
+    the measured distance to the point. A point the planner cannot reach ends the behavior at its first
+    check with ``wrong_progress``."""
 
     behavior = "GO_TO_POINT"
 
