@@ -32,6 +32,7 @@ from companion.flight.external import DEFAULT_MAX_VALIDITY_S
 from companion.flightlog import FlightRecorder
 from companion.http import ControlServer
 from companion.http.auth import ControlTokens
+from companion.http.server import is_loopback
 from companion.mission_service import MissionService
 from companion.node import QuadNode
 from companion.sensing.scenario import Scenario
@@ -99,6 +100,11 @@ class CompanionConfig:
             raise ValueError("--mission needs the executive layer (drop --no-behaviors)")
         if self.team and not self.behaviors:
             raise ValueError("--team needs the executive layer (drop --no-behaviors)")
+        if (self.control_port is not None and not self.control_token and not self.control_tokens
+                and not is_loopback(self.control_host)):
+            raise ValueError(f"--control-host {self.control_host} without tokens: anyone who reaches the port "
+                             "could fly the vehicle; give --tokens FILE or TASKFLIGHT_CONTROL_TOKEN, or serve "
+                             "on 127.0.0.1")
 
 
 class MissionRejectedError(RuntimeError):
