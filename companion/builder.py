@@ -102,9 +102,9 @@ class CompanionConfig:
             raise ValueError("--team needs the executive layer (drop --no-behaviors)")
         if (self.control_port is not None and not self.control_token and not self.control_tokens
                 and not is_loopback(self.control_host)):
-            raise ValueError(f"--control-host {self.control_host} without tokens: anyone who reaches the port "
-                             "could fly the vehicle; give --tokens FILE or TASKFLIGHT_CONTROL_TOKEN, or serve "
-                             "on 127.0.0.1")
+            raise ValueError(f"--control-host {self.control_host} without tokens: anyone who reaches the "
+                             "port could fly the vehicle; give --tokens FILE or TASKFLIGHT_CONTROL_TOKEN, or "
+                             "serve on 127.0.0.1")
 
 
 class MissionRejectedError(RuntimeError):

@@ -28,8 +28,13 @@ import yaml
 from companion.builder import Companion, CompanionConfig, build_companion
 from companion.flight import EventKind, load_commands
 from companion.main import add_companion_arguments, config_from_args
+from companion.tst.executor import ExecContext
+from companion.tst.leaves.fly_to import FlyToExecutor
+from companion.tst.plan import NodePlan
+from companion.tst.tree import TstNode
 from groundstation.auth import Tokens
 from harness.autopilot import AUTOPILOTS, start_autopilot
+from harness.behaviors import World
 from harness.fake_autopilot import unanswered_url
 from harness.flight_session import FlightSession, SessionSpec
 from harness.timing import wait_for
@@ -93,7 +98,8 @@ def test_requesters_come_from_token_roles() -> None:
         r = mission.post("/commands", json={"commands": [TAKE_OFF, WAIT_1]})
         assert r.status_code == 200, r.text
         act = coordinator.activation("FLY_COMMANDS")
-        assert act is not None and act.requester == "mission" and r.json()["activation_id"] == act.activation_id
+        assert act is not None and act.requester == "mission"
+        assert r.json()["activation_id"] == act.activation_id
         r = mission.post("/commands", json=WAIT_1)  # the same requester: appended to its activation
         assert r.status_code == 200 and r.json()["activation_id"] == act.activation_id, r.text
         assert len(act.controller.status()["command_ids"]) == 3
@@ -141,11 +147,55 @@ def test_tokens_file_roles(tmp_path: Path) -> None:
     args = parser.parse_args(["--autopilot", unanswered_url(), "--tokens", str(path), "--control-host",
                               "0.0.0.0", "--no-behaviors"])
     assert config_from_args(args).control_tokens == TOKENS
-    with pytest.raises(ConfigError, match=r"mission: unknown role: the ground service takes operator, observer"):
+    with pytest.raises(ConfigError, match=r"mission: unknown role: the ground service takes operator, obs"):
         Tokens.load(path)  # the ground service's own file has no mission role: refused, naming it
     path.write_text("operator: [a]\nemergency: [b]\n")
     with pytest.raises(ConfigError, match=r"tokens\.yaml:2: emergency: unknown role"):
         config_from_args(args)
+
+
+# --- the coordinator: the operator's assistance pause suspends, and outranks the mission ------------------
+def test_operator_break_in_suspends_the_mission_behavior_and_keeps_the_mission_out() -> None:
+    w = World()
+    w.take_off()
+    go = w.activate("GO_TO_POINT coordinate: (10, 0, 5)")
+    assert go.accepted, go.reason
+    w.run(1.0)
+    pause = w.activate("REQUEST_OPERATOR_ASSISTANCE control: hover", "operator")
+    assert pause.accepted and pause.stopped == (), pause  # suspended, not stopped
+    act = w.coordinator.activation("GO_TO_POINT")
+    assert act is not None and act.activation_id == go.activation_id
+    w.run(4.0)  # the hover routine brakes (jerk-limited), then holds
+    assert act.controller.paused
+    here = w.pos_neu
+    for text in ("GO_TO_POINT coordinate: (-10, 0, 5)", "LAND", "KEEP_MOVING velocity: (1, 0, 0)",
+                 "FOLLOW_EXTERNAL_VELOCITY"):
+        r = w.activate(text, "mission")
+        assert not r.accepted and "REQUEST_OPERATOR_ASSISTANCE" in r.reason and "operator" in r.reason, r
+    assert not w.coordinator.inhibit(pause.activation_id or "", "mission").accepted
+    assert w.coordinator.authority("mission", "run") is not None
+    assert w.coordinator.authority("operator", "run") is None
+    w.run(3.0)
+    assert math.dist(w.pos_neu, here) < 0.5 and "KEEP_HOVERING" not in w.active()
+    w.queue.user_confirm()  # the operator confirms: the mission's GO_TO_POINT goes on and gets there
+    assert w.wait_ended("REQUEST_OPERATOR_ASSISTANCE", 2).cause.value == "goal_achieved"
+    assert w.wait_ended("GO_TO_POINT", 30).cause.value == "goal_achieved"
+    assert math.dist(w.pos_neu, (10, 0, 5)) < 0.5
+
+
+def test_a_mission_node_refused_during_a_break_in_fails_with_the_reason() -> None:
+    w = World()
+    w.take_off()
+    assert w.activate("REQUEST_OPERATOR_ASSISTANCE control: joystick", "operator").accepted
+    marks: list[tuple[str, dict[str, Any]]] = []
+    node = TstNode("fly-to", {"position": [57.0, 15.0, 5.0]}, id="goto")
+    ex = FlyToExecutor(node, NodePlan("goto", "fly-to", position_neu=(10.0, 0.0, 5.0)),
+                       ExecContext(w.layer, mark=lambda event, **f: marks.append((event, f))))
+    ex.start()
+    assert ex.status.state == "failed", ex.status
+    reason = next(f["reason"] for e, f in marks if e == "node_finished")
+    assert "GO_TO_POINT" in reason and "REQUEST_OPERATOR_ASSISTANCE" in reason and "operator" in reason
+    assert not w.coordinator.is_active("GO_TO_POINT")
 
 
 # --- --commands FILE --run flies the file with the executive layer on ---------------------------------------
@@ -180,7 +230,8 @@ def test_commands_file_runs_to_its_end_with_the_executive_layer(kind: str, tmp_p
                 if ev.command_id is not None:
                     kinds.setdefault(ev.command_id, []).append(ev.kind)
             assert len(kinds) == len(commands), kinds
-            assert all(EventKind.FINISHED in k and EventKind.CANCELLED not in k for k in kinds.values()), kinds
+            assert all(EventKind.FINISHED in k and EventKind.CANCELLED not in k
+                       for k in kinds.values()), kinds
             assert not [x for x in coordinator.ended if x.behavior == "KEEP_HOVERING"]  # never took over
             assert far and max(p[0] for p in far) > 19.0, far[-3:]  # at the far waypoint (20, 0, 8)
             assert any(abs(p[2] - 8.0) < 1.0 for p in far), far[-3:]
@@ -192,7 +243,7 @@ def test_commands_file_runs_to_its_end_with_the_executive_layer(kind: str, tmp_p
         ap.close()
 
 
-# --- a mission request during an operator's break-in ------------------------------------------------------------
+# --- a mission request during an operator's break-in -----------------------------------------------------
 FLIGHT_SESSION = SessionSpec("chain", 5.0, autopilots=[AUTOPILOTS[0]], localized=True, behaviors=True)
 
 
@@ -208,7 +259,8 @@ def test_mission_cannot_take_the_vehicle_during_an_operator_break_in(flight_sess
     r = activate(f, "TAKE_OFF altitude: 5")
     assert r.status_code == 200, r.text
     take_off = r.json()["activation_id"]
-    wait_for(lambda: any(e.activation_id == take_off for e in coordinator.ended), f.wall(60), "take-off ended")
+    wait_for(lambda: any(e.activation_id == take_off for e in coordinator.ended), f.wall(60),
+             "take-off ended")
     wait_for(lambda: coordinator.is_active("KEEP_HOVERING"), f.wall(5), "hovering")
     r = activate(f, "REQUEST_OPERATOR_ASSISTANCE control: joystick")
     assert r.status_code == 200 and r.json()["accepted"], r.text

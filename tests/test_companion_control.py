@@ -402,7 +402,7 @@ def test_without_tokens_loopback_only_and_says_so(node: QuadNode, caplog: pytest
     with caplog.at_level(logging.WARNING, logger="companion.http.server"):
         control_server(node, host="0.0.0.0", token=TOKEN)
         assert not [r for r in caplog.records if r.name == "companion.http.server"]
-        with pytest.raises(ValueError, match="0.0.0.0 without tokens"):
+        with pytest.raises(ValueError, match=r"0\.0\.0\.0 without tokens"):
             control_server(node, host="0.0.0.0")
         control_server(node, host="127.0.0.1")
     warnings = [r for r in caplog.records

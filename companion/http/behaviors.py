@@ -135,8 +135,7 @@ def router(layer: ExecutiveLayer) -> APIRouter:
             raise ApiError(409, result.reason, **result.to_dict())
         return ActivationAnswer(**result.to_dict())
 
-    @app.post("/behaviors/activate", response_model=ActivationAnswer,
-              responses={409: {"description": "refused by the coordinator (the reason); nothing changed"}})
+    @app.post("/behaviors/activate", response_model=ActivationAnswer)
     def activate(body: ActivateRequest, role: Role) -> ActivationAnswer:
         requester = requester_for(role, body.requester, priority)
         try:
@@ -146,8 +145,7 @@ def router(layer: ExecutiveLayer) -> APIRouter:
             raise ApiError(400, f"format: {exc}") from None
         return answer(layer.coordinator.activate(req))
 
-    @app.post("/behaviors/inhibit", response_model=ActivationAnswer,
-              responses={409: {"description": "refused by the coordinator (the reason); nothing changed"}})
+    @app.post("/behaviors/inhibit", response_model=ActivationAnswer)
     def inhibit(body: InhibitRequest, role: Role) -> ActivationAnswer:
         requester = requester_for(role, body.requester, priority)
         target = body.behavior or body.activation_id

@@ -106,8 +106,7 @@ def router(node: QuadNode, layer: ExecutiveLayer | None = None) -> APIRouter:
             current_command_index=st.current_command_index, current_command_id=st.current_command_id,
             generation=st.generation)
 
-    @api.post("/commands", response_model=AddedResponse, response_model_exclude_none=True,
-              responses={409: {"description": "the executive layer refused the commands (the reason)"}})
+    @api.post("/commands", response_model=AddedResponse, response_model_exclude_none=True)
     def add_commands(body: Annotated[CommandsBody, Body(description="one command, or {\"commands\": [...]}")],
                      role: Role) -> AddedResponse:
         if isinstance(body, CommandBatch):
