@@ -26,7 +26,7 @@ import pytest
 import yaml
 
 from companion.builder import Companion, CompanionConfig, build_companion
-from companion.flight import EventKind, load_commands
+from companion.flight import EventKind, command_from_dict, load_commands
 from companion.main import add_companion_arguments, config_from_args
 from companion.tst.executor import ExecContext
 from companion.tst.leaves.fly_to import FlyToExecutor
@@ -196,6 +196,32 @@ def test_a_mission_node_refused_during_a_break_in_fails_with_the_reason() -> Non
     reason = next(f["reason"] for e, f in marks if e == "node_finished")
     assert "GO_TO_POINT" in reason and "REQUEST_OPERATOR_ASSISTANCE" in reason and "operator" in reason
     assert not w.coordinator.is_active("GO_TO_POINT")
+
+
+def test_fly_commands_held_until_run_and_never_cancelled_by_the_default() -> None:
+    w = World()
+    w.take_off()
+    commands = [command_from_dict({"horizontal": {"mode": "POS", "north": 6.0, "east": 0.0},
+                                   "vertical": {"mode": "POS", "altitude": 5.0}, "end": {"e_h": True}}),
+                command_from_dict({"end": {"e_user": True}})]
+    r = w.coordinator.fly_commands(commands, "operator", hold=True)  # --commands FILE without --run
+    assert r.accepted, r.reason
+    here = w.pos_neu
+    w.run(3.0)
+    assert math.dist(w.pos_neu, here) < 0.3 and w.active().get("FLY_COMMANDS") == "operator"
+    w.queue.run()
+    w.run_until(lambda: w.queue.status().confirmation_required_status, 20, "waiting for the operator")
+    assert w.active().get("FLY_COMMANDS") == "operator"  # the default does not take over an E_User wait
+    more = w.coordinator.fly_commands([command_from_dict({"end": {"e_wait": 1.0}})], "operator")
+    assert more.accepted and more.activation_id == r.activation_id  # appended to the same activation
+    w.queue.user_confirm()
+    assert w.wait_ended("FLY_COMMANDS", 10).cause.value == "goal_achieved"
+    ids = set(w.coordinator.controllers["FLY_COMMANDS"].status()["command_ids"])
+    events = [e for e in w.queue.events.since(0) if e.command_id in ids]
+    assert len(ids) == 3 and {e.command_id for e in events if e.kind is EventKind.FINISHED} == ids
+    assert not [e for e in events if e.kind is EventKind.CANCELLED]
+    assert math.dist(w.pos_neu, (6.0, 0.0, 5.0)) < 0.3
+    w.run_until(lambda: "KEEP_HOVERING" in w.active(), 2, "the default once the commands are done")
 
 
 # --- --commands FILE --run flies the file with the executive layer on ---------------------------------------
