@@ -6,6 +6,10 @@ one writer, the operator outranks the mission, requesters come from credentials.
   operator's can; the flight-command path is the FLY_COMMANDS behavior of the caller's requester, a lower
   requester can neither replace nor pause nor stop it (409 naming the holder); no tokens + a non-loopback
   host is refused; the ground service refuses a tokens file with a role it does not take, naming it;
+* the coordinator (the kinematic world of :mod:`harness.behaviors`): the operator's assistance pause
+  suspends the mission's GO_TO_POINT (which then gets there once confirmed) and keeps every mission
+  maneuver out; a mission node refused during a break-in fails with the coordinator's reason; FLY_COMMANDS
+  held until ``run``, appended to, every command FINISHED, the default hover only afterwards;
 * ``--commands FILE --run`` with the executive layer on flies the file to its end on each autopilot (the
   model; ArduCopter SITL with ``TASKFLIGHT_ARDUCOPTER``): every command FINISHED, none CANCELLED, the
   vehicle seen at the far waypoint by an independent pymavlink ground station;
