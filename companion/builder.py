@@ -8,8 +8,9 @@ and :class:`Companion` starts and closes them in their one order:
 
 * start: the QuadNode (seed 000 Fig. 10: the queue's tick thread and the link), the executive layer
   (seed 001), the mission given at start (seed 000 Sec. III; delegated once the vehicle's home is known),
-  the team member (seed 003; once the autopilot is heard), the commands to queue and ``run``, the control
-  surface (:mod:`companion.http`);
+  the team member (seed 003; once the autopilot is heard), the commands to queue and ``run`` (with the
+  executive layer on: the operator's FLY_COMMANDS behavior, the coordinator being the queue's one writer),
+  the control surface (:mod:`companion.http`);
 * close: the control surface, the team member, the mission layer, the executive layer, the node, the
   flight log.
 
@@ -31,6 +32,8 @@ from companion.flight.external import DEFAULT_MAX_VALIDITY_S
 from companion.flight.limits import FlightConfig, narrow
 from companion.flightlog import FlightRecorder
 from companion.http import ControlServer
+from companion.http.auth import ControlTokens
+from companion.http.server import is_loopback
 from companion.mission_service import MissionService
 from companion.node import QuadNode
 from companion.safety import SafetyConfig, SafetyDecision, SafetyMonitor
@@ -95,12 +98,20 @@ class CompanionConfig:
     control_token: str | None = None
     #: the safety monitor's thresholds (``enabled=False``: off, said at start); it needs the executive layer
     safety: SafetyConfig = field(default_factory=SafetyConfig)
+    #: the control surface's tokens by role ``{operator: [..], mission: [..], observer: [..]}``
+    #: (``--tokens FILE``; ``control_token`` is one more operator token)
+    control_tokens: dict[str, list[str]] | None = None
 
     def __post_init__(self) -> None:
         if self.mission is not None and not self.behaviors:
             raise ValueError("--mission needs the executive layer (drop --no-behaviors)")
         if self.team and not self.behaviors:
             raise ValueError("--team needs the executive layer (drop --no-behaviors)")
+        if (self.control_port is not None and not self.control_token and not self.control_tokens
+                and not is_loopback(self.control_host)):
+            raise ValueError(f"--control-host {self.control_host} without tokens: anyone who reaches the "
+                             "port could fly the vehicle; give --tokens FILE or TASKFLIGHT_CONTROL_TOKEN, or "
+                             "serve on 127.0.0.1")
 
 
 class MissionRejectedError(RuntimeError):
@@ -145,7 +156,8 @@ class Companion:
                              host=host if host is not None else c.control_host,
                              token=token if token is not None else c.control_token,
                              behaviors=self.layer, missions=self.missions, team=self.member,
-                             safety=self.safety)
+                             safety=self.safety,
+                             tokens=ControlTokens(c.control_tokens) if c.control_tokens else None)
 
     def start(self, stop: threading.Event | None = None) -> Companion:
         """Start the parts in order (module docstring). ``stop`` ends the waits for the vehicle (the
@@ -164,9 +176,16 @@ class Companion:
                 self._fly_mission(self.missions, c.mission, stop)
             if c.team:
                 self.member = self._join(self.missions, c.team, stop)
-        self.node.add_commands(c.commands)
-        if c.run:
-            self.node.run()
+        if c.commands and self.layer is not None:  # one writer of the queue: the coordinator
+            result = self.layer.coordinator.fly_commands(c.commands, "operator", hold=not c.run)
+            if not result.accepted:
+                raise RuntimeError(f"--commands refused: {result.reason}")
+            log.info("commands: %d flight commands, %s (%s)", len(c.commands),
+                     "running" if c.run else "held until POST /run", result.activation_id)
+        else:
+            self.node.add_commands(c.commands)
+            if c.run:
+                self.node.run()
         if c.control_port is not None and c.control_port >= 0:
             self.server = self.control_server().start()
             log.info("companion: autopilot %s, %g Hz, control %s", c.autopilot, c.rate_hz, self.server.url)

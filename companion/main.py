@@ -6,9 +6,12 @@ for a flight controller), streams setpoints at ``--rate`` Hz of autopilot time a
 over HTTP on ``--control-host`` (default ``127.0.0.1``) port P (see :mod:`companion.http`).
 ``--control-token`` (default: the environment variable ``TASKFLIGHT_CONTROL_TOKEN``, which other
 users cannot read from the process list) makes every endpoint require ``Authorization: Bearer
-<token>``; serving on a non-loopback host without one logs a warning. ``--max-validity S`` caps the
-validity of external-data samples. ``--commands FILE`` queues a YAML list of flight commands at
-start; ``--run`` starts executing them. ``--safety FILE`` sets the safety monitor's thresholds
+<token>`` (the operator's); ``--tokens FILE`` (YAML ``{operator: [..], mission: [..], observer: [..]}``)
+gives the tokens by role, each role the requester its holders act as (:mod:`companion.http.auth`).
+Without any token the surface is open, says so, and serves on loopback only (another host is refused).
+``--max-validity S`` caps the validity of external-data samples. ``--commands FILE`` queues a YAML list
+of flight commands at start (with the executive layer on: the operator's FLY_COMMANDS behavior); ``--run``
+starts executing them. ``--safety FILE`` sets the safety monitor's thresholds
 (:mod:`companion.safety`); ``--no-safety-monitor`` turns it off, and the companion says so at start.
 ``--team URL`` joins a team (seed 003;
 :mod:`companion.team.join`): the vehicle shares its state on the team link and flies the team tasks the
@@ -28,7 +31,7 @@ import os
 from typing import TYPE_CHECKING
 
 from taskflight_common.runtime import freeze_startup_heap, stop_on_signals
-from taskflight_common.tokens import TOKEN_ENV
+from taskflight_common.tokens import COMPANION_ROLES, TOKEN_ENV, load_tokens
 from taskflight_common.yamlio import ConfigError
 
 if TYPE_CHECKING:
@@ -50,6 +53,9 @@ def add_companion_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--control-token", default=None, metavar="TOKEN",
                         help="require 'Authorization: Bearer TOKEN' on the control surface (default: "
                              f"${TOKEN_ENV} if set, else no authentication)")
+    parser.add_argument("--tokens", default=None, metavar="FILE",
+                        help="control-surface tokens by role, YAML {operator: [..], mission: [..], observer: "
+                             "[..]}: each role is the requester its holders act as; observers only read")
     # default None, resolved in config_from_args: building the parser stays free of the companion's imports
     parser.add_argument("--max-validity", type=float, default=None, metavar="S",
                         help="longest validity (s) an external-data sample may claim (default: "
@@ -102,6 +108,15 @@ def control_token(args: argparse.Namespace) -> str | None:
     return token if token and token.strip() else None
 
 
+def control_tokens(args: argparse.Namespace) -> dict[str, list[str]] | None:
+    """``--tokens FILE`` checked (the companion's roles, :data:`~taskflight_common.tokens.COMPANION_ROLES`;
+    :class:`ConfigError` naming the file, line and role); None without the option."""
+    path = getattr(args, "tokens", None)
+    if not path:
+        return None
+    return load_tokens(path, COMPANION_ROLES, "a companion's control surface", need_operator=False)
+
+
 def config_from_args(args: argparse.Namespace) -> CompanionConfig:
     """The companion ``taskflight companion``'s options describe, every file read and checked
     (:class:`ConfigError`, ValueError or OSError naming what is wrong)."""
@@ -136,7 +151,8 @@ def config_from_args(args: argparse.Namespace) -> CompanionConfig:
         team=args.team, team_policy=args.team_policy, name=args.name,
         flight_log=args.flight_log, run=args.run,
         control_port=args.control_port if args.control_port >= 0 else None,
-        control_host=args.control_host, control_token=control_token(args), safety=safety)
+        control_host=args.control_host, control_token=control_token(args),
+        control_tokens=control_tokens(args), safety=safety)
 
 
 def run_companion(args: argparse.Namespace) -> int:

@@ -1,5 +1,11 @@
 """Bearer tokens made by Taskflight (the ground service's operator and observer tokens, the companions'
-control token), and the tokens file both the ground service and ``taskflight up`` read.
+control tokens), and the tokens files the ground service, ``taskflight up`` and ``taskflight companion
+--tokens`` read.
+
+Each reader has its own roles: the ground service's are :data:`ROLES` (operator, observer); a
+companion's control surface also has ``mission`` (:data:`COMPANION_ROLES`: a mission client activates
+behaviors as the mission requester of seed 001, below the operator). A file naming a role its reader
+does not take is refused naming the role and the reader's roles.
 
 A token is handed on command lines (``taskflight ground --companion-token T``) and pasted by operators,
 so it must never look like an option: ``secrets.token_urlsafe`` starts with ``-`` once in 64 draws, and
@@ -33,20 +39,28 @@ def role_tokens() -> dict[str, list[str]]:
 #: where the companion's control token is read from (``taskflight companion``, the ground service toward
 #: the companions, ``taskflight up`` for its children): other users cannot read a process's environment
 TOKEN_ENV = "TASKFLIGHT_CONTROL_TOKEN"
-#: the roles of a tokens file: the operator commands (seed 003 Fig. 1), an observer reads only
+#: the roles of the ground service's tokens file: the operator commands (seed 003 Fig. 1), an observer
+#: reads only
 ROLES = ("operator", "observer")
+#: the roles of a companion's control surface (``taskflight companion --tokens``), highest first: the
+#: operator, the mission requester (seed 001 Definition 3), an observer (reads only). ``emergency`` is
+#: no token's role: only the companion's own safety monitor requests as emergency, in-process.
+COMPANION_ROLES = ("operator", "mission", "observer")
 
 
-def check_tokens(by_role: Any, file: str | Path | None = None) -> dict[str, list[str]]:
-    """``{operator: [...], observer: [...]}`` checked (at least one operator token; no token twice; each
-    a non-empty string, stripped); :class:`ConfigError` naming the file, line and role otherwise."""
+def check_tokens(by_role: Any, file: str | Path | None = None, roles: tuple[str, ...] = ROLES,
+                 reader: str = "the ground service", need_operator: bool = True) -> dict[str, list[str]]:
+    """``{operator: [...], observer: [...]}`` checked against ``reader``'s ``roles`` (at least one
+    operator token unless ``need_operator`` is false; no token twice; each a non-empty string,
+    stripped); :class:`ConfigError` naming the file, line and role otherwise."""
     fields = Fields(by_role, file=str(file) if file is not None else None)
     for key in by_role:
-        if key not in ROLES:
-            raise fields.error(str(key), f"unknown role (roles: {', '.join(ROLES)})")
+        if key not in roles:
+            hint = " (mission tokens go in a companion's --tokens file)" if key == "mission" else ""
+            raise fields.error(str(key), f"unknown role: {reader} takes {', '.join(roles)}{hint}")
     out: dict[str, list[str]] = {}
     seen: set[str] = set()
-    for role in ROLES:
+    for role in roles:
         tokens = fields.raw(role, [])
         if tokens is None:
             tokens = []
@@ -57,12 +71,13 @@ def check_tokens(by_role: Any, file: str | Path | None = None) -> dict[str, list
             if t in seen:
                 raise fields.error(role, "a token is listed twice")
             seen.add(t)
-    if not out["operator"]:
+    if need_operator and not out["operator"]:
         raise fields.error("operator", "at least one operator token is needed")
     return out
 
 
-def load_tokens(path: str | Path) -> dict[str, list[str]]:
+def load_tokens(path: str | Path, roles: tuple[str, ...] = ROLES, reader: str = "the ground service",
+                need_operator: bool = True) -> dict[str, list[str]]:
     """The tokens file, YAML ``{operator: [tokens], observer: [tokens]}`` (see :func:`check_tokens`);
     :class:`ConfigError` (a ValueError) as ``file:line: field: reason`` if it is unreadable or wrong."""
     try:
@@ -71,5 +86,5 @@ def load_tokens(path: str | Path) -> dict[str, list[str]]:
         raise ConfigError(exc.file, exc.line, exc.field, f"tokens file: {exc.reason}") from exc
     if not isinstance(data, dict):
         raise ConfigError(path, getattr(data, "start_line", None), None,
-                          "tokens file: expected a mapping {operator: [...], observer: [...]}")
-    return check_tokens(data, path)
+                          f"tokens file: expected a mapping {{{': [...], '.join(roles)}: [...]}}")
+    return check_tokens(data, path, roles, reader, need_operator)

@@ -102,11 +102,15 @@ def test_emergency_land_preempts_a_mission_go_to_point(flight_session: FlightSes
     go = activate(flight_session, "GO_TO_POINT coordinate: (-20, -20, 8)")
     assert go["accepted"], go
     wait_for(lambda: flight_session.speed() > 1.0, flight_session.wall(10), "on its way")
-    land = activate(flight_session, "LAND", "emergency")
+    assert flight_session.layer is not None  # emergency is no HTTP caller's: the companion's own, in-process
+    land = flight_session.layer.coordinator.activate("LAND", "emergency").to_dict()
     assert land["accepted"] and land["stopped"] == ["GO_TO_POINT"], land
     assert wait_end(flight_session, go["activation_id"], 1)["cause"] == "interrupted"
-    again = activate(flight_session, "GO_TO_POINT coordinate: (0, 0, 5)")
-    assert not again["accepted"] and "LAND" in again["reason"] and "emergency" in again["reason"], again
+    r = flight_session.post("/behaviors/activate", {"text": "GO_TO_POINT coordinate: (0, 0, 5)",
+                                                    "requester": "mission"})
+    again = r.json()
+    assert r.status_code == 409 and not again["accepted"] and "LAND" in again["reason"] \
+        and "emergency" in again["reason"], again
     end = wait_end(flight_session, land["activation_id"], 90)
     assert end["cause"] == "goal_achieved", end
     wait_for(lambda: not flight_session.armed(), flight_session.wall(30), "disarmed after landing")

@@ -220,7 +220,7 @@ def test_openapi_documents_request_and_response_schemas(http: httpx.Client) -> N
             if (method, path) in expected:
                 assert names == {expected[method, path]}, (method, path)
     assert operations == 16  # the QAPI's 14 and the autopilot parameters (get, put)
-    assert set(schemas["AddedResponse"]["properties"]) == {"ids", "indices"}
+    assert set(schemas["AddedResponse"]["properties"]) == {"ids", "indices", "activation_id"}
     assert set(schemas["ErrorResponse"]["properties"]) == {"error"}
 
 
@@ -398,15 +398,16 @@ def test_control_host_any_address_answers_on_loopback(node: QuadNode) -> None:
             assert_error(client.get(f"{loopback}/status"), 401)
 
 
-def test_non_loopback_without_token_warns(node: QuadNode, caplog: pytest.LogCaptureFixture) -> None:
+def test_without_tokens_loopback_only_and_says_so(node: QuadNode, caplog: pytest.LogCaptureFixture) -> None:
     with caplog.at_level(logging.WARNING, logger="companion.http.server"):
-        control_server(node, host="127.0.0.1")
         control_server(node, host="0.0.0.0", token=TOKEN)
         assert not [r for r in caplog.records if r.name == "companion.http.server"]
-        control_server(node, host="0.0.0.0")
+        with pytest.raises(ValueError, match=r"0\.0\.0\.0 without tokens"):
+            control_server(node, host="0.0.0.0")
+        control_server(node, host="127.0.0.1")
     warnings = [r for r in caplog.records
                 if r.name == "companion.http.server" and r.levelno == logging.WARNING]
-    assert len(warnings) == 1 and "without a token" in warnings[0].getMessage()
+    assert len(warnings) == 1 and "without tokens" in warnings[0].getMessage()
 
 
 def test_empty_token_refused(node: QuadNode) -> None:

@@ -9,7 +9,11 @@ Activation (``activate``), in the paper's order
     3. compatibility: every active behavior incompatible with it (Definition 1, one mutually exclusive
        set; a behavior is incompatible with itself, so a new activation replaces the old one) must
        have a requester of lower or equal priority (Definition 3; emergency > operator > mission >
-       default, the catalog's ``requester_priority``), else the request is rejected naming it;
+       default, the catalog's ``requester_priority``), else the request is rejected naming it. A
+       behavior that *suspends* the flight (its controller's ``suspends_flight``:
+       REQUEST_OPERATOR_ASSISTANCE, Fig. 7, which pauses the queue) keeps the incompatible flight
+       behavior active and paused instead of stopping it; while it is active, only a requester of at
+       least its priority may start a flight behavior (which then ends both);
     4. precedence (Definition 2), checked in advance also for the default behaviors that stopping
        the incompatible ones would start: every behavior to start needs those ``before`` it active
        (or starting first), and no behavior may be stopped while an active one needs it;
@@ -28,6 +32,13 @@ End of behavior
     removed behavior"). Defaults whose situation became true (KEEP_HOVERING once flying,
     SELF_LOCALIZE once the estimate is healthy) are started there too.
 
+The one writer of the queue
+    With the executive layer on, everything that moves the vehicle goes through here: the flight-command
+    path of the control surface (``POST /commands``, ``--commands FILE --run``) is the FLY_COMMANDS
+    behavior, activated (or extended, :meth:`fly_commands`) by its caller's requester, and the queue
+    verbs are honoured only for a requester with at least the priority of the one who holds the queue
+    (:meth:`holder`, :meth:`authority`).
+
 After each reconfiguration the process manager's :meth:`~.processes.ProcessManager.collect` stops the
 processes nobody uses (the delayed stop). Every request, start and termination is kept in memory and
 written to the log sink as one JSON object (the input of :mod:`.timeline`).
@@ -40,9 +51,13 @@ import logging
 import threading
 import time
 from collections import deque
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
+
+from companion.flight import FlightCommand
+from companion.flight.codec import commands_to_json
+from companion.flight.qapi import QueueError
 
 from .activation import ActivationError, ActivationRequest, check_format, format_activation, request_from
 from .catalog import BehaviorCatalog
@@ -59,6 +74,8 @@ from .controller import (
 log = logging.getLogger(__name__)
 
 _activation_ids = itertools.count(1)
+#: the behavior that flies a caller's flight commands (:mod:`.library.fly_commands`)
+FLY_COMMANDS = "FLY_COMMANDS"
 Sink = Callable[[dict[str, Any]], None]
 
 
@@ -182,6 +199,53 @@ class BehaviorCoordinator:
             return self._answer(req, req.requester, True, "accepted", aid,
                                 tuple(a.behavior for a in plan.stop), tuple(started))
 
+    def fly_commands(self, commands: Sequence[FlightCommand], requester: str, hold: bool = False
+                     ) -> ActivationResult:
+        """The flight-command path through the coordinator: ``commands`` are appended to the active
+        :data:`FLY_COMMANDS` of the same requester (it then also waits for them), else a new FLY_COMMANDS
+        activation carries them (replacing the flight behavior if ``requester``'s priority allows; a
+        refusal names why). ``hold``: queued but not run (the queue stopped until ``run``). The commands
+        are checked against the envelope first (QueueError / CommandError: nothing changes)."""
+        commands = list(commands)
+        if not commands:
+            raise QueueError("no commands")
+        for c in commands:
+            self.ctx.queue.check_command(c)
+        with self._lock:
+            act = self._active.get(FLY_COMMANDS)
+            holder = self.holder()
+            if act is not None and holder is act and act.requester == requester:
+                ctrl = act.controller
+                assert isinstance(ctrl, FlightBehavior)
+                ids = self.ctx.queue.add_commands(commands)
+                ctrl.command_ids.extend(ids)
+                self._emit({"type": "behavior", "event": "extended", "behavior": FLY_COMMANDS,
+                            "activation_id": act.activation_id, "requester": requester, "commands": ids})
+                return self._answer(None, requester, True, f"added to {act.activation_id}",
+                                    act.activation_id, behavior=FLY_COMMANDS)
+            params = {"commands": commands_to_json(commands), "hold": hold}
+            return self.activate({"behavior": FLY_COMMANDS, "params": params}, requester)
+
+    def holder(self) -> Activation | None:
+        """Who holds the queue now: an active behavior that suspends the flight (the operator's
+        assistance pause), else the active flight behavior (running or paused), else None."""
+        with self._lock:
+            acts = list(self._active.values())
+            return next((a for a in acts if getattr(a.controller, "suspends_flight", False)), None) or next(
+                (a for a in acts if isinstance(a.controller, FlightBehavior)), None)
+
+    def authority(self, requester: str, verb: str) -> str | None:
+        """None if ``requester`` may apply the queue verb ``verb`` now (its priority at least that of the
+        holder's requester), else why not."""
+        if requester not in self.catalog.requester_priority:
+            return f"unknown requester {requester!r}"
+        with self._lock:
+            act = self.holder()
+            if act is not None and self.catalog.priority(requester) < self.catalog.priority(act.requester):
+                return (f"{verb}: the queue is held by {act.behavior} ({act.activation_id}), requested by "
+                        f"{act.requester}, which has priority over {requester}")
+        return None
+
     def inhibit(self, target: str, requester: str = "operator") -> ActivationResult:
         """Requesting behavior inhibition: ``target`` is a behavior name or an activation id."""
         with self._lock:
@@ -257,11 +321,14 @@ class BehaviorCoordinator:
         cat = self.catalog
         prio = cat.priority(requester)
         plan = _Plan()
+        suspends = getattr(self.controllers[behavior], "suspends_flight", False)
         for a in self._active.values():
             if cat.incompatible(a.behavior, behavior):
                 if cat.priority(a.requester) > prio:
                     return plan, (f"incompatible with {a.behavior} (requested by {a.requester}, which has "
                                   f"priority over {requester})")
+                if suspends and a.behavior != behavior and isinstance(a.controller, FlightBehavior):
+                    continue  # paused by the new behavior, not stopped (Fig. 7)
                 plan.stop.append(a)
         stopping = {a.behavior for a in plan.stop} - {behavior}
         remaining = set(self._active) - stopping - {behavior}

@@ -59,14 +59,16 @@ Errors
     Bodies must be sent as ``Content-Type: application/json`` (a browser cannot send that to another
     origin without a CORS preflight, which this surface never grants).
 
-Authentication
+Authentication and the chain of command
     The surface binds to ``127.0.0.1`` unless told otherwise (``taskflight companion --control-host``).
-    With a token (``create_app(node, token=...)``, ``ControlServer(..., token=...)``,
-    ``--control-token`` or the environment variable ``TASKFLIGHT_CONTROL_TOKEN``) every endpoint
+    With tokens (``--tokens FILE``: ``{operator: [..], mission: [..], observer: [..]}``; ``--control-token``
+    or the environment variable ``TASKFLIGHT_CONTROL_TOKEN`` is one more operator token) every endpoint
     requires ``Authorization: Bearer <token>``; without it, or with another token, the answer is 401.
-    ``/openapi.json`` and ``/docs`` stay open. Serving on a non-loopback address without a token logs
-    a warning: anyone who reaches the port can then fly the vehicle. Prefer the environment variable
-    to the command-line option (other users can read a process's arguments).
+    ``/openapi.json`` and ``/docs`` stay open. The token's role is the caller's requester
+    (:mod:`companion.http.auth`): observers only read (403 for a write), a body may lower its requester,
+    never raise it (403), ``emergency`` is no caller's. Without tokens the surface is open, says so at
+    start, and serves on loopback only (another host is refused). Prefer the environment variable or the
+    file to the command-line option (other users can read a process's arguments).
 """
 
 from __future__ import annotations
@@ -79,51 +81,45 @@ from companion.behaviors.system import ExecutiveLayer
 from companion.http import behaviors as behaviors_api
 from companion.http import events, mission, params, pause_routines, queue, status, team
 from companion.http import safety as safety_api
+from companion.http.auth import OPEN_PATHS, ControlTokens, RoleAuth
 from companion.http.models import UNION_TAGS
 from companion.mission_service import MissionService
 from companion.node import QuadNode
 from companion.safety import SafetyMonitor
 from companion.team.member import TeamMember
-from taskflight_common.httpapi import (
-    BearerAuth,
-    ErrorResponse,
-    advertise_bearer,
-    install_error_handlers,
-    same_token,
-)
+from taskflight_common.httpapi import ErrorResponse, advertise_bearer, install_error_handlers
 
-#: paths served without a token
-OPEN_PATHS = frozenset({"/openapi.json", "/docs", "/docs/oauth2-redirect", "/redoc"})
+__all__ = ["OPEN_PATHS", "create_app"]
 
 
 def create_app(node: QuadNode, token: str | None = None, behaviors: ExecutiveLayer | None = None,
-               missions: MissionService | None = None, team_member: TeamMember | None = None, *,
-               safety: SafetyMonitor | None = None) -> FastAPI:
+               missions: MissionService | None = None, team_member: TeamMember | None = None,
+               tokens: ControlTokens | None = None, *, safety: SafetyMonitor | None = None) -> FastAPI:
     """The FastAPI application serving ``node``'s QAPI (see module docstring).
 
-    ``token``: require ``Authorization: Bearer <token>`` on every endpoint (None: no authentication).
+    ``token``: an operator token; ``tokens``: the tokens by role (:class:`ControlTokens`); either one
+    makes every endpoint require ``Authorization: Bearer <token>`` (neither: no authentication).
     ``behaviors``: also serve the executive layer (:mod:`companion.http.behaviors`); ``missions``: the
     mission layer (:mod:`companion.http.mission`); ``safety``: the safety monitor (``GET /safety``;
     ``POST /rtl`` is served with the executive layer); ``team_member``: the vehicle's team member (the process
     monitor's routes, :mod:`companion.http.team`). Autopilot parameters are always served.
     ``app.state.closing`` (a :class:`threading.Event`) ends pending ``/events/wait`` requests when set.
     """
-    if token is not None and (not isinstance(token, str) or not token.strip()):
-        raise ValueError("the control token must be a non-empty string")
+    tokens = ControlTokens.of(token, tokens.by_role if tokens is not None else None)
     app = FastAPI(title="Taskflight companion", description=__doc__ or "",
                   responses={"4XX": {"model": ErrorResponse, "description": "refused; nothing changed"}})
     closing = threading.Event()
     app.state.closing = closing
-    if token is not None:
-        app.add_middleware(BearerAuth, authorize=lambda given: same_token(given, token) or None,
-                           guarded=lambda path: path not in OPEN_PATHS)
+    app.state.tokens = tokens
+    if tokens is not None:
+        app.add_middleware(RoleAuth, tokens=tokens)
         advertise_bearer(app)
     install_error_handlers(app, UNION_TAGS)
 
     app.include_router(status.router(node, behaviors))
-    app.include_router(queue.router(node))
+    app.include_router(queue.router(node, behaviors))
     app.include_router(events.router(node, closing, missions, behaviors))
-    app.include_router(pause_routines.router(node))
+    app.include_router(pause_routines.router(node, behaviors))
     if behaviors is not None:
         app.include_router(behaviors_api.router(behaviors))
         app.include_router(safety_api.router(behaviors, safety))

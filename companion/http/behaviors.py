@@ -21,6 +21,12 @@
 =====================================  ================================================================
 
 A malformed body or query answers 400 with the reason and changes nothing.
+
+Requesters come from credentials (:mod:`companion.http.auth`): an activation's or inhibition's
+requester is the caller's token's role; the body's ``requester`` may lower it, never raise it (403).
+A request the coordinator refuses answers 409 ``{"error": reason, "accepted": false, "reason": ...}``
+and changes nothing. A joystick sample is taken from a caller with at least the priority of the
+requester holding the vehicle (else 409).
 """
 
 from __future__ import annotations
@@ -36,6 +42,7 @@ from companion.behaviors.coordinator import jsonable
 from companion.behaviors.processes import ProcessError
 from companion.behaviors.system import ExecutiveLayer
 from companion.flight import ExternalDataError
+from companion.http.auth import Role, requester_for
 from taskflight_common.httpapi import ApiError
 
 
@@ -47,13 +54,14 @@ class ActivateRequest(_Strict):
     text: str | None = Field(None, description="the text form, e.g. 'ROTATE angle: 45'")
     behavior: str | None = Field(None, description="the structured form: the behavior's name")
     params: dict[str, Any] | None = Field(None, description="the structured form's parameters")
-    requester: str = Field("operator", description="emergency, operator, mission (the catalog's requesters)")
+    requester: str | None = Field(None, description="the caller's role (its token's) unless lowered here: "
+                                                    "operator, mission (emergency is no caller's)")
 
 
 class InhibitRequest(_Strict):
     behavior: str | None = None
     activation_id: str | None = None
-    requester: str = "operator"
+    requester: str | None = Field(None, description="the caller's role unless lowered here")
 
 
 class ActivationAnswer(BaseModel):
@@ -111,36 +119,45 @@ class BeliefChangeAnswer(BaseModel):
 def router(layer: ExecutiveLayer) -> APIRouter:
     """The routes above."""
     app = APIRouter(tags=["behaviors"])
+    priority = layer.catalog.requester_priority
 
-    def request_of(body: ActivateRequest) -> Any:
+    def request_of(body: ActivateRequest, requester: str) -> Any:
         if (body.text is None) == (body.behavior is None):
             raise ApiError(400, "give either 'text' or 'behavior' (+ 'params')")
         if body.text is not None:
             if body.params is not None:
                 raise ApiError(400, "'params' goes with 'behavior', not with 'text'")
-            return request_from(body.text, body.requester)
-        return request_from({"behavior": body.behavior, "params": body.params or {}}, body.requester)
+            return request_from(body.text, requester)
+        return request_from({"behavior": body.behavior, "params": body.params or {}}, requester)
+
+    def answer(result: Any) -> ActivationAnswer:
+        if not result.accepted:
+            raise ApiError(409, result.reason, **result.to_dict())
+        return ActivationAnswer(**result.to_dict())
 
     @app.post("/behaviors/activate", response_model=ActivationAnswer)
-    def activate(body: ActivateRequest) -> ActivationAnswer:
+    def activate(body: ActivateRequest, role: Role) -> ActivationAnswer:
+        requester = requester_for(role, body.requester, priority)
         try:
-            req = request_of(body)
-            layer.coordinator.check(req)  # a malformed request is a 400; a refused one an answer
+            req = request_of(body, requester)
+            layer.coordinator.check(req)  # a malformed request is a 400; a refused one a 409
         except ActivationError as exc:
             raise ApiError(400, f"format: {exc}") from None
-        return ActivationAnswer(**layer.coordinator.activate(req).to_dict())
+        return answer(layer.coordinator.activate(req))
 
     @app.post("/behaviors/inhibit", response_model=ActivationAnswer)
-    def inhibit(body: InhibitRequest) -> ActivationAnswer:
+    def inhibit(body: InhibitRequest, role: Role) -> ActivationAnswer:
+        requester = requester_for(role, body.requester, priority)
         target = body.behavior or body.activation_id
         if not target or (body.behavior and body.activation_id):
             raise ApiError(400, "give either 'behavior' or 'activation_id'")
-        return ActivationAnswer(**layer.coordinator.inhibit(target, body.requester).to_dict())
+        return answer(layer.coordinator.inhibit(target, requester))
 
     @app.post("/behaviors/check", response_model=CheckAnswer)
-    def check(body: ActivateRequest) -> CheckAnswer:
+    def check(body: ActivateRequest, role: Role) -> CheckAnswer:
         try:
-            req = request_of(body)
+            as_role = role if role in priority else priority[-1]  # an observer checks as the lowest
+            req = request_of(body, requester_for(as_role, body.requester, priority))
             params = layer.coordinator.check(req)
         except ActivationError as exc:
             raise ApiError(400, f"format: {exc}") from None
@@ -152,7 +169,10 @@ def router(layer: ExecutiveLayer) -> APIRouter:
         return BehaviorsView(catalog=layer.catalog.to_dict(), **layer.status())
 
     @app.post("/behaviors/joystick", response_model=JoystickAnswer)
-    def joystick(body: JoystickSample) -> JoystickAnswer:
+    def joystick(body: JoystickSample, role: Role) -> JoystickAnswer:
+        why = layer.coordinator.authority(role, "joystick")
+        if why is not None:
+            raise ApiError(409, why)
         try:
             return JoystickAnswer(accepted=layer.joystick.push(body.values, body.validity_s))
         except ProcessError as exc:

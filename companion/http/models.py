@@ -180,6 +180,8 @@ class AddedResponse(BaseModel):
 
     ids: list[int]
     indices: list[int | None]
+    activation_id: str | None = Field(None, description="with the executive layer on: the FLY_COMMANDS "
+                                                         "activation flying them")
 
 
 class VerbResponse(BaseModel):

@@ -22,6 +22,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from companion.behaviors.activation import ActivationError, request_from
 from companion.behaviors.system import ExecutiveLayer
 from companion.http.behaviors import ActivationAnswer
+from companion.http.auth import Role, requester_for
 from companion.safety import SafetyMonitor
 from companion.safety.monitor import REQUESTER as EMERGENCY
 from taskflight_common.httpapi import ApiError
@@ -30,7 +31,9 @@ from taskflight_common.httpapi import ApiError
 class RtlRequest(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
-    requester: str = Field("operator", description="operator or mission (emergency is the safety monitor's)")
+    requester: str | None = Field(None, description="default: the caller's token's role; may lower it "
+                                                    "(mission), never raise it (emergency is the safety "
+                                                    "monitor's)")
     altitude: float | None = Field(None, description="the lowest altitude to return at (m above home); "
                                                      "default: the current altitude, held in the envelope")
     speed: float | None = Field(None, description="horizontal speed home (m/s; default the queue's limit)")
@@ -51,14 +54,16 @@ def router(layer: ExecutiveLayer, monitor: SafetyMonitor | None) -> APIRouter:
     app = APIRouter(tags=["safety"])
 
     @app.post("/rtl", response_model=ActivationAnswer)
-    def rtl(body: RtlRequest | None = None) -> ActivationAnswer:
-        """Return home and land: the RTL behavior as the caller's requester (refused: 409, the reason)."""
+    def rtl(role: Role, body: RtlRequest | None = None) -> ActivationAnswer:
+        """Return home and land: the RTL behavior as the caller's requester (its token's role, or lower;
+        refused: 409, the reason)."""
         body = body or RtlRequest.model_validate({})
         if body.requester == EMERGENCY:
             raise ApiError(403, "requester: emergency is the companion's own safety monitor, not a caller")
+        requester = requester_for(role, body.requester, layer.catalog.requester_priority)
         params = {k: v for k, v in (("altitude", body.altitude), ("speed", body.speed)) if v is not None}
         try:
-            req = request_from({"behavior": "RTL", "params": params}, body.requester)
+            req = request_from({"behavior": "RTL", "params": params}, requester)
             layer.coordinator.check(req)
         except ActivationError as exc:
             raise ApiError(400, f"format: {exc}") from None

@@ -11,6 +11,7 @@ import uvicorn
 
 from companion.behaviors.system import ExecutiveLayer
 from companion.http.app import create_app
+from companion.http.auth import ControlTokens
 from companion.mission_service import MissionService
 from companion.node import QuadNode
 from companion.safety import SafetyMonitor
@@ -31,23 +32,30 @@ def is_loopback(host: str) -> bool:
 
 
 class ControlServer:
-    """uvicorn serving :func:`create_app` on ``host:port`` in a background thread (port 0: any free)."""
+    """uvicorn serving :func:`create_app` on ``host:port`` in a background thread (port 0: any free).
+
+    Without a token (``token``: an operator token, ``tokens``: tokens by role) it serves on a loopback
+    host only (ValueError for another: anyone who reaches the port could fly the vehicle) and says at
+    start that it is open."""
 
     def __init__(self, node: QuadNode, port: int = 8765, host: str = "127.0.0.1",
                  token: str | None = None, behaviors: ExecutiveLayer | None = None,
                  missions: MissionService | None = None, team: TeamMember | None = None,
-                 safety: SafetyMonitor | None = None) -> None:
-        self.app = create_app(node, token, behaviors, missions, team, safety=safety)
+                 tokens: ControlTokens | None = None, safety: SafetyMonitor | None = None) -> None:
+        if token is None and tokens is None and not is_loopback(host):
+            raise ValueError(f"control surface on {host} without tokens: anyone who reaches the port could "
+                             f"fly the vehicle; give --tokens FILE or {TOKEN_ENV}, or serve on 127.0.0.1")
+        self.app = create_app(node, token, behaviors, missions, team, tokens, safety=safety)
         config = uvicorn.Config(self.app, host=host, port=port, log_level="warning", lifespan="off",
                                 timeout_graceful_shutdown=2)
         self.server = uvicorn.Server(config)
         self._thread = threading.Thread(target=self.server.run, name="control-http", daemon=True)
         self.host = host
         self.port = port
-        self.token_required = token is not None
-        if token is None and not is_loopback(host):
-            log.warning("control surface on %s without a token: anyone who reaches the port can fly the "
-                        "vehicle (set --control-token or %s)", host, TOKEN_ENV)
+        self.token_required = self.app.state.tokens is not None
+        if not self.token_required:
+            log.warning("control surface on %s without tokens: open to every local user, each the operator "
+                        "(give --tokens FILE or %s to require bearer tokens)", host, TOKEN_ENV)
 
     def start(self, timeout_s: float = 10.0) -> ControlServer:
         self._thread.start()
@@ -58,8 +66,10 @@ class ControlServer:
             self._thread.join(0.01)
         sock = self.server.servers[0].sockets[0]
         self.port = sock.getsockname()[1]
+        tokens = self.app.state.tokens
         log.info("control surface on %s port %d (%s), %s", self.host, self.port, self.url,
-                 "bearer token required" if self.token_required else "no authentication")
+                 f"bearer tokens required (roles: {', '.join(tokens.roles())})" if tokens is not None
+                 else "no authentication (loopback only)")
         return self
 
     @property

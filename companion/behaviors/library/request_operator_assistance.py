@@ -19,11 +19,16 @@ class RequestOperatorAssistance(BehaviorExecutionController):
     it through the ``ext_vel`` stream: seed 000 Sec. VII's break-in), adds the
     belief ``waiting_for(self, operator)`` and the ``message``, and waits for the operator's
     confirmation (``user_confirm``), after which the paused command resumes and this behavior ends
-    with ``goal_achieved``. Not in the flight maneuvers' mutually exclusive set: the paused flight
-    behavior stays active (its time-out does not count the pause). Ended otherwise (a new flight
-    behavior replaced the queue's commands, or the pause was abandoned with ``run``): interrupted."""
+    with ``goal_achieved``. In the flight maneuvers' mutually exclusive set, but it *suspends* the flight
+    behavior instead of stopping it (``suspends_flight``, read by the coordinator): the paused flight
+    behavior stays active (its time-out does not count the pause), and no flight behavior of a lower
+    requester can start while it holds the vehicle (an operator's break-in outranks the mission). Ended
+    otherwise (a flight behavior of a requester at least as high replaced it, or the pause was
+    abandoned with ``run``): interrupted."""
 
     behavior = "REQUEST_OPERATOR_ASSISTANCE"
+    #: the coordinator pauses, not stops, the incompatible flight behavior
+    suspends_flight = True
 
     def __init__(self, *args: Any) -> None:
         super().__init__(*args)
