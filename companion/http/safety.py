@@ -21,8 +21,8 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from companion.behaviors.activation import ActivationError, request_from
 from companion.behaviors.system import ExecutiveLayer
-from companion.http.behaviors import ActivationAnswer
 from companion.http.auth import Role, requester_for
+from companion.http.behaviors import ActivationAnswer
 from companion.safety import SafetyMonitor
 from companion.safety.monitor import REQUESTER as EMERGENCY
 from taskflight_common.httpapi import ApiError
