@@ -23,6 +23,7 @@ import httpx
 from companion.builder import CompanionConfig, build_companion
 from companion.flight import Envelope, EventKind, Setpoint
 from companion.flight import command_from_dict as cmd
+from companion.safety import SafetyConfig
 from companion.tst.platform import bundled_platform
 from harness.autopilot import AUTOPILOTS, Autopilot, start_autopilot
 from harness.observer import GUIDED
@@ -37,7 +38,8 @@ class FlightSession:
     """Everything one autopilot's conformance tests share (see module docstring)."""
 
     def __init__(self, kind: str, state_dir: Path, speedup: float, *, behaviors: bool = False,
-                 envelope: Envelope | None = None, missions: bool = False, scenario: Any = None) -> None:
+                 envelope: Envelope | None = None, missions: bool = False, scenario: Any = None,
+                 safety: SafetyConfig | None = None) -> None:
         self.speedup = speedup
         self.ap: Autopilot = start_autopilot(kind, state_dir, speedup)
         self.kind = kind
@@ -45,7 +47,8 @@ class FlightSession:
         self.companion = build_companion(CompanionConfig(
             self.ap.companion_url, rate_hz=20.0, envelope=envelope, behaviors=behaviors or missions,
             behavior_log=state_dir / "behaviors.jsonl" if behaviors or missions else None, scenario=scenario,
-            missions=missions, platform=bundled_platform("indoor"), control_port=0))
+            missions=missions, platform=bundled_platform("indoor"), control_port=0,
+            **({"safety": safety} if safety is not None else {})))
         self.node = self.companion.node
         self.layer = self.companion.layer
         self.missions = self.companion.missions
@@ -185,12 +188,15 @@ class SessionSpec:
     envelope: Envelope | None = None
     missions: bool = False
     scenario: Any = None
+    #: the safety monitor's configuration (None: the companion's default, on)
+    safety: SafetyConfig | None = None
 
     @contextmanager
     def open(self, kind: str, state_dir: Path) -> Iterator[FlightSession]:
         """A session on autopilot ``kind``, closed after."""
         session = FlightSession(kind, state_dir, self.speedup, behaviors=self.behaviors,
-                                envelope=self.envelope, missions=self.missions, scenario=self.scenario)
+                                envelope=self.envelope, missions=self.missions, scenario=self.scenario,
+                                safety=self.safety)
         try:
             if self.localized:
                 wait_for(lambda: session.node.link.mirror.snapshot().home is not None, session.wall(30),

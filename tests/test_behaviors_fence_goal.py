@@ -20,6 +20,7 @@ from typing import Any
 import pytest
 
 from companion.flight import Envelope
+from companion.safety import SafetyConfig
 from harness.flight_session import FlightSession, SessionSpec
 from harness.timing import wait_for
 
@@ -28,8 +29,11 @@ pytestmark = pytest.mark.integration
 SPEEDUP = 5.0
 RADIUS_M = 30.0
 GOAL_N = 80.0  # beyond the fence by more than GUID_TIMEOUT's 3 s of the last accepted target's velocity
+# the autopilot's own fence is what stops the vehicle here: the companion's safety monitor, which would
+# return it home at the breach (an emergency RTL, tests/test_safety_monitor.py), is off
 FLIGHT_SESSION = SessionSpec("fence_goal", SPEEDUP, behaviors=True, localized=True,
-                             envelope=Envelope.box(-100, 100, -100, 100, altitude_ceiling=30.0))
+                             envelope=Envelope.box(-100, 100, -100, 100, altitude_ceiling=30.0),
+                             safety=SafetyConfig(enabled=False))
 
 
 def activate(f: FlightSession, text: str, requester: str = "mission") -> dict[str, Any]:

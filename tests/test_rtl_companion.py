@@ -84,14 +84,18 @@ def test_lower_requesters_cannot_replace_an_emergency_land(flight_session: Fligh
     land = f.layer.coordinator.activate("LAND", "emergency")  # as the safety monitor asks
     assert land.accepted, land
     for requester in ("mission", "operator"):
-        go = activate(f, "GO_TO_POINT coordinate: (10, 0, 5)", requester)
-        assert not go["accepted"] and "LAND (requested by emergency" in go["reason"], go
+        r = f.post("/behaviors/activate", {"text": "GO_TO_POINT coordinate: (10, 0, 5)",
+                                           "requester": requester})
+        go = r.json()
+        assert r.status_code == 409 and not go["accepted"], r.text
+        assert "LAND (requested by emergency" in go["reason"], go
         r = f.post("/rtl", {"requester": requester})
         assert r.status_code == 409 and "emergency" in r.json()["error"], r.text
     r = f.post("/rtl", {"requester": "emergency"})
     assert r.status_code == 403, r.text
-    inhibit = f.post("/behaviors/inhibit", {"behavior": "LAND", "requester": "operator"}).json()
-    assert not inhibit["accepted"] and "priority" in inhibit["reason"], inhibit
+    r = f.post("/behaviors/inhibit", {"behavior": "LAND", "requester": "operator"})
+    inhibit = r.json()
+    assert r.status_code == 409 and not inhibit["accepted"] and "priority" in inhibit["reason"], r.text
     active = {a["behavior"]: a["requester"] for a in f.http.get("/behaviors").json()["active"]}
     assert active.get("LAND") == "emergency", active
     f.gcs.wait_autopilot_disarmed(f.wall(90))

@@ -80,7 +80,7 @@ def test_the_safety_monitor_lands_a_vehicle_whose_battery_cannot_bring_it_home(
     for requester in ("mission", "operator"):
         r = f.post("/behaviors/activate", {"text": f"GO_TO_POINT coordinate: ({FAR_N}, 0, 3)",
                                            "requester": requester})
-        assert r.status_code == 200 and not r.json()["accepted"], r.text
+        assert r.status_code == 409 and not r.json()["accepted"], r.text
         assert "emergency" in r.json()["reason"], r.text
     # judged on the vehicle, by the independent observer
     f.gcs.wait_autopilot_disarmed(f.wall(90))

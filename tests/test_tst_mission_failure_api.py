@@ -175,7 +175,7 @@ def test_behavior_events_long_poll(flight_session: FlightSession) -> None:
         f"{f.server.url}/behaviors/events", params={"since": last, "timeout": 30.0}, timeout=40).json()))
     poll.start()
     r = f.post("/behaviors/activate", {"text": "GO_TO_POINT coordinate: (3, 0, 2)", "requester": "mission"})
-    assert r.status_code == 200 and not r.json()["accepted"]  # on the ground: refused
+    assert r.status_code == 409 and not r.json()["accepted"]  # on the ground: refused
     poll.join(35)
     assert not poll.is_alive()
     (refused,) = [e for e in got[0]["events"] if e["event"] == "refused"]
