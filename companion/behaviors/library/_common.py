@@ -39,12 +39,16 @@ def reference_neu(c: BehaviorExecutionController) -> Vec3:
     return (v.p[0], v.p[1], -v.p[2])
 
 
-def go_to(point: Vec3, speed: float | None = None, straight_line: bool = True) -> FlightCommand:
+def go_to(point: Vec3, speed: float | None = None, straight_line: bool = True,
+          end_speed: float | None = None) -> FlightCommand:
     """Seed 000 Fig. 12b: H_Pos to ``point`` ((north, east, up), absolute), V_WithHor (the straight 3-D
-    line) or V_Pos (altitude on its own, ``straight_line`` false), Hd_DNU (heading kept), E_H and E_V."""
+    line) or V_Pos (altitude on its own, ``straight_line`` false), Hd_DNU (heading kept), E_H and E_V.
+    ``end_speed`` (m/s, default 0: come to rest) is the speed the command ends with at ``point``: the
+    next command goes on from there without stopping (H_Pos's end speed, Fig. 7a)."""
     vertical = (VerticalChannel(VerticalMode.WITH_HOR, altitude=point[2]) if straight_line
                 else VerticalChannel(VerticalMode.POS, altitude=point[2]))
-    return FlightCommand(HorizontalChannel(HorizontalMode.POS, north=point[0], east=point[1], speed=speed),
+    return FlightCommand(HorizontalChannel(HorizontalMode.POS, north=point[0], east=point[1], speed=speed,
+                                           end_speed=end_speed),
                          vertical, HeadingChannel(HeadingMode.DNU), EndCondition(e_h=True, e_v=True))
 
 

@@ -79,6 +79,8 @@ class ScanGroundExecutor(TstExecutor):
         params: dict[str, Any] = {"path": tuple(path)}
         if self.plan.speed_m_s:
             params["speed"] = self.plan.speed_m_s
+        if self.plan.extra.get("loiter_mode"):  # waypoint scans: pass (fly through) or stop at each
+            params["loiter_mode"] = self.plan.extra["loiter_mode"]
         return format_activation("FOLLOW_PATH", params)
 
     def _camera(self) -> Any:
