@@ -190,7 +190,7 @@ def detections_router(service: MissionService) -> APIRouter:
             if not callable(seen):
                 continue  # not a scan
             node_id = str(run.node.id)
-            uuid = run.plan.extra.get("data_uuid")
+            uuid = run.node.params.get("data_uuid")
             for d in seen():
                 lat, lon, _ = ned_to_geodetic(origin, *d.position)
                 found.append(DetectionView(node=node_id, data_uuid=d.data_uuid, t=round(d.t_s, 3),
