@@ -46,6 +46,7 @@ from typing import Any
 
 from autopilot_model.demo import add_model_arguments
 from autopilot_model.sitl import Sitl, default_urls, parse_home
+from taskflight_common.cliargs import join_signed_values
 from taskflight_common.clock import SimClock
 from taskflight_common.geo import ned_to_geodetic
 from taskflight_common.ports import model_ports
@@ -330,7 +331,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="autopilot_model.fleet", description=__doc__.splitlines()[0])
     parser.add_argument("-v", "--verbose", action="count", default=0)
     add_fleet_arguments(parser)
-    args = parser.parse_args(argv)
+    args = parser.parse_args(join_signed_values(argv))
     die_with_parent()  # a child of taskflight up stops when it dies
     setup_logging(args.verbose)
     return run_fleet(args)

@@ -34,6 +34,7 @@ from pathlib import Path
 from typing import Any
 
 from autopilot_model.demo import add_model_arguments
+from taskflight_common.cliargs import join_signed_values
 from taskflight_common.ports import model_ports
 from taskflight_common.runtime import freeze_startup_heap, setup_logging, stop_on_signals
 from taskflight_common.yamlio import ConfigError
@@ -194,7 +195,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="autopilot_model.sitl", description=__doc__.splitlines()[0])
     parser.add_argument("-v", "--verbose", action="count", default=0)
     add_autopilot_arguments(parser)
-    args = parser.parse_args(argv)
+    args = parser.parse_args(join_signed_values(argv))
     setup_logging(args.verbose)
     return run_autopilot(args)
 

@@ -10,6 +10,7 @@ import logging
 import sys
 from collections.abc import Callable, Sequence
 
+from taskflight_common.cliargs import join_signed_values
 from taskflight_common.runtime import die_with_parent, setup_logging
 
 
@@ -230,7 +231,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args = parser.parse_args(join_signed_values(argv))
     die_with_parent()  # a child of taskflight up stops when it dies
     setup_logging(args.verbose, quiet_level=logging.INFO)
     try:

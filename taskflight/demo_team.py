@@ -225,11 +225,34 @@ class FlightFigures:
     tracking_h_max: float
     tracking_v_rms: float
     compared: int
+    #: the vertical RMS (m) of each TST node's setpoints, in flight order
+    v_rms_by_node: tuple[tuple[str, float], ...] = ()
+    #: the fastest descent (m/s, down positive) the reference asked for and the vehicle flew
+    descent_ref: float = 0.0
+    descent_flown: float = 0.0
+
+    def tracking_text(self) -> str:
+        """The report's tracking figures, the vertical one also per node, and why it is large when the
+        vehicle descended slower than its reference: the autopilot's own descent limit (ArduCopter's
+        WPNAV_SPEED_DN, 1.5 m/s by default; the model's too) below the platform's ``vertical_speed``, so
+        the reference runs ahead and the error grows with the descent's length."""
+        if not self.compared:
+            return "no position setpoints streamed"
+        out = (f"tracking h rms {self.tracking_h_rms:.2f} m max {self.tracking_h_max:.2f} m, v rms "
+               f"{self.tracking_v_rms:.2f} m over {self.compared} setpoints")
+        if len(self.v_rms_by_node) > 1:
+            out += " (v rms by node: " + ", ".join(f"{n} {v:.2f}" for n, v in self.v_rms_by_node) + " m)"
+        if self.descent_ref - self.descent_flown > 0.2:
+            out += (f"; the reference descended at up to {self.descent_ref:.1f} m/s, the vehicle at most "
+                    f"{self.descent_flown:.1f} m/s: the autopilot's descent limit (WPNAV_SPEED_DN) is below "
+                    "the platform's vertical_speed, so the vehicle lags each long descent")
+        return out
 
 
 def flight_figures(path: Path) -> FlightFigures | None:
     """Flight time (airborne above 0.5 m, autopilot time), horizontal distance and the tracking figure
-    of a companion's flight log (None if it has none)."""
+    of a companion's flight log (None if it has none); the vertical figure also per TST node, with the
+    fastest descent asked and flown."""
     from companion.flightlog import FlightLogError, read_flight_log
     from companion.tracking import tracking_error
 
@@ -244,10 +267,19 @@ def flight_figures(path: Path) -> FlightFigures | None:
         if -a[3] > 0.5 and -b[3] > 0.5 and b[0] - a[0] < 1.0:
             airborne += b[0] - a[0]
             dist += math.hypot(b[1] - a[1], b[2] - a[2])
-    sps = [(float(r["t"]), tuple(map(float, r["p"]))) for r in records
-           if r["type"] == "setpoint" and r.get("kind") == "POSITION"]
+    sp_records = [r for r in records if r["type"] == "setpoint" and r.get("kind") == "POSITION"]
+    sps = [(float(r["t"]), tuple(map(float, r["p"]))) for r in sp_records]
     tr = tracking_error(sps, pos)  # type: ignore[arg-type]
-    return FlightFigures(airborne, dist, tr.h_rms, tr.h_max, tr.v_rms, tr.compared)
+    by_node: dict[str, list[tuple[float, tuple[float, ...]]]] = {}
+    for r, sp in zip(sp_records, sps, strict=True):
+        by_node.setdefault(str(r.get("node") or "-"), []).append(sp)
+    per_node = tuple((n, tracking_error(s, pos).v_rms) for n, s in by_node.items())  # type: ignore[arg-type]
+    asked = [float(r["v"][2]) for r in sp_records if r.get("v")]
+    flown = [float(r["v"][2]) for r in records if r["type"] == "position" and r.get("v")
+             and -float(r["p"][2]) > 0.5]
+    return FlightFigures(airborne, dist, tr.h_rms, tr.h_max, tr.v_rms, tr.compared,
+                         tuple((n, v) for n, v in per_node if not math.isnan(v)),
+                         max(asked, default=0.0), max(flown, default=0.0))
 
 
 def report(up: Up, progress: Progress) -> str:
@@ -266,10 +298,8 @@ def report(up: Up, progress: Progress) -> str:
         lines.append(f"vehicle {v.sysid}: " + ("; ".join(did) if did else "no task (idle)"))
         fig = flight_figures(up.opts.state_dir / "logs" / f"flight{v.sysid}.jsonl")
         if fig is not None:
-            tracking = (f"tracking h rms {fig.tracking_h_rms:.2f} m max {fig.tracking_h_max:.2f} m, v rms "
-                        f"{fig.tracking_v_rms:.2f} m over {fig.compared} setpoints" if fig.compared
-                        else "no position setpoints streamed")
-            lines.append(f"  flight time {fig.airborne_s:.1f} s, {fig.distance_m:.0f} m flown; {tracking}")
+            lines.append(f"  flight time {fig.airborne_s:.1f} s, {fig.distance_m:.0f} m flown; "
+                         f"{fig.tracking_text()}")
     lines.append("tasks:")
     for tid, r in sorted(progress.rows.items()):
         holders = ", ".join(f"vehicle {h}" for h in progress.holders.get(tid, [])) or "nobody"

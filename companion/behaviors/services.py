@@ -123,11 +123,13 @@ class JoystickFeed(ExecutionProcess):
         self.samples = 0
 
     def push(self, values: Sequence[float], validity_s: float = SAMPLE_VALIDITY_S) -> bool:
-        """A stick sample ``(v_north, v_east, v_down, yaw_rate_deg_s)``; refused unless a behavior uses it."""
+        """A stick sample ``(v_north, v_east, v_down, yaw_rate_deg_s)``; refused unless a behavior uses it;
+        False (ignored) while the behavior follows another source (its ``source``)."""
         if not self.running:
             raise ProcessError("joystick_feed is not running (activate FOLLOW_EXTERNAL_VELOCITY first)")
         self.samples += 1
-        return self.queue.push_external("ext_vel", values, min(validity_s, SAMPLE_VALIDITY_S))
+        return self.queue.push_external("ext_vel", values, min(validity_s, SAMPLE_VALIDITY_S),
+                                        source="joystick")
 
     def status(self) -> dict[str, Any]:
         return {**super().status(), "samples": self.samples}

@@ -15,6 +15,10 @@ stream         values                                  used by
 ``rc_vel``     as ``ext_vel``                          the RC_VEL modes (see commands.py)
 =============  ======================================  =============================================
 
+Every sample names its *source* (:data:`SOURCES`); a stream may be tied to one source
+(:meth:`ExternalData.select`, seed 000 Sec. VI-F's external-velocity ``source``): while it is, a sample
+from another source is ignored (``push`` returns False) and moves nothing.
+
 A malformed sample (unknown stream, wrong number of values, NaN / infinite values, a validity that
 is not > 0 or above the configured maximum, a time that is not finite) raises
 :class:`ExternalDataError` and changes nothing. A sample older than the stream's newest one is
@@ -35,6 +39,11 @@ from dataclasses import dataclass
 DEFAULT_MAX_VALIDITY_S = 5.0
 #: Stream name -> number of values.
 STREAMS: dict[str, int] = {"ext_pos": 3, "ext_vel": 4, "ext_heading": 1, "ext_point": 2, "rc_vel": 4}
+#: Source name -> where its samples come from.
+SOURCES: dict[str, str] = {"joystick": "the operator's stick (POST /behaviors/joystick)",
+                           "external": "any program (POST /external/<stream>, UDP feeds)"}
+#: The source of a sample that does not name one.
+DEFAULT_SOURCE = "external"
 
 
 class ExternalDataError(ValueError):
@@ -48,6 +57,7 @@ class Sample:
     values: tuple[float, ...]
     t_s: float
     validity_s: float
+    source: str = DEFAULT_SOURCE
 
     def fresh(self, now_s: float) -> bool:
         return now_s <= self.t_s + self.validity_s
@@ -62,6 +72,22 @@ class ExternalData:
             raise ValueError(f"max_validity_s must be a finite number of seconds > 0, got {max_validity_s!r}")
         self.max_validity_s = float(max_validity_s)
         self._latest: dict[str, Sample] = {}
+        self._selected: dict[str, str] = {}
+
+    def select(self, stream: str, source: str | None) -> None:
+        """Take ``stream``'s samples from ``source`` only (None: from any source again)."""
+        if stream not in STREAMS:
+            raise ExternalDataError(f"unknown stream {stream!r} (known: {', '.join(sorted(STREAMS))})")
+        if source is None:
+            self._selected.pop(stream, None)
+            return
+        if source not in SOURCES:
+            raise ExternalDataError(f"unknown source {source!r} (known: {', '.join(sorted(SOURCES))})")
+        self._selected[stream] = source
+
+    def selected(self, stream: str) -> str | None:
+        """The one source ``stream`` is taken from, or None (any)."""
+        return self._selected.get(stream)
 
     def validate(self, stream: str, values: Sequence[float], validity_s: float, t_s: float) -> Sample:
         """Check a sample without storing it; raise :class:`ExternalDataError` when malformed."""
@@ -89,9 +115,17 @@ class ExternalData:
             raise ExternalDataError(f"{stream}: sample time must be finite, got {t_s!r}")
         return Sample(vals, float(t_s), float(validity_s))
 
-    def push(self, stream: str, values: Sequence[float], validity_s: float, t_s: float) -> bool:
-        """Store a sample; False when older than the newest one of that stream (then ignored)."""
+    def push(self, stream: str, values: Sequence[float], validity_s: float, t_s: float,
+             source: str = DEFAULT_SOURCE) -> bool:
+        """Store a sample; False when older than the newest one of that stream, or from another source
+        than the one the stream is tied to (then ignored)."""
         sample = self.validate(stream, values, validity_s, t_s)
+        if source not in SOURCES:
+            raise ExternalDataError(f"{stream}: unknown source {source!r} "
+                                    f"(known: {', '.join(sorted(SOURCES))})")
+        if self._selected.get(stream, source) != source:
+            return False
+        sample = Sample(sample.values, sample.t_s, sample.validity_s, source)
         old = self._latest.get(stream)
         if old is not None and sample.t_s < old.t_s:
             return False
@@ -105,6 +139,8 @@ class ExternalData:
         sample = self._latest.get(stream)
         if sample is None or not sample.fresh(now_s):
             return None
+        if self._selected.get(stream, sample.source) != sample.source:
+            return None  # stored before the stream was tied to another source
         return sample.values
 
     def sample(self, stream: str) -> Sample | None:

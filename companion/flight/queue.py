@@ -27,7 +27,7 @@ from taskflight_common.clock import Clock
 from .commands import CommandError, FlightCommand
 from .events import EventKind, EventLog, QueueEvent, new_command_id
 from .execution import CommandExecution, streamed_setpoint
-from .external import DEFAULT_MAX_VALIDITY_S, ExternalData, Sample
+from .external import DEFAULT_MAX_VALIDITY_S, DEFAULT_SOURCE, ExternalData, Sample
 from .limits import Envelope, Limits
 from .pause_routines import DEFAULT_ROUTINE, PauseRoutine, PauseRoutineCatalog, default_catalog
 from .qapi import (
@@ -312,15 +312,21 @@ class CommandQueue:
             log.error("command %s failed: %s", entry.id if entry else None, reason)
 
     def push_external(self, stream: str, values: Sequence[float], validity_s: float,
-                      t_s: float | None = None) -> bool:
+                      t_s: float | None = None, source: str = DEFAULT_SOURCE) -> bool:
         """Store an external-data sample (Sec. IV-C); stamped with the clock (or the last tick) if no ``t_s``.
+        False (ignored) when older than the stream's newest or not from the source it is tied to.
 
         Raises :class:`~companion.flight.external.ExternalDataError` when malformed (nothing changes).
         """
         with self._lock:
             if t_s is None:
                 t_s = self._clock.now() if self._clock is not None else (self._last_t or 0.0)
-            return self._ext.push(stream, values, validity_s, t_s)
+            return self._ext.push(stream, values, validity_s, t_s, source)
+
+    def select_external_source(self, stream: str, source: str | None) -> None:
+        """Take ``stream``'s samples from ``source`` only (None: any), :meth:`ExternalData.select`."""
+        with self._lock:
+            self._ext.select(stream, source)
 
     def external_sample(self, stream: str) -> Sample | None:
         """The newest sample of an external stream, fresh or not (read-only view)."""

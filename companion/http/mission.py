@@ -23,6 +23,10 @@
                                  node waits for (``waiting_for``), retries and attempt; the mission's
                                  ``readiness``, ``on_failure``, the ``failure_policy`` applied and the
                                  ``failed_node``
+``GET  /mission/detections``     what the current (or last) mission's scans saw: each detection's node,
+                                 data_uuid, time, object and position; with ``generate_scan_specs_flag``
+                                 the scan's specs and a sub-area of interest per detection
+                                 (:func:`detections_router`)
 ===============================  =====================================================================
 
 A request the Fig. 4 flags or the mission's state forbid answers 409 with the reason. While the autopilot
@@ -46,6 +50,7 @@ from companion.tst.resume import ResumeError
 from companion.tst.spec import mission_from_dict, mission_from_yaml
 from companion.tst.status import ExecutionRequestError, NodeExecutionStatus
 from companion.tst.tree import TreeError
+from taskflight_common.geo import ned_to_geodetic
 from taskflight_common.httpapi import ApiError
 from taskflight_common.yamlio import ConfigError
 
@@ -97,6 +102,7 @@ def router(service: MissionService, team: TeamMember | None = None) -> APIRouter
     directed command of the process monitor (seed 003 Fig. 1): the vehicle leaves the team first.
     """
     app = APIRouter(tags=["mission"])
+    app.include_router(detections_router(service))
 
     def directed() -> None:
         if team is not None:
@@ -190,5 +196,69 @@ def router(service: MissionService, team: TeamMember | None = None) -> APIRouter
     @app.get("/mission")
     def mission() -> dict[str, Any]:
         return service.status()
+
+    return app
+
+
+# --- what the scans saw ---------------------------------------------------------------------------------
+class DetectionView(BaseModel):
+    node: str = Field(description="the scan-ground node that was running")
+    data_uuid: str | None = Field(description="the scan's label (Fig. 14a data_uuid)")
+    t: float = Field(description="when the object came into view (s, the companion's clock)")
+    object: int | str = Field(description="the object's id (as in the beliefs object(id, kind))")
+    kind: str = Field(description="the object's class")
+    position_ned: list[float] = Field(description="where the object is: north, east, down (m from home)")
+    position: list[float] = Field(description="where the object is: lat, lon (degrees)")
+    vehicle_neu: list[float] = Field(description="where the vehicle was: north, east, altitude (m)")
+
+
+class ScanSpecsView(BaseModel):
+    node: str
+    data_uuid: str | None
+    specs: dict[str, Any] = Field(description="the scan's pattern, footprint, expected duration (area scans)")
+    areas_of_interest: list[dict[str, Any]] = Field(
+        description="per detection: a sub-area centred on the object and the scan-ground node that scans it")
+
+
+class DetectionsView(BaseModel):
+    mission: str | None
+    state: str
+    detections: list[DetectionView]
+    scan_specs: list[ScanSpecsView] = Field(
+        description="one per scan with generate_scan_specs_flag that ended")
+
+
+def detections_router(service: MissionService) -> APIRouter:
+    """``GET /mission/detections``: the detections of the current (or last) mission's scan-ground nodes
+    (seed 000 Fig. 14a: the data "labeled with [the data_uuid]"), and the scan specs those with
+    ``generate_scan_specs_flag`` generated (Sec. VI-E: "a sub-area of interest to be subsequently
+    scanned")."""
+    app = APIRouter(tags=["mission"])
+
+    @app.get("/mission/detections", response_model=DetectionsView)
+    def detections() -> DetectionsView:
+        status = service.status()
+        home = service.platform().home
+        origin = (float(home[0]), float(home[1]), 0.0)
+        found: list[DetectionView] = []
+        specs: list[ScanSpecsView] = []
+        for run in list(service.execution.runs.values()):
+            seen = getattr(run, "detections", None)
+            if not callable(seen):
+                continue  # not a scan
+            node_id = str(run.node.id)
+            uuid = run.node.params.get("data_uuid")
+            for d in seen():
+                lat, lon, _ = ned_to_geodetic(origin, *d.position)
+                found.append(DetectionView(node=node_id, data_uuid=d.data_uuid, t=round(d.t_s, 3),
+                                           object=d.object_id, kind=d.cls, position_ned=list(d.position),
+                                           position=[round(lat, 8), round(lon, 8)],
+                                           vehicle_neu=[round(v, 3) for v in d.vehicle]))
+            generated = getattr(run, "scan_specs", None)
+            if generated is not None:
+                specs.append(ScanSpecsView(node=node_id, data_uuid=uuid, **generated))
+        found.sort(key=lambda d: d.t)
+        return DetectionsView(mission=status.get("mission"), state=str(status.get("state")),
+                              detections=found, scan_specs=specs)
 
     return app

@@ -9,8 +9,9 @@ camera's footprint from the vehicle's state and reports every scenario object in
 detections:
 
 * an object entering the view adds ``object(7, person)``, ``position(7, (n, e, d))`` and ``visible(7)``
-  and is recorded as a :class:`Detection` (time, object, position, the vehicle's position and the
-  scan's ``data_uuid`` if one is set: :meth:`DownwardCamera.results`);
+  and is recorded as a :class:`Detection` (time, object, position, the vehicle's position, and the
+  running scan's node id and ``data_uuid`` if one is set, :meth:`DownwardCamera.label`:
+  :meth:`DownwardCamera.results`, :meth:`DownwardCamera.detections_of`);
 * an object leaving the view removes ``visible(7)``; ``object`` and ``position`` stay (the robot
   remembers what it has seen);
 * nothing is seen while the process is stopped (stopping removes the ``visible`` beliefs), without a
@@ -53,11 +54,12 @@ class Detection:
     position: tuple[float, float, float]
     vehicle: tuple[float, float, float]  # north, east, altitude (m)
     data_uuid: str | None = None
+    node_id: str | None = None  # the TST node (a scan) that was running
 
     def to_dict(self) -> dict[str, Any]:
         return {"t": round(self.t_s, 4), "id": self.object_id, "class": self.cls,
                 "position": list(self.position), "vehicle": [round(v, 3) for v in self.vehicle],
-                "data_uuid": self.data_uuid}
+                "data_uuid": self.data_uuid, "node": self.node_id}
 
 
 class DownwardCamera(ExecutionProcess):
@@ -85,6 +87,7 @@ class DownwardCamera(ExecutionProcess):
         self._pos = np.asarray([o.position for o in self._objects], dtype=float).reshape(-1, 3)
         self._lock = threading.Lock()
         self._data_uuid = data_uuid
+        self._node_id: str | None = None
         self._visible: set[ObjectId] = set()
         self.detections: list[Detection] = []
 
@@ -101,6 +104,20 @@ class DownwardCamera(ExecutionProcess):
             raise ValueError(f"data_uuid: expected a string or None, got {type(value).__name__}")
         with self._lock:
             self._data_uuid = value
+
+    def label(self, node_id: str | None, data_uuid: str | None) -> int:
+        """Label what is seen from now on with the running scan's node id and ``data_uuid`` (None, None:
+        no scan); returns how many detections were recorded before (see :meth:`detections_of`)."""
+        if data_uuid is not None and not isinstance(data_uuid, str):
+            raise ValueError(f"data_uuid: expected a string or None, got {type(data_uuid).__name__}")
+        with self._lock:
+            self._node_id, self._data_uuid = node_id, data_uuid
+            return len(self.detections)
+
+    def detections_of(self, node_id: str, since: int = 0) -> list[Detection]:
+        """The detections made while node ``node_id`` ran, from the ``since``-th on, in time order."""
+        with self._lock:
+            return [d for d in self.detections[since:] if d.node_id == node_id]
 
     def results(self, data_uuid: str) -> list[Detection]:
         """The detections labelled ``data_uuid`` (the result of that scan), in time order."""
@@ -161,10 +178,10 @@ class DownwardCamera(ExecutionProcess):
             entered = [o for o in self._objects if o.id in seen and o.id not in self._visible]
             left = [i for i in self._visible if i not in seen]
             self._visible = seen
-            uuid = self._data_uuid
+            uuid, node_id = self._data_uuid, self._node_id
             vehicle = (0.0, 0.0, 0.0) if state is None else (state.p[0], state.p[1], -state.p[2])
             for o in entered:
-                self.detections.append(Detection(now_s, o.id, o.cls, o.position, vehicle, uuid))
+                self.detections.append(Detection(now_s, o.id, o.cls, o.position, vehicle, uuid, node_id))
         for o in entered:
             self.beliefs.add_all([Belief("object", (o.id, o.cls)), Belief("position", (o.id, o.position)),
                                   Belief("visible", (o.id,))])

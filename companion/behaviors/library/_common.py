@@ -40,18 +40,21 @@ def reference_neu(c: BehaviorExecutionController) -> Vec3:
 
 
 def go_to(point: Vec3, speed: float | None = None, straight_line: bool = True,
-          follow_ground: float | None = None) -> FlightCommand:
+          follow_ground: float | None = None, end_speed: float | None = None) -> FlightCommand:
     """Seed 000 Fig. 12b: H_Pos to ``point`` ((north, east, up), absolute), V_WithHor (the straight 3-D
     line) or V_Pos (altitude on its own, ``straight_line`` false), Hd_DNU (heading kept), E_H and E_V.
     ``follow_ground`` (m; Fig. 12a's follow_ground_altitude): V_GROUND at that height above the ground the
-    range finder measures instead (``point``'s altitude is then not flown)."""
+    range finder measures instead (``point``'s altitude is then not flown). ``end_speed`` (m/s, default 0:
+    come to rest) is the speed the command ends with at ``point``: the next command goes on from there
+    without stopping (H_Pos's end speed, Fig. 7a)."""
     if follow_ground is not None:
         vertical = VerticalChannel(VerticalMode.GROUND, altitude=float(follow_ground))
     elif straight_line:
         vertical = VerticalChannel(VerticalMode.WITH_HOR, altitude=point[2])
     else:
         vertical = VerticalChannel(VerticalMode.POS, altitude=point[2])
-    return FlightCommand(HorizontalChannel(HorizontalMode.POS, north=point[0], east=point[1], speed=speed),
+    return FlightCommand(HorizontalChannel(HorizontalMode.POS, north=point[0], east=point[1], speed=speed,
+                                           end_speed=end_speed),
                          vertical, HeadingChannel(HeadingMode.DNU), EndCondition(e_h=True, e_v=True))
 
 

@@ -1,4 +1,10 @@
-"""FOLLOW_EXTERNAL_VELOCITY: fly the operator's joystick (``ext_vel``) until the operator confirms."""
+"""FOLLOW_EXTERNAL_VELOCITY: fly the ``ext_vel`` stream of one ``source`` until the operator confirms.
+
+``source`` (seed 000 Sec. VI-F's external-velocity; the names are :data:`companion.flight.external.SOURCES`):
+``joystick`` (the default: the operator's stick, ``POST /behaviors/joystick``) or ``external`` (a program's
+stream, ``POST /external/ext_vel``). While the behavior runs the queue takes ``ext_vel`` from that source
+only: a sample from another one is ignored and moves nothing.
+"""
 
 from __future__ import annotations
 
@@ -26,3 +32,15 @@ class FollowExternalVelocity(FlightBehavior):
 
     def commands(self, params: Mapping[str, Any]) -> list[FlightCommand]:
         return [joystick_command()]
+
+    def on_start(self, params: Mapping[str, Any]) -> None:
+        self.ctx.queue.select_external_source("ext_vel", str(params.get("source") or "joystick"))
+        try:
+            super().on_start(params)
+        except BaseException:
+            self.ctx.queue.select_external_source("ext_vel", None)
+            raise
+
+    def on_stop(self) -> None:
+        self.ctx.queue.select_external_source("ext_vel", None)
+        super().on_stop()

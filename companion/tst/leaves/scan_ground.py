@@ -19,7 +19,7 @@ from types import MappingProxyType
 from typing import Any
 
 from companion.behaviors.activation import format_activation
-from companion.sensing.footprint import Sensor
+from companion.sensing.footprint import Sensor, footprint_size
 from companion.tst.constraints import ConstraintProblem, Solution
 from companion.tst.executor import TstExecutor
 from companion.tst.leaves.base import LeafType
@@ -67,6 +67,10 @@ class ScanGroundExecutor(TstExecutor):
         super().__init__(*args)
         self.skipped: list[int] = []
         self.lap = 0
+        self._seen_from: int | None = None  # the camera's detection count when the scan started
+        self._found: list[Any] = []  # the scan's detections, kept when it ends
+        #: with ``generate_scan_specs_flag``: the scan's specs and one sub-area of interest per detection
+        self.scan_specs: dict[str, Any] | None = None
 
     @property
     def repeat(self) -> bool:
@@ -81,6 +85,8 @@ class ScanGroundExecutor(TstExecutor):
             params["speed"] = self.plan.speed_m_s
         if self.plan.extra.get("follow_ground_altitude") is not None:  # flown above the measured ground
             params["follow_ground"] = float(self.plan.extra["follow_ground_altitude"])
+        if self.plan.extra.get("loiter_mode"):  # waypoint scans: pass (fly through) or stop at each
+            params["loiter_mode"] = self.plan.extra["loiter_mode"]
         return format_activation("FOLLOW_PATH", params)
 
     def _camera(self) -> Any:
@@ -92,12 +98,24 @@ class ScanGroundExecutor(TstExecutor):
             raise ValueError(f"{self.node.id}: scan-ground has no waypoints (was it delegated?)")
         camera = self._camera()
         if camera is not None:
-            camera.data_uuid = self.plan.extra.get("data_uuid")
+            self._seen_from = camera.label(str(self.node.id), self.plan.extra.get("data_uuid"))
 
     def on_end(self) -> None:
         camera = self._camera()
         if camera is not None:
-            camera.data_uuid = None
+            if self._seen_from is not None:
+                self._found = camera.detections_of(str(self.node.id), self._seen_from)
+            self._seen_from = None
+            camera.label(None, None)
+        if self.plan.extra.get("generate_scan_specs"):
+            self.scan_specs = follow_up_specs(self.plan, self._found)
+
+    def detections(self) -> list[Any]:
+        """What the camera saw while this scan ran (:class:`~companion.sensing.camera.Detection`)."""
+        camera = self._camera()
+        if camera is None or self._seen_from is None:  # not started, or ended: what it kept
+            return list(self._found)
+        return camera.detections_of(str(self.node.id), self._seen_from)
 
     def flown(self) -> int:
         act = self.ctx.coordinator.activation("FOLLOW_PATH")
@@ -233,6 +251,8 @@ class ScanGround(LeafType):
             extra["data_uuid"] = values["data_uuid"]
         if values.get("follow_ground_flag"):
             extra["follow_ground_altitude"] = values.get("follow_ground_altitude")
+        if values.get("generate_scan_specs_flag"):  # the executor adds a sub-area per detection
+            extra.update({"generate_scan_specs": True, "home": [float(h) for h in platform.home[:2]]})
         if values.get("waypoints_scan_flag"):
             plan.waypoints_neu = self._waypoints(values, platform, start, alt, extra)
         else:
@@ -315,6 +335,29 @@ class ScanGround(LeafType):
         plan.extra["expanded_from"] = scan.node_id
         plan.extra["waypoint"] = idx + 1
         return plan
+
+
+def follow_up_specs(plan: NodePlan, detections: list[Any]) -> dict[str, Any]:
+    """``generate_scan_specs_flag`` (Fig. 14a: "generate scan specs and put in queue"; Sec. VI-E: "a
+    sub-area of interest to be subsequently scanned"): the scan's own specs (the plan's ``scan_specs`` of
+    an area scan) and, per detection, a square sub-area one camera footprint wide centred on the object,
+    with the parameters of the scan-ground node that would scan it (lat/lon around the plan's home, low
+    and slow: a closer look). These are what ``GET /mission/detections`` returns with the detections."""
+    home = plan.extra.get("home") or [0.0, 0.0]
+    alt = plan.altitude_m or 0.0
+    width, _ = footprint_size(max(alt, 1.0), plan.extra.get("fov_deg") or Sensor().fov_deg)
+    half = max(width / 2.0, 1.0)
+    areas = []
+    for d in detections:
+        n, e = float(d.position[0]), float(d.position[1])
+        corners = [(n - half, e - half), (n - half, e + half), (n + half, e + half), (n + half, e - half)]
+        area = [list(plan_point_to_geopoint((cn, ce, 0.0), home)[:2]) for cn, ce in corners]
+        uuid = f"{plan.extra.get('data_uuid') or plan.node_id}/{d.object_id}"
+        areas.append({"object": d.object_id, "class": d.cls, "center_ne": [n, e],
+                      "side_m": round(2 * half, 3), "scan": {"type": "scan-ground", "params": {
+                          "area": area, "altitude": "low", "speed": "slow",
+                          "sensor_type": plan.extra.get("sensor_type", "camera"), "data_uuid": uuid}}})
+    return {"specs": dict(plan.extra.get("scan_specs") or {}), "areas_of_interest": areas}
 
 
 SCAN_GROUND = ScanGround()
