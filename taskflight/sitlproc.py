@@ -119,7 +119,8 @@ class ModelProcess:
         return self.returncode
 
     def __enter__(self) -> ModelProcess:
-        return self.start()
+        # ``with proc.start(t):`` enters a started child: starting it again would leave the first behind
+        return self if self._proc is not None else self.start()
 
     def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
                  tb: TracebackType | None) -> None:

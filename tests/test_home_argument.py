@@ -58,10 +58,10 @@ def test_taskflight_autopilot_started_with_a_southern_home_reports_it(tmp_path: 
                          "--mavlink", f"udpin:127.0.0.1:{port}", "--state-dir", str(tmp_path),
                          "--no-persist", "--speedup", str(SPEEDUP)],
                         name="taskflight autopilot", module="taskflight.cli")
-    with proc.start(60.0):
+    with proc.start(60.0):  # stopped when the block ends
         gcs = Gcs(port, SPEEDUP)
         try:
-            gcs.wait(lambda: "GLOBAL_POSITION_INT" in gcs.last, 20, "GLOBAL_POSITION_INT")
+            gcs.wait(lambda: "GLOBAL_POSITION_INT" in gcs.last, 60, "GLOBAL_POSITION_INT")
             pos = gcs.last["GLOBAL_POSITION_INT"]
             assert pos.lat / 1e7 == pytest.approx(-33.856785, abs=1e-4)
             assert pos.lon / 1e7 == pytest.approx(151.215297, abs=1e-4)
