@@ -166,23 +166,24 @@ def test_group_state_over_a_zenoh_router(router: int) -> None:
 # --- a team of companions on the bus ---------------------------------------------------------------------
 
 def _fly_a_visit(rig: TeamRig) -> None:
-    """A visit given through the station is claimed by one vehicle at every sample, flown to and done."""
+    """A visit given through the station is never held by two vehicles in two samples in a row (the cheaper
+    one may take it over from the first claimant, seed 003 Sec. III-B), is flown to (some vehicle's
+    GLOBAL_POSITION_INT comes within 2 m of it) and done."""
     point = geo(20, -10, 8)
+    closest = [1e9] * rig.n
+
+    def track() -> None:
+        for i in range(rig.n):
+            pos = rig.position(i)
+            if pos is not None:
+                closest[i] = min(closest[i], distance_m(pos, point))
     with ClaimSampler(rig) as claims:
         task = rig.add(TaskDef("visit", (point,), name="visit-bus"))[0]
         wait_for(lambda: rig.holder(task) is not None, rig.wall(60), "the visit claimed")
-        holder = rig.holder(task)
-        assert holder is not None
-        closest = [1e9]
-
-        def done() -> bool:
-            pos = rig.position(holder - 1)
-            if pos is not None:
-                closest[0] = min(closest[0], distance_m(pos, point))
-            return rig.state(task) == "done"
-        wait_for(done, rig.wall(120), lambda: f"the visit done (state {rig.state(task)})", poll_s=0.05)
+        wait_for(lambda: track() or rig.state(task) == "done", rig.wall(120),
+                 lambda: f"the visit done (state {rig.state(task)}, holder {rig.holder(task)})", poll_s=0.05)
     claims.assert_no_task_held_twice()
-    assert closest[0] < 2.0, f"vehicle {holder} came only within {closest[0]:.1f} m of the visit"
+    assert min(closest) < 2.0, f"no vehicle came within 2 m of the visit: closest {closest} m"
     assert rig.discontinuities() == []
 
 
