@@ -252,3 +252,49 @@ def test_ground_service_sees_vehicles_over_the_bus_without_polling(tmp_path: Pat
         for p in procs:
             stop_child(p, 10.0)
         fleet.stop()
+
+
+# --- polling on a udp:// team ----------------------------------------------------------------------------
+
+class _SlowClient:
+    """A companion client whose vehicle 1 never answers until released; the others answer at once."""
+
+    def __init__(self) -> None:
+        import threading
+
+        self.release = threading.Event()
+        self.calls: dict[int, int] = {}
+
+    def call(self, vid: int, url: str | None, method: str, path: str, body: object = None,
+             timeout_s: float | None = None) -> tuple[int, object]:
+        self.calls[vid] = self.calls.get(vid, 0) + 1
+        if vid == 1:
+            self.release.wait(30)
+        if path == "/status":
+            return 200, {"queue": {}, "vehicle": {"mode": "GUIDED"}}
+        return 200, {"state": "idle"}
+
+
+def test_an_unanswering_companion_never_delays_the_others_polls() -> None:
+    """On a udp:// team the ground polls each companion in a worker of its own: while vehicle 1's poll
+    hangs, vehicles 2 and 3 are polled again and again (they used to wait in line behind it)."""
+    from companion.team.station import TeamControlStation
+    from groundstation.fleet import Fleet
+
+    station = TeamControlStation(open_transport(f"mem://{_team_name()}", member=0))
+    client = _SlowClient()
+    fleet = Fleet(station, client, lambda *a, **k: None, poll_period_s=0.05)  # type: ignore[arg-type]
+    for v in (1, 2, 3):
+        fleet.register(v, f"uav{v}", f"http://192.0.2.{v}:8765")
+    fleet.start()
+    try:
+        assert fleet.bus is None  # not a Zenoh team: polled
+        wait_for(lambda: client.calls.get(2, 0) >= 10 and client.calls.get(3, 0) >= 10, 30,
+                 lambda: f"vehicles 2 and 3 polled while vehicle 1 hangs: {client.calls}")
+        assert client.calls[1] == 1, "vehicle 1 polled again while its first poll still hangs"
+        modes = {r["id"]: r["mode"] for r in fleet.snapshot(max_age_s=0.0)}
+        assert modes[2] == modes[3] == "GUIDED" and modes[1] is None
+    finally:
+        client.release.set()
+        fleet.close()
+        station.close()

@@ -93,6 +93,7 @@ class UdpTransport(Transport):
 
     def __init__(self, group: str = DEFAULT_GROUP, port: int = DEFAULT_PORT, *, iface: str | None = None,
                  broadcast: bool = False, ttl: int = 1) -> None:
+        defaulted = iface is None
         if iface is None:
             iface = default_iface()
             log.info("team link %s:%d: interface %s (%s; ?iface=ADDR chooses another)", group, port, iface,
@@ -109,6 +110,18 @@ class UdpTransport(Transport):
             raise ValueError(f"UdpTransport: {group} is not a multicast group (use broadcast=True)")
         self.group, self.port, self.iface, self.broadcast, self.ttl = group, port, iface, broadcast, ttl
         self._closed = False
+        try:
+            self._sock = self._open()
+        except OSError as exc:
+            if not defaulted or broadcast or iface == "127.0.0.1":
+                raise
+            log.warning("team link %s:%d: the default route's interface %s refuses multicast (%s): loopback "
+                        "instead, this host only (give ?iface=ADDR)", group, port, iface, exc)
+            self.iface = "127.0.0.1"
+            self._sock = self._open()
+
+    def _open(self) -> socket.socket:
+        group, port, iface, broadcast, ttl = self.group, self.port, self.iface, self.broadcast, self.ttl
         s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM, socket.IPPROTO_UDP)
         try:
             s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
@@ -128,7 +141,7 @@ class UdpTransport(Transport):
         except OSError:
             s.close()
             raise
-        self._sock = s
+        return s
 
     @property
     def url(self) -> str:
