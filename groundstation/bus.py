@@ -16,12 +16,11 @@ import json
 import logging
 import threading
 import time
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from companion.team.zenoh_transport import ZenohBus, zenoh_bus_of
 
-if TYPE_CHECKING:
-    from .fleet import Fleet
+from .fleet import KEEP, LOST_S, Fleet
 
 log = logging.getLogger(__name__)
 
@@ -77,7 +76,8 @@ class FleetBus:
         with self._lock:
             self._heard[vid] = time.monotonic()
         self.status_messages += 1
-        self.fleet.heard_on_bus(vid, str(msg.get("name") or ""), url, msg.get("status"), msg.get("mission"))
+        self.fleet.heard_on_bus(vid, str(msg.get("name") or ""), url, msg.get("status"),
+                                msg.get("mission", KEEP))
 
     def _on_event(self, key: str, payload: bytes) -> None:
         got = self._decode(key, payload)
@@ -91,8 +91,6 @@ class FleetBus:
 
     def watch_loop(self) -> None:
         """Until closed: a vehicle silent on the bus for LOST_S becomes unreachable."""
-        from .fleet import LOST_S
-
         while not self._stop.wait(0.5):
             now = time.monotonic()
             with self._lock:

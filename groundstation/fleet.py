@@ -68,6 +68,9 @@ class Polled:
     via_bus: bool = False           #: heard on the fleet bus (not polled)
 
 
+#: ``mission`` of :meth:`Fleet.heard_on_bus` when a message leaves it out (the last one holds)
+KEEP: Any = object()
+
 #: companions polled at once at most (each unreachable one holds a worker for its time-outs)
 POLL_WORKERS = 32
 
@@ -247,7 +250,8 @@ class Fleet:
             p = self._polled.setdefault(vid, Polled())
             prev, was = p.status, p.reachable
             p.status = status if isinstance(status, dict) and "queue" in status else None
-            p.mission = mission if isinstance(mission, dict) else None
+            if mission is not KEEP:
+                p.mission = mission if isinstance(mission, dict) else None
             p.ok_at, p.error, p.reachable, p.via_bus = time.monotonic(), None, True, True
             p.polls += 1
         if was is False:

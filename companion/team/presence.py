@@ -4,10 +4,11 @@ Seed 003 Fig. 1's Process Monitor tier reads each vehicle's state. Over HTTP the
 companion in turn; on the Zenoh bus (:mod:`companion.team.zenoh_transport`) each companion publishes it
 instead, so a vehicle on another host appears in the ground service with nothing but the team URL in common:
 
-* ``taskflight/<team>/vehicle/<id>/status``, every ``period_s`` (0.25 s: 4 Hz): JSON ``{"id", "name",
+* ``taskflight/<team>/vehicle/<id>/status``, every ``period_s`` (0.5 s: 2 Hz): JSON ``{"id", "name",
   "t", "control_url", "status", "mission"}``: ``status`` is what ``GET /status`` answers, ``mission`` what
-  ``GET /mission`` answers, ``control_url`` the companion's control surface (None when it serves none;
-  commands go there over HTTP);
+  ``GET /mission`` answers (sent when it changed and every :data:`MISSION_EVERY`-th message, left out
+  otherwise: the receiver keeps the last one), ``control_url`` the companion's control surface (None when
+  it serves none; commands go there over HTTP). About 2 kB a message with the mission, 1.3 kB without;
 * ``taskflight/<team>/vehicle/<id>/events``: JSON ``{"kind": "detection", "object", "object_kind", "ned",
   "t"}`` for each object its camera sees for the first time (the camera's beliefs, seed 000 Sec. VII).
 
@@ -28,7 +29,9 @@ from .zenoh_transport import ZenohBus
 
 log = logging.getLogger(__name__)
 
-DEFAULT_PERIOD_S = 0.25
+DEFAULT_PERIOD_S = 0.5
+#: the mission's status is sent at least every this many messages (and whenever it changed)
+MISSION_EVERY = 10
 #: the camera's beliefs are looked at every this many status messages
 DETECTION_EVERY = 4
 #: object kinds that are the vehicle's own beliefs about itself, not detections
@@ -52,15 +55,21 @@ class Presence:
         self._status_pub = bus.publisher(bus.key("vehicle", vehicle, "status"))
         self._events_pub = bus.publisher(bus.key("vehicle", vehicle, "events"))
         self._seen: set[str] = set()
+        self._last_mission: str | None = None
         self.published = 0
         self.errors = 0
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
 
     def message(self) -> dict[str, Any]:
-        return {"id": self.vehicle, "name": self.name, "t": time.time(),
-                "control_url": self._url() if self._url is not None else None,
-                "status": self._status(), "mission": self._mission() if self._mission is not None else None}
+        msg = {"id": self.vehicle, "name": self.name, "t": time.time(),
+               "control_url": self._url() if self._url is not None else None, "status": self._status()}
+        mission = self._mission() if self._mission is not None else None
+        text = json.dumps(mission, default=str, sort_keys=True)
+        if text != self._last_mission or self.published % MISSION_EVERY == 0:
+            msg["mission"] = mission
+            self._last_mission = text
+        return msg
 
     def publish_once(self) -> None:
         self._status_pub.put(json.dumps(self.message(), default=str).encode())
