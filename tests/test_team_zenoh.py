@@ -298,3 +298,47 @@ def test_an_unanswering_companion_never_delays_the_others_polls() -> None:
         client.release.set()
         fleet.close()
         station.close()
+
+
+@pytest.mark.integration
+def test_presence_reaches_the_fleet_as_status_mission_and_detections() -> None:
+    """A companion's presence (its status, its mission left out while unchanged, its camera's detections)
+    reaches the ground's fleet over a zenoh: bus: the record shows the mode, the mission's state holds
+    between the messages that leave it out, a new object becomes one detection event."""
+    from companion.team.presence import MISSION_EVERY, Presence
+    from companion.team.station import TeamControlStation
+    from companion.team.zenoh_transport import ZenohBus
+    from groundstation.fleet import KEEP, Fleet
+
+    url = f"zenoh:?team={_team_name()}"
+    events: list[tuple[str, str]] = []
+    station = TeamControlStation(open_transport(url, member=0))
+    fleet = Fleet(station, None, lambda kind, msg, **k: events.append((kind, msg)))  # type: ignore[arg-type]
+    fleet.start()
+    seen = [{"x": 7, "kind": "person", "p": [3.0, 4.0, 0.0]},
+            {"x": 1, "kind": "aerial_robot", "p": [0, 0, 0]}]  # its own belief: not a detection
+    presence = Presence(ZenohBus.open(url), 5, name="uav5", period_s=0.05,
+                        status=lambda: {"queue": {"queue_status": "IDLE"}, "vehicle": {"mode": "GUIDED"}},
+                        mission=lambda: {"state": "running", "active_node": None, "tree": None},
+                        detections=lambda: seen)
+    try:
+        assert fleet.bus is not None
+        presence.start()
+        wait_for(lambda: fleet.bus.status_messages > MISSION_EVERY + 2, 20, "status messages on the bus")
+        rec = {r["id"]: r for r in fleet.snapshot(max_age_s=0.0)}[5]
+        assert (rec["mode"], rec["name"], rec["companion"], rec["control_url"]) == \
+            ("GUIDED", "uav5", "ok", None)
+        assert rec["mission"]["state"] == "running"
+        presence.close()
+        presence.published = 1  # not a refresh
+        assert "mission" not in presence.message()  # unchanged: left out ...
+        fleet.heard_on_bus(5, "", None, {"queue": {}, "vehicle": {"mode": "LOITER"}}, KEEP)
+        rec = {r["id"]: r for r in fleet.snapshot(max_age_s=0.0)}[5]
+        assert (rec["mode"], rec["mission"]["state"]) == ("LOITER", "running")  # ... and the last one holds
+        wait_for(lambda: any(k == "detection" for k, _ in events), 10, lambda: f"a detection event: {events}")
+        assert [m for k, m in events if k == "detection"] == ["vehicle 5 sees person 7"]
+        assert fleet.http_polls == 0
+    finally:
+        presence.close()
+        fleet.close()
+        station.close()
