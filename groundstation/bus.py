@@ -6,23 +6,37 @@ second (its ``GET /status`` and ``GET /mission`` answers, its name and its contr
 ``.../events`` (detections). :class:`FleetBus` subscribes to both on the station's own Zenoh session and
 feeds the :class:`~groundstation.fleet.Fleet`: a vehicle on another host appears with nothing but the
 team URL in common, and its control URL, found on the bus, is where the operator's commands go (HTTP). A
-vehicle silent on the bus for :data:`~groundstation.fleet.LOST_S` is unreachable (a ``link_lost`` event),
-and ``link_restored`` when heard again.
+control URL on loopback published from another host is not taken (it would reach this host's own
+loopback). A vehicle silent on the bus for :data:`~groundstation.fleet.LOST_S` is unreachable (a
+``link_lost`` event), and ``link_restored`` when heard again.
 """
 
 from __future__ import annotations
 
+import ipaddress
 import json
 import logging
+import socket
 import threading
 import time
 from typing import Any
+from urllib.parse import urlsplit
 
 from companion.team.zenoh_transport import ZenohBus, zenoh_bus_of
 
 from .fleet import KEEP, LOST_S, Fleet
 
 log = logging.getLogger(__name__)
+
+
+def _is_loopback_url(url: str) -> bool:
+    host = urlsplit(url).hostname or ""
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False
 
 
 class FleetBus:
@@ -32,6 +46,8 @@ class FleetBus:
         self.fleet, self.bus = fleet, bus
         self.status_messages = self.event_messages = self.bad_messages = 0
         self._heard: dict[int, float] = {}  # vehicle -> monotonic time of its last status
+        self._elsewhere: set[int] = set()    # vehicles whose control URL is another host's loopback
+        self.hostname = socket.gethostname()
         self._lock = threading.Lock()
         self._stop = threading.Event()
         self._subs = [bus.subscribe(bus.key("vehicle", "*", "status"), self._on_status),
@@ -72,6 +88,13 @@ class FleetBus:
         vid, msg = got
         url = msg.get("control_url")
         if url is not None and not (isinstance(url, str) and url.startswith(("http://", "https://"))):
+            url = None
+        if url is not None and _is_loopback_url(url) and msg.get("host") != self.hostname:
+            if vid not in self._elsewhere:  # another host's loopback would be ours: never called
+                self._elsewhere.add(vid)
+                log.warning("fleet bus: vehicle %d serves its control surface on %s of host %s only: "
+                            "commands to it are refused (serve it with --control-host 0.0.0.0 and a token)",
+                            vid, url, msg.get("host"))
             url = None
         with self._lock:
             self._heard[vid] = time.monotonic()

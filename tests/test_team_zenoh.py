@@ -16,6 +16,7 @@ Zenoh publications, and the ground service's view of each vehicle published on t
 from __future__ import annotations
 
 import fcntl
+import json
 import os
 import random
 import socket
@@ -338,6 +339,12 @@ def test_presence_reaches_the_fleet_as_status_mission_and_detections() -> None:
         wait_for(lambda: any(k == "detection" for k, _ in events), 10, lambda: f"a detection event: {events}")
         assert [m for k, m in events if k == "detection"] == ["vehicle 5 sees person 7"]
         assert fleet.http_polls == 0
+        # a loopback control URL is taken from this host only (another host's would reach ours)
+        for host, vid in (("another-host", 6), (socket.gethostname(), 7)):
+            fleet.bus._on_status(f"taskflight/x/vehicle/{vid}/status", json.dumps(
+                {"host": host, "control_url": "http://127.0.0.1:8765", "status": {"queue": {}}}).encode())
+        urls = {r["id"]: r["control_url"] for r in fleet.snapshot(max_age_s=0.0)}
+        assert (urls[6], urls[7]) == (None, "http://127.0.0.1:8765")
     finally:
         presence.close()
         fleet.close()
