@@ -24,7 +24,9 @@ import logging
 import threading
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
+from companion.behaviors.belief_syntax import bindings_to_json, parse_query
 from companion.behaviors.catalog import BehaviorCatalog
 from companion.behaviors.system import ExecutiveLayer
 from companion.flight import Envelope, FlightCommand, Limits, PauseRoutineCatalog
@@ -40,7 +42,9 @@ from companion.safety import SafetyConfig, SafetyDecision, SafetyMonitor
 from companion.sensing.scenario import Scenario
 from companion.team.join import join_team
 from companion.team.member import TeamMember
-from companion.team.transport import open_transport
+from companion.team.presence import Presence
+from companion.team.transport import default_iface, open_transport
+from companion.team.zenoh_transport import is_zenoh_url, zenoh_bus_of
 from companion.tst.platform import Platform, bundled_platform
 from companion.tst.spec import Mission
 
@@ -130,6 +134,8 @@ class Companion:
         self.missions = missions
         self.member: TeamMember | None = None
         self.server: ControlServer | None = None
+        #: the vehicle's presence on the Zenoh fleet bus (a zenoh: team only)
+        self.presence: Presence | None = None
         #: the safety monitor (the emergency requester), with the executive layer
         self.safety: SafetyMonitor | None = None
         if layer is not None:
@@ -189,10 +195,44 @@ class Companion:
         if c.control_port is not None and c.control_port >= 0:
             self.server = self.control_server().start()
             log.info("companion: autopilot %s, %g Hz, control %s", c.autopilot, c.rate_hz, self.server.url)
+        if self.member is not None and is_zenoh_url(c.team):
+            self.presence = self._publish_presence(self.member)
         return self
+
+    def _publish_presence(self, member: TeamMember) -> Presence:
+        """On the Zenoh fleet bus, publish the vehicle's status, mission, events and control URL
+        (:mod:`companion.team.presence`) on the member's own session."""
+        bus = zenoh_bus_of(member.link.transport)
+        assert bus is not None
+        layer, missions, server = self.layer, self.missions, self.server
+
+        def status() -> dict[str, Any]:
+            out = self.node.status()
+            if layer is not None:
+                out["awaits_operator"] = layer.awaits_operator()
+            return out
+
+        def control_url() -> str | None:
+            if server is None:
+                return None
+            if server.host in ("0.0.0.0", ""):  # reachable from other hosts: the default route's address
+                return f"http://{default_iface()}:{server.port}"
+            return server.url
+
+        detections = None
+        if layer is not None:
+            query = parse_query("object(?x, ?kind), position(?x, ?p)")
+
+            def detections() -> list[dict[str, Any]]:
+                return bindings_to_json(layer.beliefs.consult(query))
+        return Presence(bus, member.id, name=member.name, status=status,
+                        mission=missions.status if missions is not None else None, control_url=control_url,
+                        detections=detections, owns_bus=False).start()
 
     def close(self) -> None:
         """Close what was made, in the reverse order of the start (a part never started closes too)."""
+        if self.presence is not None:
+            self.presence.close()
         if self.server is not None:
             self.server.close()
         if self.member is not None:

@@ -87,8 +87,10 @@ def add_companion_arguments(parser: argparse.ArgumentParser) -> None:
                         help="a Task Specification Tree to delegate once the vehicle is heard (seed 000)")
     parser.add_argument("--start", action="store_true", help="with --mission: start it once accepted")
     parser.add_argument("--team", default=None, metavar="URL",
-                        help="join a team on this team link (seed 003): udp://239.255.70.1:14650 "
-                             "(multicast), bcast://255.255.255.255:14650, options ?loss=F&seed=S&range=M")
+                        help="join a team on this team link (seed 003): zenoh: (peer mode, a LAN), "
+                             "zenoh:tcp/ROUTER:7447 (through taskflight router), udp://239.255.70.1:14650"
+                             "[?iface=ADDR] (raw multicast, for a radio), bcast://255.255.255.255:14650; "
+                             "options ?loss=F&seed=S&range=M, zenoh: ?team=NAME")
     parser.add_argument("--team-policy", default="greedy", choices=("greedy", "cbba"),
                         help="task allocation policy (default greedy, seed 003 Sec. III-B)")
     parser.add_argument("--name", default="", help="the vehicle's name in the team (default uav<sysid>)")

@@ -4,9 +4,13 @@ Two sources per vehicle, as in seed 003's interface hierarchy:
 
 * the team link: the station's group state (seed 003 Sec. III-A) gives each vehicle's row: position,
   velocity, team status, the task it flies, its claims, and whether it is gone (voc run out);
-* the companion's control surface (the Process Monitor tier), polled by :class:`Fleet`: the autopilot's
-  mode, armed state, battery, heading, the QAPI queue status and whether it waits for a confirmation,
-  the mission's active node and progress (seed 000 Fig. 5).
+* the companion's control surface (the Process Monitor tier): the autopilot's mode, armed state, battery,
+  heading, the QAPI queue status and whether it waits for a confirmation, the mission's active node and
+  progress (seed 000 Fig. 5). On a Zenoh team (``zenoh:`` URL) each companion publishes it on the fleet
+  bus and :mod:`groundstation.bus` takes it (no polling: a vehicle on another host appears with nothing
+  but the team URL in common, its control URL with it); on a ``udp://`` team :class:`Fleet` polls the
+  registered companions, each in a worker of its own, so an unreachable one (1.5 s time-outs) never
+  delays the others.
 
 :meth:`Fleet.snapshot` merges them into one record per vehicle with a health verdict (green / yellow /
 red with the reasons). The poller also turns changes into events (link lost, override, failsafe mode,
@@ -20,6 +24,7 @@ import math
 import threading
 import time
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any
 from urllib.parse import urlencode
@@ -60,6 +65,14 @@ class Polled:
     reachable: bool | None = None   #: None: never polled
     detections: dict[str, dict[str, Any]] = field(default_factory=dict)  #: object id -> what was seen
     polls: int = 0
+    via_bus: bool = False           #: heard on the fleet bus (not polled)
+
+
+#: ``mission`` of :meth:`Fleet.heard_on_bus` when a message leaves it out (the last one holds)
+KEEP: Any = object()
+
+#: companions polled at once at most (each unreachable one holds a worker for its time-outs)
+POLL_WORKERS = 32
 
 
 @dataclass
@@ -90,17 +103,34 @@ class Fleet:
     _stop: threading.Event = field(default_factory=threading.Event)
     _thread: threading.Thread | None = None
     _cache: tuple[float, list[dict[str, Any]]] = (-1.0, [])
+    #: HTTP polls of the companions' control surfaces made so far (0 on a Zenoh team)
+    http_polls: int = 0
+    #: the fleet-bus subscription (a Zenoh team), made by :meth:`start`
+    bus: Any = None
+    _pool: ThreadPoolExecutor | None = None
+    _inflight: set[int] = field(default_factory=set)
 
     # --- lifecycle -------------------------------------------------------------------------------------
     def start(self) -> Fleet:
-        self._thread = threading.Thread(target=self._poll_loop, name="fleet-poll", daemon=True)
+        from .bus import FleetBus
+
+        self.bus = FleetBus.for_station(self)
+        if self.bus is not None:
+            self._thread = threading.Thread(target=self.bus.watch_loop, name="fleet-bus", daemon=True)
+        else:
+            self._pool = ThreadPoolExecutor(POLL_WORKERS, thread_name_prefix="fleet-poll")
+            self._thread = threading.Thread(target=self._poll_loop, name="fleet-poll", daemon=True)
         self._thread.start()
         return self
 
     def close(self) -> None:
         self._stop.set()
+        if self.bus is not None:
+            self.bus.close()
         if self._thread is not None:
             self._thread.join(timeout=5.0)
+        if self._pool is not None:
+            self._pool.shutdown(wait=False, cancel_futures=True)
 
     def register(self, vid: int, name: str, control_url: str | None) -> None:
         with self._lock:
@@ -124,19 +154,36 @@ class Fleet:
 
     # --- polling the companions ------------------------------------------------------------------------
     def _poll_loop(self) -> None:
+        """Every period, each registered companion whose last poll has ended is polled in a worker of its
+        own: a slow or unreachable one holds only its worker."""
+        assert self._pool is not None
         while not self._stop.is_set():
             start = time.monotonic()
             with self._lock:
-                targets = [(v, r.control_url) for v, r in self.registry.items() if r.control_url]
+                targets = [(v, r.control_url) for v, r in self.registry.items()
+                           if r.control_url and v not in self._inflight]
+                self._inflight.update(v for v, _ in targets)
             for vid, url in targets:
-                if self._stop.is_set():
+                try:
+                    self._pool.submit(self._poll_guarded, vid, url)
+                except RuntimeError:  # shut down
                     return
-                self._poll_one(vid, url)
             self._stop.wait(max(0.05, self.poll_period_s - (time.monotonic() - start)))
+
+    def _poll_guarded(self, vid: int, url: str) -> None:
+        try:
+            if not self._stop.is_set():
+                self._poll_one(vid, url)
+        except Exception:
+            log.exception("fleet: polling vehicle %d failed", vid)
+        finally:
+            with self._lock:
+                self._inflight.discard(vid)
 
     def _poll_one(self, vid: int, url: str) -> None:
         with self._lock:
             p = self._polled.setdefault(vid, Polled())
+            self.http_polls += 1
         try:
             _s, status = self.client.call(vid, url, "GET", "/status", timeout_s=1.5)
             _m, mission = self.client.call(vid, url, "GET", "/mission", timeout_s=1.5)
@@ -168,21 +215,58 @@ class Fleet:
             return
         if code != 200 or not isinstance(answer, dict):
             return
-        home = ((p.status or {}).get("vehicle") or {}).get("home")
         for b in answer.get("bindings") or []:
-            key = str(b.get("x"))
-            pos = b.get("p")
-            if key in p.detections or b.get("kind") in OWN_KINDS or not isinstance(pos, list | tuple) \
-                    or len(pos) != 3:
-                continue
-            data: dict[str, Any] = {"object": b.get("x"), "kind": b.get("kind"), "ned": list(pos)}
-            if isinstance(home, list | tuple) and len(home) == 3:
-                lat, lon, alt = ned_to_geodetic(tuple(home), *pos)
-                data.update(lat=lat, lon=lon, alt=alt - home[2])
-            with self._lock:
-                p.detections[key] = data
-            self.emit("detection", f"vehicle {vid} sees {data['kind']} {data['object']}", vehicle=vid,
-                      data=data)
+            self.detected(vid, p, b.get("x"), b.get("kind"), b.get("p"))
+
+    def detected(self, vid: int, p: Polled, obj: Any, kind: Any, pos: Any) -> None:
+        """An object seen by vehicle ``vid``'s camera: a ``detection`` event with its lat/lon the first
+        time (its own beliefs and malformed positions are skipped)."""
+        key = str(obj)
+        if key in p.detections or kind in OWN_KINDS or not isinstance(pos, list | tuple) or len(pos) != 3:
+            return
+        home = ((p.status or {}).get("vehicle") or {}).get("home")
+        data: dict[str, Any] = {"object": obj, "kind": kind, "ned": list(pos)}
+        if isinstance(home, list | tuple) and len(home) == 3:
+            lat, lon, alt = ned_to_geodetic(tuple(home), *pos)
+            data.update(lat=lat, lon=lon, alt=alt - home[2])
+        with self._lock:
+            p.detections[key] = data
+        self.emit("detection", f"vehicle {vid} sees {data['kind']} {data['object']}", vehicle=vid,
+                  data=data)
+
+    # --- the fleet bus ---------------------------------------------------------------------------------
+    def polled(self, vid: int) -> Polled:
+        with self._lock:
+            return self._polled.setdefault(vid, Polled())
+
+    def heard_on_bus(self, vid: int, name: str, control_url: str | None, status: Any, mission: Any) -> None:
+        """A vehicle's status message on the fleet bus (:mod:`groundstation.bus`): as a good poll, and the
+        control URL it published registered (commands go there)."""
+        with self._lock:
+            reg = self.registry.get(vid)
+            if reg is None or (control_url and reg.control_url != control_url) or (name and not reg.name):
+                self.registry[vid] = Registered(name or (reg.name if reg else ""),
+                                                control_url or (reg.control_url if reg else None))
+            p = self._polled.setdefault(vid, Polled())
+            prev, was = p.status, p.reachable
+            p.status = status if isinstance(status, dict) and "queue" in status else None
+            if mission is not KEEP:
+                p.mission = mission if isinstance(mission, dict) else None
+            p.ok_at, p.error, p.reachable, p.via_bus = time.monotonic(), None, True, True
+            p.polls += 1
+        if was is False:
+            self.emit("link_restored", f"vehicle {vid}: heard again on the fleet bus", vehicle=vid)
+        self._watch(vid, prev, p.status)
+
+    def silent_on_bus(self, vid: int, silent_s: float) -> None:
+        """Nothing heard from vehicle ``vid`` on the bus for ``silent_s``: unreachable (once)."""
+        with self._lock:
+            p = self._polled.get(vid)
+            if p is None or p.reachable is False:
+                return
+            p.reachable, p.error = False, f"nothing on the fleet bus for {silent_s:.1f} s"
+        self.emit("link_lost", f"vehicle {vid}: companion silent on the fleet bus", severity="warning",
+                  vehicle=vid)
 
     def _watch(self, vid: int, prev: dict[str, Any] | None, cur: dict[str, Any] | None) -> None:
         """Events from one poll to the next (seed 000 Sec. VII: the operator is told what needs him)."""
@@ -218,7 +302,7 @@ class Fleet:
         rows = self.station.state.entries()
         with self._lock:
             registry = dict(self.registry)
-            polled = {v: Polled(p.status, p.mission, p.ok_at, p.error, p.reachable)
+            polled = {v: Polled(p.status, p.mission, p.ok_at, p.error, p.reachable, via_bus=p.via_bus)
                       for v, p in self._polled.items()}
             for m, e in rows.items():
                 seen = self._seen.setdefault(m, _Seen())
@@ -262,7 +346,8 @@ class Fleet:
             mission = {"state": m.get("state"), "node": m.get("active_node"),
                        "progress": _progress(m.get("tree"), m.get("active_node"))}
         reachable = p is not None and p.reachable
-        companion = "none" if not reg.control_url else ("ok" if reachable else "unreachable")
+        known = reg.control_url or (p is not None and p.via_bus)
+        companion = "none" if not known else ("ok" if reachable else "unreachable")
         rec = {
             "id": vid, "name": reg.name or (row.name if row is not None else "") or f"vehicle {vid}",
             "control_url": reg.control_url, "position": position, "velocity": velocity, "heading": heading,

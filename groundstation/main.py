@@ -24,7 +24,9 @@ DEFAULT_TEAM = "udp://239.255.70.1:14600"
 
 def add_ground_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--team", default=DEFAULT_TEAM, metavar="URL",
-                        help=f"the team link (default {DEFAULT_TEAM}; ?loss=F drops that fraction)")
+                        help=f"the team link (default {DEFAULT_TEAM}; zenoh: on a LAN, zenoh:tcp/ROUTER:7447 "
+                             "through taskflight router: the vehicles' status then comes over the bus, no "
+                             "--companion needed; ?loss=F drops that fraction)")
     parser.add_argument("--db", default="taskflight-ground.db", metavar="FILE",
                         help="the SQLite database (created if absent; restarted on it, nothing is lost)")
     parser.add_argument("--host", default="127.0.0.1", help="bind address (default 127.0.0.1)")

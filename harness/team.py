@@ -58,11 +58,12 @@ class TeamRig:
     """See module docstring. ``speedup`` is the models' (the companions follow autopilot time)."""
 
     def __init__(self, tmp: Path, n: int = 3, speedup: float = 3.0, loss: float = 0.0,
-                 policy: str = "greedy") -> None:
+                 policy: str = "greedy", team_url: str | None = None) -> None:
         self.tmp, self.n, self.speedup, self.loss, self.policy = tmp, n, speedup, loss, policy
         self.fleet, self.base = start_fleet(tmp / "fleet", n, speedup)
-        self.team_url = new_team_url()
-        self.member_url = self.team_url + (f"?loss={loss}" if loss else "")
+        self.team_url = team_url or new_team_url()  # e.g. a zenoh: URL (the fleet bus)
+        sep = "&" if "?" in self.team_url else "?"
+        self.member_url = self.team_url + (f"{sep}loss={loss}" if loss else "")
         self.control_ports = free_ports(n, socket.SOCK_STREAM)
         self.companions: list[subprocess.Popen[bytes] | None] = [None] * n
         self.logs: list[list[Path]] = [[] for _ in range(n)]

@@ -149,6 +149,12 @@ def _cmd_ground(args: argparse.Namespace) -> int:
     return run_ground(args)
 
 
+def _cmd_router(args: argparse.Namespace) -> int:
+    from taskflight.router import run_router
+
+    return run_router(args)
+
+
 def _cmd_docs(args: argparse.Namespace) -> int:
     from taskflight.apidoc import run_docs
 
@@ -218,6 +224,13 @@ def build_parser() -> argparse.ArgumentParser:
 
     add_ground_arguments(gp)
     handlers["ground"] = _cmd_ground
+
+    rp = sub.add_parser("router", help="a Zenoh router for the fleet bus (--team zenoh:tcp/HOST:7447 joins "
+                                       "it from other subnets or hosts; Ctrl-C stops it)")
+    from taskflight.router import add_router_arguments
+
+    add_router_arguments(rp)
+    handlers["router"] = _cmd_router
 
     docp = sub.add_parser("docs", help="generated documentation: docs/http-api.md from the OpenAPI schemas")
     from taskflight.apidoc import add_docs_arguments

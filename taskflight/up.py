@@ -453,7 +453,8 @@ def add_up_arguments(p: argparse.ArgumentParser) -> None:
                    help="YAML {operator: [..], observer: [..]} (default: generate one of each, written to "
                         "<state-dir>/tokens.yaml, mode 0600)")
     p.add_argument("--team", default=None, metavar="URL",
-                   help=f"the team link (default udp://{TEAM_GROUP}:<a free port>)")
+                   help=f"the team link (default udp://{TEAM_GROUP}:<a free port>; zenoh: on a LAN, "
+                        "zenoh:tcp/ROUTER:7447 through taskflight router)")
     p.add_argument("--team-loss", type=float, default=0.0, metavar="F",
                    help="drop this fraction of team-link packets at every member (a test of loss)")
     p.add_argument("--state-dir", default=None, metavar="DIR",

@@ -19,7 +19,8 @@ from typing import Any
 
 def add_control_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--team", required=True, metavar="URL",
-                   help="the team link, e.g. udp://239.255.70.1:14650 (options ?loss=F&seed=S)")
+                   help="the team link: zenoh: (a LAN), zenoh:tcp/ROUTER:7447 (through taskflight router) or "
+                        "udp://239.255.70.1:14650[?iface=ADDR] (options ?loss=F&seed=S)")
     p.add_argument("--tasks", default=None, metavar="FILE",
                    help="team task file (YAML, e.g. mission_specs/team_tasks.yaml); none: only listen")
     p.add_argument("--keep-n", action="store_true",

@@ -9,8 +9,15 @@
   receives and, given a range and the members' positions, every packet from a member farther than the
   range (a radio's reach); each receiver drops independently, as each radio link fades independently.
 * :func:`open_transport`: ``udp://239.255.70.1:14650`` (multicast), ``udp://255.255.255.255:14650`` or
-  ``bcast://HOST:PORT`` (broadcast), ``mem://NAME`` (a named in-process bus), with query options
-  ``loss``, ``seed``, ``range`` (m), ``iface`` (the interface address, 127.0.0.1 by default), ``ttl``.
+  ``bcast://HOST:PORT`` (broadcast), ``mem://NAME`` (a named in-process bus), ``zenoh:`` /
+  ``zenoh:tcp/HOST:PORT`` (the fleet bus on Zenoh, :mod:`companion.team.zenoh_transport`: peers and
+  routers route, no flooding needed), with query options ``loss``, ``seed``, ``range`` (m), ``iface`` (the
+  interface address; by default the one of the default route, :func:`default_iface`, loopback only when
+  there is none), ``ttl``; ``team`` and ``mode`` for ``zenoh:``.
+
+Which to choose (docs/team.md, "Which transport"): ``zenoh:`` on a LAN, ``zenoh:tcp/ROUTER:7447`` across
+subnets or hosts with a router (``taskflight router``), ``udp://`` for a radio with no IP routing (the
+paper's raw broadcast with controlled flooding).
 """
 
 from __future__ import annotations
@@ -60,12 +67,38 @@ class Transport(abc.ABC):
         """The URL that opens this transport."""
 
 
+#: a public address toward which the default route is looked up (no packet is sent to it)
+_ROUTE_PROBE = ("8.8.8.8", 53)
+
+
+def default_iface() -> str:
+    """The IPv4 address of the interface of the default route, found without sending anything: a UDP
+    socket ``connect()``-ed to a public address and its ``getsockname()``; 127.0.0.1 when there is no
+    default route (the kernel refuses the connect)."""
+    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    try:
+        s.connect(_ROUTE_PROBE)
+        addr = s.getsockname()[0]
+    except OSError:
+        return "127.0.0.1"
+    finally:
+        s.close()
+    return addr if addr and addr != "0.0.0.0" else "127.0.0.1"
+
+
 class UdpTransport(Transport):
     """UDP multicast (a multicast ``group``) or broadcast (``broadcast=True``, ``group`` the broadcast
-    address) on ``port``; ``iface`` is the address of the interface to use (127.0.0.1: loopback)."""
+    address) on ``port``; ``iface`` is the address of the interface to use (None: the default route's,
+    :func:`default_iface`, logged; 127.0.0.1: loopback, one host only)."""
 
-    def __init__(self, group: str = DEFAULT_GROUP, port: int = DEFAULT_PORT, *, iface: str = "127.0.0.1",
+    def __init__(self, group: str = DEFAULT_GROUP, port: int = DEFAULT_PORT, *, iface: str | None = None,
                  broadcast: bool = False, ttl: int = 1) -> None:
+        defaulted = iface is None
+        if iface is None:
+            iface = default_iface()
+            log.info("team link %s:%d: interface %s (%s; ?iface=ADDR chooses another)", group, port, iface,
+                     "no default route: loopback, this host only" if iface == "127.0.0.1"
+                     else "the default route's")
         try:
             addr = ipaddress.IPv4Address(group)
             ipaddress.IPv4Address(iface)
@@ -77,6 +110,18 @@ class UdpTransport(Transport):
             raise ValueError(f"UdpTransport: {group} is not a multicast group (use broadcast=True)")
         self.group, self.port, self.iface, self.broadcast, self.ttl = group, port, iface, broadcast, ttl
         self._closed = False
+        try:
+            self._sock = self._open()
+        except OSError as exc:
+            if not defaulted or broadcast or iface == "127.0.0.1":
+                raise
+            log.warning("team link %s:%d: the default route's interface %s refuses multicast (%s): loopback "
+                        "instead, this host only (give ?iface=ADDR)", group, port, iface, exc)
+            self.iface = "127.0.0.1"
+            self._sock = self._open()
+
+    def _open(self) -> socket.socket:
+        group, port, iface, broadcast, ttl = self.group, self.port, self.iface, self.broadcast, self.ttl
         s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM, socket.IPPROTO_UDP)
         try:
             s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
@@ -96,7 +141,7 @@ class UdpTransport(Transport):
         except OSError:
             s.close()
             raise
-        self._sock = s
+        return s
 
     @property
     def url(self) -> str:
@@ -287,7 +332,7 @@ class LossyTransport(Transport):
         self.inner.close()
 
 
-_OPTIONS = {"loss", "seed", "range", "iface", "ttl"}
+_OPTIONS = {"loss", "seed", "range", "iface", "ttl", "team", "mode"}
 
 
 def open_transport(url: str, *, member: int | None = None,
@@ -317,7 +362,7 @@ def open_transport(url: str, *, member: int | None = None,
     seed = num("seed", int, None)
     range_m = num("range", float, None)
     ttl = num("ttl", int, 1)
-    iface = opts.get("iface", "127.0.0.1")
+    iface = opts.get("iface")
     if not 0.0 <= loss <= 1.0:  # type: ignore[operator]
         raise ValueError(f"team URL {url!r}: option loss={loss} outside 0..1")
     if range_m is not None and not range_m > 0:  # type: ignore[operator]
@@ -325,6 +370,8 @@ def open_transport(url: str, *, member: int | None = None,
     if range_m is not None and (position_of is None or member is None):
         raise ValueError(f"team URL {url!r}: option range needs the members' positions (not available here)")
     scheme = u.scheme.lower()
+    if scheme != "zenoh" and ({"team", "mode"} & opts.keys()):
+        raise ValueError(f"team URL {url!r}: team and mode are options of zenoh:, not {scheme}://")
     inner: Transport
     if scheme in ("udp", "bcast"):
         host = u.hostname
@@ -341,7 +388,8 @@ def open_transport(url: str, *, member: int | None = None,
         except ValueError as exc:
             raise ValueError(f"team URL {url!r}: host {host!r} is not an IPv4 address") from exc
         try:
-            ipaddress.IPv4Address(iface)
+            if iface is not None:
+                ipaddress.IPv4Address(iface)
         except ValueError as exc:
             raise ValueError(f"team URL {url!r}: option iface={iface!r} is not an IPv4 address") from exc
         broadcast = scheme == "bcast" or not addr.is_multicast
@@ -353,8 +401,14 @@ def open_transport(url: str, *, member: int | None = None,
         if not name:
             raise ValueError(f"team URL {url!r}: mem:// needs a bus name (mem://NAME)")
         inner = MemoryBus.named(name).attach()
+    elif scheme == "zenoh":
+        from companion.team.zenoh_transport import ZenohBus, ZenohTransport, parse_zenoh_url
+
+        if "iface" in opts or "ttl" in opts:
+            raise ValueError(f"team URL {url!r}: iface and ttl are options of udp://, not zenoh:")
+        inner = ZenohTransport(ZenohBus(parse_zenoh_url(url, frozenset(_OPTIONS))), member)
     else:
-        raise ValueError(f"team URL {url!r}: unknown scheme {u.scheme!r} (udp, bcast, mem)")
+        raise ValueError(f"team URL {url!r}: unknown scheme {u.scheme!r} (udp, bcast, mem, zenoh)")
     if loss or range_m is not None:
         return LossyTransport(inner, loss, seed, range_m, position_of, member=member)  # type: ignore[arg-type]
     return inner

@@ -1,0 +1,119 @@
+"""A companion's presence on the fleet bus: what the ground service needs of each vehicle, published.
+
+Seed 003 Fig. 1's Process Monitor tier reads each vehicle's state. Over HTTP the ground service polls every
+companion in turn; on the Zenoh bus (:mod:`companion.team.zenoh_transport`) each companion publishes it
+instead, so a vehicle on another host appears in the ground service with nothing but the team URL in common:
+
+* ``taskflight/<team>/vehicle/<id>/status``, every ``period_s`` (0.5 s: 2 Hz): JSON ``{"id", "name", "t",
+  "host", "control_url", "status", "mission"}``: ``status`` is what ``GET /status`` answers, ``mission``
+  what ``GET /mission`` answers (sent when it changed and every :data:`MISSION_EVERY`-th message, left
+  out otherwise: the receiver keeps the last one), ``control_url`` the companion's control surface (None
+  when it serves none; commands go there over HTTP; a loopback URL is of use only on the same ``host``).
+  A message with the mission measured 2.2 kB (two idle vehicles of ``taskflight up``);
+* ``taskflight/<team>/vehicle/<id>/events``: JSON ``{"kind": "detection", "object", "object_kind", "ned",
+  "t"}`` for each object its camera sees for the first time (the camera's beliefs, seed 000 Sec. VII).
+
+The parts are given as callables by the composition root (:mod:`companion.builder`), so this module needs
+neither the HTTP surface nor the executive layer.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import socket
+import threading
+import time
+from collections.abc import Callable
+from typing import Any
+
+from .zenoh_transport import ZenohBus
+
+log = logging.getLogger(__name__)
+
+DEFAULT_PERIOD_S = 0.5
+#: the mission's status is sent at least every this many messages (and whenever it changed)
+MISSION_EVERY = 10
+#: the camera's beliefs are looked at every this many status messages
+DETECTION_EVERY = 4
+#: object kinds that are the vehicle's own beliefs about itself, not detections
+OWN_KINDS = frozenset({"aerial_robot"})
+
+
+class Presence:
+    """Publishes one vehicle's status and events on ``bus`` (module doc) from a daemon thread."""
+
+    def __init__(self, bus: ZenohBus, vehicle: int, *, name: str = "",
+                 status: Callable[[], dict[str, Any]],
+                 mission: Callable[[], dict[str, Any] | None] | None = None,
+                 control_url: Callable[[], str | None] | None = None,
+                 detections: Callable[[], list[dict[str, Any]]] | None = None,
+                 period_s: float = DEFAULT_PERIOD_S, owns_bus: bool = True) -> None:
+        if not period_s > 0:
+            raise ValueError(f"Presence: period_s {period_s!r} must be positive")
+        self.bus, self.vehicle, self.name, self.period_s = bus, vehicle, name, period_s
+        self._status, self._mission, self._url, self._detections = status, mission, control_url, detections
+        self._owns_bus = owns_bus
+        self._status_pub = bus.publisher(bus.key("vehicle", vehicle, "status"))
+        self._events_pub = bus.publisher(bus.key("vehicle", vehicle, "events"))
+        self._seen: set[str] = set()
+        self._last_mission: str | None = None
+        self.published = 0
+        self.errors = 0
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+
+    def message(self) -> dict[str, Any]:
+        msg = {"id": self.vehicle, "name": self.name, "t": time.time(), "host": socket.gethostname(),
+               "control_url": self._url() if self._url is not None else None, "status": self._status()}
+        mission = self._mission() if self._mission is not None else None
+        text = json.dumps(mission, default=str, sort_keys=True)
+        if text != self._last_mission or self.published % MISSION_EVERY == 0:
+            msg["mission"] = mission
+            self._last_mission = text
+        return msg
+
+    def publish_once(self) -> None:
+        self._status_pub.put(json.dumps(self.message(), default=str).encode())
+        self.published += 1
+        if self._detections is not None and self.published % DETECTION_EVERY == 1:
+            for ev in self.new_detections():
+                self._events_pub.put(json.dumps(ev, default=str).encode())
+
+    def new_detections(self) -> list[dict[str, Any]]:
+        """Objects seen for the first time (bindings ``{"x", "kind", "p"}``) as detection events."""
+        assert self._detections is not None
+        out = []
+        for b in self._detections():
+            key, pos = str(b.get("x")), b.get("p")
+            if key in self._seen or b.get("kind") in OWN_KINDS or not isinstance(pos, list | tuple) \
+                    or len(pos) != 3:
+                continue
+            self._seen.add(key)
+            out.append({"kind": "detection", "object": b.get("x"), "object_kind": b.get("kind"),
+                        "ned": list(pos), "t": time.time()})
+        return out
+
+    def start(self) -> Presence:
+        self._thread = threading.Thread(target=self._run, name=f"presence-{self.vehicle}", daemon=True)
+        self._thread.start()
+        log.info("fleet bus: vehicle %d publishes its status on %s every %g s", self.vehicle,
+                 self.bus.key("vehicle", self.vehicle, "status"), self.period_s)
+        return self
+
+    def _run(self) -> None:
+        while not self._stop.is_set():
+            try:
+                self.publish_once()
+            except Exception:  # one bad status must not end the vehicle's presence
+                self.errors += 1
+                log.exception("fleet bus: vehicle %d status not published", self.vehicle)
+            self._stop.wait(self.period_s)
+
+    def close(self) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=5.0)
+            self._thread = None
+        if self._owns_bus:
+            self.bus.close()
