@@ -209,7 +209,8 @@ class TeamControlStation:
 
     def _publish(self) -> None:
         board = self.ledger.board(self.clock())
-        if board.newer_than(self.state.board):
+        held = self.state.board
+        if held.epoch != self.state.epoch or board.seq > held.seq:
             self.state.set_board(board)
 
     def _on_link(self, ev: LinkEvent) -> None:
