@@ -316,7 +316,8 @@ def test_garbage_and_foreign_versions_counted_and_ignored() -> None:
     good = encode_packet(7, [row(7, team.t, 1, voc=VOC)])
     foreign = bytearray(good)
     foreign[2] = VERSION + 3
-    for data in (b"", b"\x00" * 50, b"TF", good[:-1], bytes(foreign), b"TF" + bytes([VERSION]) + b"\x01\x07" + b"\xff" * 30):
+    bad_flags = b"TF" + bytes([VERSION]) + b"\x01\x07" + b"\xff" * 30
+    for data in (b"", b"\x00" * 50, b"TF", good[:-1], bytes(foreign), bad_flags):
         raw.send(data)
     link.step(team.t)
     assert link.stats.garbage == 5 and link.stats.foreign_version == 1

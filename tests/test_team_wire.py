@@ -21,8 +21,8 @@ from companion.team.types import (
     TeamTask,
 )
 from companion.team.wire import (
-    KIND_BOARD,
     HEADER_SIZE,
+    KIND_BOARD,
     KIND_STATE,
     MAX_PACKET,
     VERSION,
@@ -218,7 +218,8 @@ def test_fuzz_random_bytes_and_mutations_never_raise_anything_else() -> None:
                     base += bytes(rng.getrandbits(8) for _ in range(rng.randrange(1, 20)))
             data = bytes(base)
             if i % 3 == 0:  # also reach the parser behind the CRC with mutated contents
-                data = _reframe(data[HEADER_SIZE:-4] if len(data) > HEADER_SIZE + 4 else data, kind=data[3] if len(data) > 3 else 1)
+                data = _reframe(data[HEADER_SIZE:-4] if len(data) > HEADER_SIZE + 4 else data,
+                                kind=data[3] if len(data) > 3 else 1)
         pkt = _check(data)
         if pkt is not None:
             decoded += 1

@@ -96,6 +96,14 @@ class LinkStats:
     max_packet: int = 0
 
 
+def link_drops(link: TeamLink) -> dict[str, int]:
+    """The counters of what a link dropped for identity, authentication and time (for status reports)."""
+    st = link.stats
+    return {"own_echoes": st.own_echoes, "unsigned": st.unsigned, "bad_signature": st.bad_signature,
+            "unverifiable": st.unverifiable, "replayed": st.replayed, "future": st.future,
+            "duplicates": st.duplicates, "other_epoch": st.other_epoch}
+
+
 @dataclass(frozen=True)
 class LinkEvent:
     """What a listener is told: ``kind`` is "gone", "joined", "duplicate" (with ``member``), "board", or
