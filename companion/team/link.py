@@ -164,56 +164,60 @@ class TeamLink:
         future packets never raise)."""
         events: list[LinkEvent] = []
         with self._step_lock:
-            self.stats.packets_received += 1
-            self.stats.bytes_received += len(data)
-            pkt = self._decode(data)
-            if pkt is None:
-                return
-            now = self.clock()
-            verdict = self._guard.check(pkt.sender, pkt.epoch, pkt.pseq, pkt.stamp, now,
-                                        replay=self.key is not None)
-            if verdict == "future":
-                self._count_future("packet", pkt.sender, pkt.stamp, now)
-                return
-            if verdict == "replayed":
-                self.stats.replayed += 1
-                log.debug("member %d: replayed packet from %d dropped", self.own_id, pkt.sender)
-                return
-            if pkt.sender == self.own_id:
-                if pkt.epoch == self.epoch:
-                    self.stats.own_echoes += 1
-                else:
-                    events += self._duplicate_of_self(pkt)
-                return
-            if pkt.rows:
-                rows = []
-                for r in pkt.rows:
-                    if self._guard.future(r.stamp, now):
-                        self._count_future("row", r.member, r.stamp, now)
-                    else:
-                        rows.append(r)
-                self._watch_duplicates(pkt, events)
-                res = self.state.merge(rows, sender=pkt.sender)
-                self.stats.rows_replaced += res.replaced
-                self.stats.vocs_raised += res.raised
-                self.stats.other_epoch += len(res.other_epoch)
-                events += [LinkEvent("joined", member=m) for m in res.joined]
-            part = pkt.board_part
-            if part is not None:
-                if self._guard.future(part.stamp, now):
-                    self._count_future("board", STATION_ID, part.stamp, now)
-                elif self.own_id != STATION_ID and self.state.board_acceptable(part.epoch, part.seq):
-                    try:
-                        board = self._assembler.add(part)
-                    except WireError as exc:
-                        self.stats.garbage += 1
-                        log.debug("member %d: bad board dropped: %s", self.own_id, exc)
-                        board = None
-                    if board is not None and self.state.merge_board(board):
-                        self.stats.boards_taken += 1
-                        self._board_news = True
-                        events.append(LinkEvent("board", board=board))
+            self._handle(data, events)
         self._notify(events)
+
+    def _handle(self, data: bytes, events: list[LinkEvent]) -> None:
+        """:meth:`handle` under the step lock; what listeners must be told goes into ``events``."""
+        self.stats.packets_received += 1
+        self.stats.bytes_received += len(data)
+        pkt = self._decode(data)
+        if pkt is None:
+            return
+        now = self.clock()
+        verdict = self._guard.check(pkt.sender, pkt.epoch, pkt.pseq, pkt.stamp, now,
+                                    replay=self.key is not None)
+        if verdict == "future":
+            self._count_future("packet", pkt.sender, pkt.stamp, now)
+            return
+        if verdict == "replayed":
+            self.stats.replayed += 1
+            log.debug("member %d: replayed packet from %d dropped", self.own_id, pkt.sender)
+            return
+        if pkt.sender == self.own_id:
+            if pkt.epoch == self.epoch:
+                self.stats.own_echoes += 1
+            else:
+                events.extend(self._duplicate_of_self(pkt))
+            return
+        if pkt.rows:
+            rows = []
+            for r in pkt.rows:
+                if self._guard.future(r.stamp, now):
+                    self._count_future("row", r.member, r.stamp, now)
+                else:
+                    rows.append(r)
+            self._watch_duplicates(pkt, events)
+            res = self.state.merge(rows, sender=pkt.sender)
+            self.stats.rows_replaced += res.replaced
+            self.stats.vocs_raised += res.raised
+            self.stats.other_epoch += len(res.other_epoch)
+            events += [LinkEvent("joined", member=m) for m in res.joined]
+        part = pkt.board_part
+        if part is not None:
+            if self._guard.future(part.stamp, now):
+                self._count_future("board", STATION_ID, part.stamp, now)
+            elif self.own_id != STATION_ID and self.state.board_acceptable(part.epoch, part.seq):
+                try:
+                    board = self._assembler.add(part)
+                except WireError as exc:
+                    self.stats.garbage += 1
+                    log.debug("member %d: bad board dropped: %s", self.own_id, exc)
+                    board = None
+                if board is not None and self.state.merge_board(board):
+                    self.stats.boards_taken += 1
+                    self._board_news = True
+                    events.append(LinkEvent("board", board=board))
 
     def _decode(self, data: bytes) -> Packet | None:
         try:
