@@ -80,6 +80,18 @@ def test_replay_guard_window_and_future() -> None:
     assert g.check(2, 5, 11, 29.0, 0.0) is None
 
 
+def test_team_clock_follows_the_majority_not_one_member_far_ahead() -> None:
+    behind = ReplayGuard()  # this member's clock is an hour behind the team's
+    assert behind.check(0, 1, 1, 3600.0, 0.0) == "future"  # one voice ahead: not yet the team's clock
+    assert behind.check(2, 1, 1, 3600.6, 0.6) is None  # a second voice: the majority is an hour ahead
+    assert behind.check(0, 1, 2, 3601.2, 1.2) is None
+    fleet = ReplayGuard()  # a fleet on time hears one member ten years ahead
+    for m in (0, 2, 3):
+        assert fleet.check(m, 1, 1, 5.0, 5.0) is None
+    for k in range(5):
+        assert fleet.check(9, 1, 1 + k, 5.0 + 3.2e8 + k, 5.0 + k) == "future"
+
+
 def test_key_files(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     p = generate_key_file(tmp_path / "k" / "team.key")
     assert stat.S_IMODE(p.stat().st_mode) == 0o600 and len(load_key(p)) == 32

@@ -8,9 +8,14 @@ sender's clock and a packet number that counts up within the epoch; with a team 
 the first :data:`SIG_LEN` bytes of HMAC-SHA256(key, header + body). :class:`ReplayGuard` keeps, per
 (sender, epoch), the highest packet number taken and a window of the :data:`REPLAY_WINDOW` before it
 (as IPsec's anti-replay window: UDP may reorder a little), and refuses a packet whose stamp is more than
-:data:`FUTURE_WINDOW_S` ahead of the receiver's clock (a clock ten years ahead changes nothing). Stamps
-in the past are taken: a companion without a real-time clock boots with its clock behind, and freshness
-is (epoch, seq), not time (:mod:`.groupstate`).
+:data:`FUTURE_WINDOW_S` ahead of the *team's clock* (a clock ten years ahead changes nothing). Stamps in
+the past are taken: a companion without a real-time clock boots with its clock behind, and freshness is
+(epoch, seq), not time (:mod:`.groupstate`). The team's clock is this receiver's clock plus the lower
+median of the offsets (stamp - own clock) of the members heard in the last :data:`OFFSET_MEMORY_S`, its
+own offset 0 included, when that median is ahead: a member whose clock is an hour behind sees every
+other member an hour ahead and takes them (the majority is ahead), while a fleet that hears one member
+ten years ahead keeps its own clock (the lower median is the fleet's). With two parties only the lower
+one wins (a member behind waits for a third, e.g. the station).
 
 The key is a file (``--team-key FILE`` or ``TASKFLIGHT_TEAM_KEY=FILE``) holding a secret of at least 16
 bytes (``taskflight up`` writes 32 random bytes in hex, mode 0600); the HMAC key is SHA-256 of its
@@ -41,6 +46,8 @@ SIG_LEN = 16
 FUTURE_WINDOW_S = 30.0
 #: packet numbers below the highest one taken from a stream that are still accepted (once each)
 REPLAY_WINDOW = 64
+#: how long a member's clock offset counts toward the team's clock (s of the receiver's clock)
+OFFSET_MEMORY_S = 10.0
 #: the environment variable naming the key file when ``--team-key`` is not given
 ENV_KEY = "TASKFLIGHT_TEAM_KEY"
 _MIN_SECRET = 16
@@ -126,15 +133,39 @@ class ReplayGuard:
                  streams: int = 4096) -> None:
         self.window, self.future_s, self.streams = window, future_s, streams
         self._seen: OrderedDict[tuple[int, int], tuple[int, int]] = OrderedDict()  # -> (highest, mask)
+        self._offsets: OrderedDict[int, tuple[float, float]] = OrderedDict()  # sender -> (offset, heard at)
+        self._team_offset = 0.0
+        self._computed_at = -float("inf")
+
+    def team_offset(self, now: float) -> float:
+        """How far the team's clock is ahead of ``now`` (0 when it is not ahead): the lower median of the
+        recent senders' offsets and 0 (this receiver's own), recomputed at most every half second."""
+        if abs(now - self._computed_at) >= 0.5:
+            recent = [off for off, at in self._offsets.values() if 0.0 <= now - at <= OFFSET_MEMORY_S]
+            values = sorted([0.0, *recent])
+            self._team_offset = max(0.0, values[(len(values) - 1) // 2])
+            self._computed_at = now
+        return self._team_offset
+
+    def observe(self, sender: int, stamp: float, now: float) -> None:
+        """A verified packet from ``sender`` stamped ``stamp`` heard at ``now``: one voice for the team's
+        clock (the latest per sender)."""
+        self._offsets[sender] = (stamp - now, now)
+        self._offsets.move_to_end(sender)
+        while len(self._offsets) > self.streams:
+            self._offsets.popitem(last=False)
 
     def future(self, stamp: float, now: float) -> bool:
-        """Is ``stamp`` too far ahead of ``now``?"""
-        return stamp > now + self.future_s
+        """Is ``stamp`` too far ahead of the team's clock?"""
+        return stamp > now + self.team_offset(now) + self.future_s
 
     def check(self, sender: int, epoch: int, pseq: int, stamp: float, now: float, *,
-              replay: bool = True) -> str | None:
+              replay: bool = True, voice: bool = True) -> str | None:
         """None when the packet may be taken (and it is recorded as taken), else why not: "future" or
-        "replayed" (a packet number already taken, or older than the window)."""
+        "replayed" (a packet number already taken, or older than the window). Its stamp counts toward
+        the team's clock either way (unless not ``voice``: this receiver's own packets)."""
+        if voice:
+            self.observe(sender, stamp, now)
         if self.future(stamp, now):
             return "future"
         if not replay:

@@ -25,7 +25,8 @@ other *refuses to join*: it stops broadcasting, publishes no claims (:class:`~.m
 so in its log, its status (``refused``) and a "refused" event, and never comes back by itself (restart it
 with another id). The others keep the first one's row (the identity rule) and report the duplicate
 ("duplicate" event). With a key every packet must be signed; unsigned, forged, replayed packets and
-packets stamped more than 30 s ahead of this clock are dropped and counted (:class:`LinkStats`), as are
+packets stamped more than 30 s ahead of the team's clock (:class:`~.auth.ReplayGuard`: this clock, or
+the majority's when it is ahead) are dropped and counted (:class:`LinkStats`), as are
 rows and boards stamped that far ahead.
 
 The default period, 0.5 s, meets both targets of the bench (bench/bench_teamlink.py, 20 vehicles and a
@@ -176,7 +177,7 @@ class TeamLink:
             return
         now = self.clock()
         verdict = self._guard.check(pkt.sender, pkt.epoch, pkt.pseq, pkt.stamp, now,
-                                    replay=self.key is not None)
+                                    replay=self.key is not None, voice=pkt.sender != self.own_id)
         if verdict == "future":
             self._count_future("packet", pkt.sender, pkt.stamp, now)
             return

@@ -330,6 +330,8 @@ class TeamMember:
                     "done": sorted(self.done), "failed": dict(self.failed),
                     "cannot": {t: why for (t, _v), why in self._verdicts.items() if why},
                     "members": sorted(rows), "alive": sorted(self.state.alive()),
+                    "epochs": {str(m): f"{r.epoch:016x}" for m, r in sorted(rows.items())},
+                    "events": self.events[-20:],
                     "board": {"seq": self.state.board.seq,
                               "tasks": [{"id": t.id, "version": t.version, "kind": t.kind.value,
                                          "state": t.state.value} for t in self.state.board.tasks]},
