@@ -424,8 +424,9 @@ class Up:
             if self.tokens.get("observer"):
                 lines.append(f"observer token: {self.tokens['observer'][0]}")
             lines.append(f"tokens file: {self.tokens_path}")
-        lines.append(f"team link: {self.member_url}" + (f" (key {self.team_key_path})"
-                                                         if self.team_key_path is not None else ""))
+        lines.append(f"team link: {self.member_url}")
+        if self.team_key_path is not None:
+            lines.append(f"team key: {self.team_key_path}")
         lines.append(f"pids: fleet {self.fleet.pid}; companions "
                      + " ".join(str(c.pid) for c in self.companions())
                      + (f"; ground {g.pid}" if (g := self.ground()) is not None else ""))
