@@ -309,3 +309,20 @@ def test_echo_is_not_a_duplicate() -> None:
     finally:
         link.close()
 
+
+
+def test_the_ground_service_shows_a_duplicate_id_as_an_event(tmp_path: Path) -> None:
+    """The station's "duplicate" entry becomes a ground event whose text says "duplicate" (the alert)."""
+    from companion.team.link import LinkEvent
+    from companion.team.transport import MemoryBus
+    from groundstation.auth import Tokens
+    from groundstation.service import GroundService
+
+    svc = GroundService(str(tmp_path / "g.db"), Tokens({"operator": ["op-token-0123456789"]}),
+                        transport=MemoryBus().attach())
+    try:
+        svc.station._on_link(LinkEvent("duplicate", member=7))
+        (ev,) = svc.db.events(kind="duplicate_id")
+        assert ev["vehicle"] == 7 and ev["severity"] == "warning" and "duplicate member id 7" in ev["message"]
+    finally:
+        svc.close()
