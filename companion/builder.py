@@ -96,6 +96,9 @@ class CompanionConfig:
     team: str | None = None
     team_policy: str = "greedy"
     name: str = ""
+    #: the team key (``--team-key``; None: unauthenticated) and the member id (None: the system id)
+    team_key: bytes | None = None
+    team_id: int | None = None
     #: the control surface: port (0 any free; None off), host, bearer token (None: no authentication)
     control_port: int | None = 8765
     control_host: str = "127.0.0.1"
@@ -278,7 +281,8 @@ class Companion:
             if stop.wait(0.2):
                 return None
         c = self.config
-        member = join_team(missions, url, link.target_system, policy=c.team_policy, name=c.name)
+        member_id = c.team_id if c.team_id is not None else link.target_system
+        member = join_team(missions, url, member_id, policy=c.team_policy, name=c.name, key=c.team_key)
         log.info("team %s: member %d (%s), policy %s", url, member.id, member.name, c.team_policy)
         return member
 

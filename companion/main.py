@@ -91,6 +91,12 @@ def add_companion_arguments(parser: argparse.ArgumentParser) -> None:
                              "zenoh:tcp/ROUTER:7447 (through taskflight router), udp://239.255.70.1:14650"
                              "[?iface=ADDR] (raw multicast, for a radio), bcast://255.255.255.255:14650; "
                              "options ?loss=F&seed=S&range=M, zenoh: ?team=NAME")
+    parser.add_argument("--team-key", default=None, metavar="FILE",
+                        help="sign and check every team-link packet with this key file (default "
+                             "$TASKFLIGHT_TEAM_KEY; without one the link is unauthenticated)")
+    parser.add_argument("--team-id", type=int, default=None, metavar="N",
+                        help="the member id in the team, unique in it (1..4294967295; default the "
+                             "autopilot's MAVLink system id)")
     parser.add_argument("--team-policy", default="greedy", choices=("greedy", "cbba"),
                         help="task allocation policy (default greedy, seed 003 Sec. III-B)")
     parser.add_argument("--name", default="", help="the vehicle's name in the team (default uav<sysid>)")
@@ -131,6 +137,7 @@ def config_from_args(args: argparse.Namespace) -> CompanionConfig:
     from companion.flight.limits import load_flight_config_fields
     from companion.safety import SafetyConfig, load_safety_config
     from companion.sensing.scenario import Scenario
+    from companion.team.auth import team_key
     from companion.tst.platform import load_platform
     from companion.tst.spec import load_mission
 
@@ -151,6 +158,7 @@ def config_from_args(args: argparse.Namespace) -> CompanionConfig:
         scenario=Scenario.load(args.scenario) if args.scenario else None,
         mission=load_mission(args.mission) if args.mission else None, start_mission=args.start,
         team=args.team, team_policy=args.team_policy, name=args.name,
+        team_key=team_key(args.team_key) if args.team else None, team_id=args.team_id,
         flight_log=args.flight_log, run=args.run,
         control_port=args.control_port if args.control_port >= 0 else None,
         control_host=args.control_host, control_token=control_token(args),

@@ -27,6 +27,9 @@ def add_ground_arguments(parser: argparse.ArgumentParser) -> None:
                         help=f"the team link (default {DEFAULT_TEAM}; zenoh: on a LAN, zenoh:tcp/ROUTER:7447 "
                              "through taskflight router: the vehicles' status then comes over the bus, no "
                              "--companion needed; ?loss=F drops that fraction)")
+    parser.add_argument("--team-key", default=None, metavar="FILE",
+                        help="sign and check the team link with this key file (default $TASKFLIGHT_TEAM_KEY; "
+                             "without one the team-control station is unauthenticated)")
     parser.add_argument("--db", default="taskflight-ground.db", metavar="FILE",
                         help="the SQLite database (created if absent; restarted on it, nothing is lost)")
     parser.add_argument("--host", default="127.0.0.1", help="bind address (default 127.0.0.1)")
@@ -70,9 +73,11 @@ def run_ground(args: argparse.Namespace) -> int:
         if not 0.02 <= args.snapshot_period <= 1.0:
             raise ValueError("--snapshot-period: between 0.02 and 1 s")
         fence = load_fence(args.fence) if args.fence else None
+        from companion.team.auth import team_key
+
         service = GroundService(args.db, tokens, team_url=args.team, companions=companions,
                                 companion_token=args.companion_token or os.environ.get(TOKEN_ENV),
-                                fence=fence)
+                                fence=fence, team_key=team_key(args.team_key))
     except (ValueError, OSError) as exc:
         print(f"taskflight ground: error: {exc}", file=sys.stderr)
         return 2

@@ -23,6 +23,7 @@ from typing import Any
 import yaml
 from shapely.geometry import Polygon
 
+from companion.team.auth import warn_if_unauthenticated
 from companion.team.station import TeamControlStation
 from companion.team.tasks import Fence, TaskDef
 from companion.team.transport import Transport, open_transport
@@ -100,7 +101,8 @@ class GroundService:
     def __init__(self, db_path: str, tokens: Tokens, *, team_url: str | None = None,
                  transport: Transport | None = None, companions: dict[int, str] | None = None,
                  companion_token: str | None = None, station_period_s: float | None = None,
-                 poll_period_s: float = 0.5, fence: list[list[float]] | None = None) -> None:
+                 poll_period_s: float = 0.5, fence: list[list[float]] | None = None,
+                 team_key: bytes | None = None) -> None:
         self.db = Database(db_path)
         self.tokens = tokens
         self.hub = EventHub()
@@ -109,8 +111,9 @@ class GroundService:
             transport = open_transport(team_url or "udp://239.255.70.1:14600", member=0,
                                        position_of=lambda m: None)
         self.fence_points = [list(p[:2]) for p in fence] if fence else None
+        warn_if_unauthenticated(transport.url, team_key, "ground service")
         self.station = TeamControlStation(transport, period_s=station_period_s, name="ground",
-                                          fence=fence_of(fence) if fence else None)
+                                          fence=fence_of(fence) if fence else None, key=team_key)
         self.station.listeners.append(self._on_station)
         self.fleet = Fleet(self.station, self.client, self.emit, poll_period_s=poll_period_s)
         for v in self.db.vehicles():
@@ -168,6 +171,9 @@ class GroundService:
                       vehicle=entry["member"], data=entry)
         elif ev == "joined":
             self.emit("vehicle_joined", f"vehicle {entry['member']} joined the team", vehicle=entry["member"],
+                      data=entry)
+        elif ev in ("duplicate", "refused"):
+            self.emit("duplicate_id", entry["message"], severity="warning", vehicle=entry.get("member"),
                       data=entry)
         elif ev == "restored":
             self.emit("restored", f"task list restored: {entry['tasks']} tasks", data=entry)

@@ -112,7 +112,8 @@ def run_demo_team(args: argparse.Namespace) -> int:
         print(f"taskflight demo: starting {args.vehicles} vehicles (speedup {args.speedup:g})", flush=True)
         up.start(stop)
         print(up.summary(), flush=True)
-        tasking: Tasking = (StationTasking(up.member_url) if not ground
+        key = str(up.team_key_path) if up.team_key_path else None  # the fleet's team key
+        tasking: Tasking = (StationTasking(up.member_url, key) if not ground
                             else GroundTasking(up.ground_url or "", up.tokens["operator"][0]))
         try:
             progress = play(up, tasking, args, stop)

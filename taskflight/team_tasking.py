@@ -71,11 +71,13 @@ class Tasking(Protocol):
 class StationTasking:
     """An in-process :class:`~companion.team.station.TeamControlStation` on ``team_url``."""
 
-    def __init__(self, team_url: str) -> None:
+    def __init__(self, team_url: str, key_file: str | None = None) -> None:
+        from companion.team.auth import team_key
         from companion.team.station import TeamControlStation
         from companion.team.transport import open_transport
 
-        self.station = TeamControlStation(open_transport(team_url, member=0, position_of=lambda m: None))
+        self.station = TeamControlStation(open_transport(team_url, member=0, position_of=lambda m: None),
+                                          key=team_key(key_file))  # else $TASKFLIGHT_TEAM_KEY
         self.station.start()
 
     def add(self, kind: str, points: list[GeoPoint], name: str) -> list[int]:

@@ -1,12 +1,15 @@
 """``taskflight up``: a whole simulated fleet in one command (seed 003 Fig. 1).
 
     taskflight up --vehicles N [--speedup K] [--ground-port P] [--tokens FILE] [--team-loss F]
-                  [--team URL] [--state-dir DIR] [--base-instance I] [--no-ground]
+                  [--team URL] [--team-key FILE] [--first-sysid K] [--state-dir DIR] [--base-instance I]
+                  [--no-ground]
 
 starts, each as a child process in a process group of its own (:mod:`taskflight.children`):
 
 * the fleet: N bundled autopilot models in ONE process on one clock (:mod:`autopilot_model.fleet`).
-  Vehicle i (from 0) is instance I+i: MAVLink system id i+1, ArduPilot SITL's TCP port 5760+10(I+i) for
+  Vehicle i (from 0) is instance I+i: MAVLink system id K+i (``--first-sysid K``, default 1: several
+  hosts starting vehicles for one team give each its own block of ids), ArduPilot SITL's TCP port
+  5760+10(I+i) for
   any ground station (MAVProxy, QGroundControl: the lowest tier of seed 003 Fig. 1) and UDP 14550+10(I+i)
   for its companion. The default I = 0 gives the ports users expect (5760, 5770, ...); tests pick a free
   block with ``--base-instance``;
@@ -14,6 +17,9 @@ starts, each as a child process in a process group of its own (:mod:`taskflight.
   (a free multicast port of 239.255.70.1 unless ``--team``; ``--team-loss F`` appends ``?loss=F`` to the
   members' URL: that fraction of team packets is dropped at each member), each serving its control surface
   on a free loopback port with a generated control token (given in the environment, not the command line);
+  every team-link packet is signed with the team key (``--team-key FILE``, else ``$TASKFLIGHT_TEAM_KEY``,
+  else one generated for the fleet in ``<state-dir>/team.key``, mode 0600), passed to the companions and
+  the ground service as ``TASKFLIGHT_TEAM_KEY=<path>`` in their environment (never on a command line);
 * the ground service (``taskflight ground``, the team-control station and the operator's REST API),
   given every companion's URL and the control token; bearer tokens from ``--tokens FILE`` (YAML
   ``{operator: [..], observer: [..]}``) or generated (one each) and written to
@@ -124,6 +130,8 @@ class UpOptions:
     tokens_file: Path | None = None
     team: str | None = None
     team_loss: float = 0.0
+    team_key: Path | None = None
+    first_sysid: int = 1
     platform: Path = PLATFORM
     ready_timeout_s: float | None = None
     persist: bool = True
@@ -138,6 +146,9 @@ class UpOptions:
         if not 0 <= self.base_instance <= 255 - self.vehicles:
             raise UpError(f"instances {self.base_instance}..{self.base_instance + self.vehicles - 1} are "
                           "not all within 0..254", 2)
+        if not 1 <= self.first_sysid <= 256 - self.vehicles:
+            raise UpError(f"system ids {self.first_sysid}..{self.first_sysid + self.vehicles - 1} "
+                          "(--first-sysid) are not all within 1..255", 2)
         if not 0.0 <= self.team_loss < 1.0:
             raise UpError(f"--team-loss must be within 0..1, got {self.team_loss}", 2)
         if self.team is not None and "loss=" in self.team and self.team_loss:
@@ -157,9 +168,9 @@ class UpOptions:
         for i in range(self.vehicles):
             tcp, udp = model_ports(self.base_instance + i)
             if not port_free(socket.SOCK_STREAM, tcp, self.mavlink_host):
-                out.append(f"TCP {tcp} (vehicle {i}, sysid {i + 1})")
+                out.append(f"TCP {tcp} (vehicle {i}, sysid {self.first_sysid + i})")
             if not port_free(socket.SOCK_DGRAM, udp, self.mavlink_host):
-                out.append(f"UDP {udp} (vehicle {i}, sysid {i + 1})")
+                out.append(f"UDP {udp} (vehicle {i}, sysid {self.first_sysid + i})")
         if self.ground and not port_free(socket.SOCK_STREAM, self.ground_port, self.host):
             out.append(f"TCP {self.ground_port} (the ground service)")
         return out
@@ -188,6 +199,7 @@ class Up:
     team_url: str = ""
     member_url: str = ""
     tokens_path: Path | None = None
+    team_key_path: Path | None = None
     startup_s: float = float("nan")
     _stopped: threading.Event = field(default_factory=threading.Event)
 
@@ -236,6 +248,7 @@ class Up:
             self.tokens_path = o.state_dir / "tokens.yaml"
             if o.ground:
                 write_tokens(self.tokens_path, self.tokens)
+        self.team_key_path = self._team_key()
         self.control_token = new_token()
         self.team_url = o.team or free_team_url()
         self.member_url = self.team_url + (f"{'&' if '?' in self.team_url else '?'}loss={o.team_loss}"
@@ -252,6 +265,24 @@ class Up:
             raise
         self.startup_s = time.monotonic() - t0
         return self
+
+    def _team_key(self) -> Path:
+        """The fleet's team key file: given, named by the environment, or generated in the state dir."""
+        from companion.team.auth import generate_key_file, key_path, load_key
+
+        given = key_path(str(self.opts.team_key) if self.opts.team_key else None)
+        try:
+            if given:
+                load_key(given)
+                return Path(given).resolve()
+            return generate_key_file(self.opts.state_dir / "team.key").resolve()
+        except (ValueError, OSError) as exc:
+            raise UpError(f"--team-key: {exc}", 2) from None
+
+    def _key_env(self) -> dict[str, str]:
+        from companion.team.auth import ENV_KEY
+
+        return {ENV_KEY: str(self.team_key_path)} if self.team_key_path is not None else {}
 
     def _exe(self) -> list[str]:
         return [sys.executable, "-m", "taskflight.cli"]
@@ -271,7 +302,8 @@ class Up:
         o = self.opts
         logs = o.state_dir / "logs"
         argv = [sys.executable, "-m", "autopilot_model.fleet", "--vehicles", str(o.vehicles),
-                "--base-instance", str(o.base_instance), "--speedup", f"{o.speedup:g}",
+                "--base-instance", str(o.base_instance), "--first-sysid", str(o.first_sysid),
+                "--speedup", f"{o.speedup:g}",
                 "--state-dir", str(o.state_dir / "models"),
                 "--mavlink-template", f"tcpin:{o.mavlink_host}:{{tcp}}",
                 "--mavlink-template", f"udpin:{o.mavlink_host}:{{udp}}"]
@@ -291,7 +323,7 @@ class Up:
         ctl = free_ports(o.vehicles)
         for i in range(o.vehicles):
             tcp, udp = model_ports(o.base_instance + i)
-            self.vehicles.append(VehicleInfo(i, i + 1, o.base_instance + i, tcp, udp,
+            self.vehicles.append(VehicleInfo(i, o.first_sysid + i, o.base_instance + i, tcp, udp,
                                              f"http://127.0.0.1:{ctl[i]}"))
 
     def _pythonpath(self) -> dict[str, str]:
@@ -300,7 +332,7 @@ class Up:
 
     def _start_companions(self) -> None:
         o = self.opts
-        env = {**self._pythonpath(), TOKEN_ENV: self.control_token}
+        env = {**self._pythonpath(), **self._key_env(), TOKEN_ENV: self.control_token}
         for v in self.vehicles:
             port = v.control_url.rsplit(":", 1)[1]
             nice = ["nice", "-n", str(o.companion_nice)] if o.companion_nice else []
@@ -322,7 +354,7 @@ class Up:
         if fence is not None:
             argv += ["--fence", str(fence)]
         self.children.append(Child("ground", argv, o.state_dir / "logs" / "ground.log",
-                                   env=self._pythonpath(), cwd=ROOT).start())
+                                   env={**self._pythonpath(), **self._key_env()}, cwd=ROOT).start())
 
     def _wait_ready(self, stop: threading.Event | None) -> None:
         end = self._deadline()
@@ -393,6 +425,8 @@ class Up:
                 lines.append(f"observer token: {self.tokens['observer'][0]}")
             lines.append(f"tokens file: {self.tokens_path}")
         lines.append(f"team link: {self.member_url}")
+        if self.team_key_path is not None:
+            lines.append(f"team key: {self.team_key_path}")
         lines.append(f"pids: fleet {self.fleet.pid}; companions "
                      + " ".join(str(c.pid) for c in self.companions())
                      + (f"; ground {g.pid}" if (g := self.ground()) is not None else ""))
@@ -443,7 +477,7 @@ def add_up_arguments(p: argparse.ArgumentParser) -> None:
                    help="simulated seconds per wall second (default 1: real time; 0: as fast as possible)")
     p.add_argument("--base-instance", "-I", type=int, default=0,
                    help="instance of vehicle 0 (default 0): vehicle i serves MAVLink on TCP 5760+10(I+i) "
-                        "and UDP 14550+10(I+i); its system id stays i+1")
+                        "and UDP 14550+10(I+i); its system id stays K+i (--first-sysid)")
     p.add_argument("--ground-port", type=int, default=DEFAULT_GROUND_PORT,
                    help=f"the ground service's HTTP port (default {DEFAULT_GROUND_PORT})")
     p.add_argument("--host", default="127.0.0.1", help="the ground service's bind address (default loopback)")
@@ -455,6 +489,12 @@ def add_up_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--team", default=None, metavar="URL",
                    help=f"the team link (default udp://{TEAM_GROUP}:<a free port>; zenoh: on a LAN, "
                         "zenoh:tcp/ROUTER:7447 through taskflight router)")
+    p.add_argument("--team-key", default=None, metavar="FILE",
+                   help="sign the team link with this key file (default $TASKFLIGHT_TEAM_KEY, else one "
+                        "generated in <state-dir>/team.key, mode 0600)")
+    p.add_argument("--first-sysid", type=int, default=1, metavar="K",
+                   help="MAVLink system id (and team member id) of vehicle 0 (default 1): vehicles K, K+1, "
+                        "...; give each host its own block when several start vehicles for one team")
     p.add_argument("--team-loss", type=float, default=0.0, metavar="F",
                    help="drop this fraction of team-link packets at every member (a test of loss)")
     p.add_argument("--state-dir", default=None, metavar="DIR",
@@ -482,6 +522,7 @@ def options_from_args(args: argparse.Namespace) -> UpOptions:
                      ground_port=args.ground_port, host=args.host, mavlink_host=args.mavlink_host,
                      tokens_file=Path(args.tokens) if args.tokens else None, team=args.team,
                      team_loss=args.team_loss, ready_timeout_s=args.ready_timeout,
+                     team_key=Path(args.team_key) if args.team_key else None, first_sysid=args.first_sysid,
                      persist=not args.no_persist, platform=Path(args.platform),
                      companion_nice=args.companion_nice,
                      scenario=Path(args.scenario) if args.scenario else None)

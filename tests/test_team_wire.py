@@ -21,6 +21,7 @@ from companion.team.types import (
     TeamTask,
 )
 from companion.team.wire import (
+    HEADER_SIZE,
     KIND_BOARD,
     KIND_STATE,
     MAX_PACKET,
@@ -90,13 +91,12 @@ def test_board_round_trip_inline() -> None:
     assert pkt.board == board and pkt.rows == (row(0),)
 
 
-def test_twenty_members_and_nine_tasks_fit_under_1400_bytes() -> None:
+def test_twenty_members_and_nine_tasks_fit_two_packets_under_1400_bytes() -> None:
     rows = [row(m) for m in range(1, 21)]
     packets = encode_packets(1, rows, nine_task_board())
     assert all(len(p) <= MAX_PACKET for p in packets)
     assert len(packets) <= 2
-    first = decode_packet(packets[0])
-    assert first.rows == tuple(rows)
+    assert tuple(r for p in packets for r in decode_packet(p).rows) == tuple(rows)
     assembler = BoardAssembler()
     boards = [assembler.add(decode_packet(p).board_part) for p in packets if decode_packet(p).board_part]
     assert boards[-1] == nine_task_board()
@@ -133,7 +133,7 @@ def test_many_rows_split_over_state_packets() -> None:
 
 
 @pytest.mark.parametrize(("entry", "match"), [
-    (MemberEntry(member=300, stamp=0.0, seq=0), "member id"),
+    (MemberEntry(member=1 << 32, stamp=0.0, seq=0), "member id"),
     (MemberEntry(member=1, stamp=float("nan"), seq=0), "stamp"),
     (MemberEntry(member=1, stamp=0.0, seq=-1), "seq"),
     (MemberEntry(member=1, stamp=0.0, seq=0, position=(float("inf"), 0.0, 0.0)), "latitude"),
@@ -147,13 +147,13 @@ def test_unencodable_values_are_clear_errors(entry: MemberEntry, match: str) -> 
 def test_garbage_truncation_magic_version_crc() -> None:
     good = encode_packet(4, [row(4), row(5)], nine_task_board())
     with pytest.raises(WireError, match="truncated"):
-        decode_packet(b"TF\x01")
+        decode_packet(b"TF" + bytes([VERSION]))
     with pytest.raises(WireError, match="bad magic"):
         decode_packet(b"XX" + good[2:])
     with pytest.raises(WireError, match="bad CRC"):
         decode_packet(good[:-9] + good[-4:])
     flipped = bytearray(good)
-    flipped[20] ^= 0x40
+    flipped[40] ^= 0x40
     with pytest.raises(WireError, match="bad CRC"):
         decode_packet(bytes(flipped))
     foreign = bytearray(good)
@@ -167,13 +167,13 @@ def test_garbage_truncation_magic_version_crc() -> None:
 
 def _reframe(body: bytes, kind: int = KIND_STATE) -> bytes:
     """A packet with a valid header and CRC around ``body`` (reaches the parser past the CRC)."""
-    data = struct.pack("!2sBBB", b"TF", VERSION, kind, 9) + body
+    data = struct.pack("!2sBBBIQdI", b"TF", VERSION, kind, 0, 9, 1, 0.0, 0) + body
     return data + struct.pack("!I", zlib.crc32(data))
 
 
 def test_valid_crc_but_bad_contents() -> None:
     good = encode_packet(4, [row(4)])
-    body = good[5:-4]
+    body = good[HEADER_SIZE:-4]
     with pytest.raises(WireError, match="unknown packet kind"):
         decode_packet(_reframe(body, kind=9))
     with pytest.raises(WireError, match="truncated"):
@@ -181,7 +181,7 @@ def test_valid_crc_but_bad_contents() -> None:
     with pytest.raises(WireError, match="trailing"):
         decode_packet(_reframe(body + b"\x00"))
     bad_status = bytearray(body)
-    bad_status[1 + 31] = 99  # the status byte of the first row (after n_rows and 31 bytes)
+    bad_status[1 + 42] = 99  # the status byte of the first row (after n_rows and 42 bytes)
     with pytest.raises(WireError, match="status"):
         decode_packet(_reframe(bytes(bad_status)))
 
@@ -203,7 +203,7 @@ def test_fuzz_random_bytes_and_mutations_never_raise_anything_else() -> None:
         if i % 4 == 0:
             data = bytes(rng.getrandbits(8) for _ in range(rng.randrange(0, 300)))
             if i % 8 == 0:
-                data = b"TF\x01" + data
+                data = b"TF" + bytes([VERSION]) + data
         else:
             base = bytearray(rng.choice(seeds))
             for _ in range(rng.randrange(1, 6)):
@@ -218,7 +218,8 @@ def test_fuzz_random_bytes_and_mutations_never_raise_anything_else() -> None:
                     base += bytes(rng.getrandbits(8) for _ in range(rng.randrange(1, 20)))
             data = bytes(base)
             if i % 3 == 0:  # also reach the parser behind the CRC with mutated contents
-                data = _reframe(data[5:-4] if len(data) > 9 else data, kind=data[3] if len(data) > 3 else 1)
+                data = _reframe(data[HEADER_SIZE:-4] if len(data) > HEADER_SIZE + 4 else data,
+                                kind=data[3] if len(data) > 3 else 1)
         pkt = _check(data)
         if pkt is not None:
             decoded += 1

@@ -21,6 +21,8 @@ def add_control_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--team", required=True, metavar="URL",
                    help="the team link: zenoh: (a LAN), zenoh:tcp/ROUTER:7447 (through taskflight router) or "
                         "udp://239.255.70.1:14650[?iface=ADDR] (options ?loss=F&seed=S)")
+    p.add_argument("--team-key", default=None, metavar="FILE",
+                   help="sign and check the team link with this key file (default $TASKFLIGHT_TEAM_KEY)")
     p.add_argument("--tasks", default=None, metavar="FILE",
                    help="team task file (YAML, e.g. mission_specs/team_tasks.yaml); none: only listen")
     p.add_argument("--keep-n", action="store_true",
@@ -31,6 +33,7 @@ def add_control_arguments(p: argparse.ArgumentParser) -> None:
 
 def run_control(args: argparse.Namespace) -> int:
     # loaded when the command runs: the command line starts without shapely and the team layer
+    from companion.team.auth import team_key, warn_if_unauthenticated
     from companion.team.station import TeamControlStation
     from companion.team.taskfile import load_task_file
     from companion.team.transport import open_transport
@@ -39,11 +42,13 @@ def run_control(args: argparse.Namespace) -> int:
 
     try:
         script = load_task_file(args.tasks) if args.tasks else None
+        key = team_key(args.team_key)
         transport = open_transport(args.team, member=0, position_of=lambda m: None)
     except (ConfigError, ValueError, OSError) as exc:
         print(f"taskflight team control: error: {exc}", file=sys.stderr)
         return 2
-    station = TeamControlStation(transport, fence=script.fence if script else None)
+    warn_if_unauthenticated(transport.url, key, "team-control station")
+    station = TeamControlStation(transport, fence=script.fence if script else None, key=key)
     station.listeners.append(_printer())
     stop = stop_on_signals()
     pending = sorted(script.tasks, key=lambda s: s.at) if script else []

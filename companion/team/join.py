@@ -14,9 +14,11 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 from .allocation import make_policy
+from .auth import warn_if_unauthenticated
 from .cost import CostModel
 from .member import TeamMember
 from .transport import open_transport
+from .types import MEMBER_ID_MAX
 
 if TYPE_CHECKING:
     from companion.mission_service import MissionService
@@ -30,10 +32,13 @@ def cost_model_for(missions: MissionService) -> CostModel:
 
 
 def join_team(missions: MissionService, url: str, member_id: int, *, policy: str = "greedy", name: str = "",
-              period_s: float | None = None, voc_max: int | None = None) -> TeamMember:
-    """A started :class:`TeamMember` for ``missions``' vehicle on the team link ``url``."""
-    if not 1 <= member_id <= 254:
-        raise ValueError(f"member id {member_id}: a vehicle's id is its MAVLink system id, 1..254")
+              period_s: float | None = None, voc_max: int | None = None,
+              key: bytes | None = None) -> TeamMember:
+    """A started :class:`TeamMember` for ``missions``' vehicle on the team link ``url`` (signed with
+    ``key``, the team key of :mod:`.auth`, when given)."""
+    if not 1 <= member_id <= MEMBER_ID_MAX:
+        raise ValueError(f"member id {member_id}: outside 1..{MEMBER_ID_MAX} (by default a vehicle's "
+                         "MAVLink system id)")
     model = cost_model_for(missions)
     chosen = make_policy(policy, model)
     holder: dict[str, TeamMember] = {}
@@ -44,7 +49,8 @@ def join_team(missions: MissionService, url: str, member_id: int, *, policy: str
         return row.position if row is not None else None
 
     transport = open_transport(url, member=member_id, position_of=position_of)
+    warn_if_unauthenticated(transport.url, key, f"team member {member_id}")
     member = TeamMember(missions, transport, chosen, model.cost, member_id=member_id, name=name,
-                        period_s=period_s, voc_max=voc_max)
+                        period_s=period_s, voc_max=voc_max, key=key)
     holder["member"] = member
     return member.start()

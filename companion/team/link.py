@@ -14,7 +14,20 @@ along with its knowledge of its own state" (controlled flooding). :class:`TeamLi
   with every ``relay_board_every``-th broadcast and with the first one after they learned a newer
   board, so it spreads in about one period per hop while the bandwidth stays low.
 * :meth:`TeamLink.start` runs the steps in a daemon thread; ``listeners`` are told when a member is
-  gone, joins (new, or back from gone), or the board changes.
+  gone, joins (new, back from gone, or rebooted), the board changes, a duplicate id is heard, or this
+  link refuses to join.
+
+Identity and authentication (:mod:`.auth`, :mod:`.groupstate`). Each packet names its sender's id and
+boot epoch: a packet with this member's id and epoch is its own echo (multicast loopback); with this
+member's id and *another* epoch it comes from another process using the same id. Of two such members
+the one whose row has been published longer (the higher (seq, epoch) of its own row) keeps the id; the
+other *refuses to join*: it stops broadcasting, publishes no claims (:class:`~.member.TeamMember`), says
+so in its log, its status (``refused``) and a "refused" event, and never comes back by itself (restart it
+with another id). The others keep the first one's row (the identity rule) and report the duplicate
+("duplicate" event). With a key every packet must be signed; unsigned, forged, replayed packets and
+packets stamped more than 30 s ahead of the team's clock (:class:`~.auth.ReplayGuard`: this clock, or
+the majority's when it is ahead) are dropped and counted (:class:`LinkStats`), as are
+rows and boards stamped that far ahead.
 
 The default period, 0.5 s, meets both targets of the bench (bench/bench_teamlink.py, 20 vehicles and a
 station, 20 % loss) with margin: p95 age of each member's view of every other 0.5 s on a full mesh and
@@ -33,13 +46,18 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
+from companion.team.auth import FUTURE_WINDOW_S, ReplayGuard
 from companion.team.groupstate import GroupState
 from companion.team.transport import Transport
 from companion.team.types import STATION_ID, MemberEntry, TaskBoard
 from companion.team.wire import (
     MAX_PACKET,
+    BadSignatureError,
     BoardAssembler,
     ForeignVersionError,
+    Packet,
+    UnsignedError,
+    UnverifiableError,
     WireError,
     decode_packet,
     encode_packets,
@@ -61,6 +79,13 @@ class LinkStats:
     garbage: int = 0              #: undecodable packets (bad magic, CRC, truncation ...)
     foreign_version: int = 0      #: team-link packets of another format version
     own_echoes: int = 0           #: own packets heard back (multicast loopback), ignored
+    unsigned: int = 0             #: unsigned packets dropped (a key is configured)
+    bad_signature: int = 0        #: signed packets whose signature did not match (forged or modified)
+    unverifiable: int = 0         #: signed packets dropped because this link has no key
+    replayed: int = 0             #: packets whose number was already taken (or too old) for their sender
+    future: int = 0               #: packets, rows or boards stamped too far ahead of this clock
+    duplicates: int = 0           #: packets from another process with this link's id (another epoch)
+    other_epoch: int = 0          #: rows of another epoch refused because the held one is alive
     rows_replaced: int = 0        #: rows taken because newer (or new)
     vocs_raised: int = 0
     boards_taken: int = 0
@@ -72,24 +97,36 @@ class LinkStats:
     max_packet: int = 0
 
 
+def link_drops(link: TeamLink) -> dict[str, int]:
+    """The counters of what a link dropped for identity, authentication and time (for status reports)."""
+    st = link.stats
+    return {"own_echoes": st.own_echoes, "unsigned": st.unsigned, "bad_signature": st.bad_signature,
+            "unverifiable": st.unverifiable, "replayed": st.replayed, "future": st.future,
+            "duplicates": st.duplicates, "other_epoch": st.other_epoch}
+
+
 @dataclass(frozen=True)
 class LinkEvent:
-    """What a listener is told: ``kind`` is "gone", "joined" (with ``member``) or "board"."""
+    """What a listener is told: ``kind`` is "gone", "joined", "duplicate" (with ``member``), "board", or
+    "refused" (this link refuses to join: ``reason``)."""
 
     kind: str
     member: int | None = None
     board: TaskBoard | None = None
+    reason: str = ""
 
 
 class TeamLink:
     """One member's team link (module doc). ``own`` returns the own row's content (position, velocity,
     status, task, claims, name; member, stamp, seq and voc are set here), or None to leave the row
     as it is; without ``own`` the current own row (set by the caller with ``state.refresh_own``) is
-    re-stamped every period so it stays fresh."""
+    re-stamped every period so it stays fresh. ``key``: the team key (:mod:`.auth`; None: unsigned
+    packets, and signed ones are dropped). ``future_s``: how far ahead of ``clock`` a stamp may be."""
 
     def __init__(self, state: GroupState, transport: Transport, *, period_s: float = DEFAULT_PERIOD_S,
                  clock: Callable[[], float] = time.time, own: Callable[[], MemberEntry | None] | None = None,
-                 relay_board_every: int = 4, max_packet: int = MAX_PACKET) -> None:
+                 relay_board_every: int = 4, max_packet: int = MAX_PACKET, key: bytes | None = None,
+                 future_s: float = FUTURE_WINDOW_S) -> None:
         if not period_s > 0:
             raise ValueError(f"TeamLink: period_s {period_s!r} must be positive")
         if relay_board_every < 1:
@@ -98,6 +135,13 @@ class TeamLink:
         self.period_s, self.clock, self._own_fn = period_s, clock, own
         self.relay_board_every, self.max_packet = relay_board_every, max_packet
         self.stats = LinkStats()
+        self.key = key
+        self.future_s = future_s
+        self.refused: str | None = None   #: why this link refuses to join (a duplicate id); None: it joins
+        self._guard = ReplayGuard(future_s=future_s)
+        self._pseq = 0
+        self._reported: set[tuple[int, int]] = set()   # (member, epoch) duplicates already reported
+        self._warned: set[str] = set()
         self.listeners: list[Callable[[LinkEvent], None]] = []
         self._assembler = BoardAssembler()
         self._last_send: float | None = None
@@ -110,46 +154,138 @@ class TeamLink:
     def own_id(self) -> int:
         return self.state.own_id
 
+    @property
+    def epoch(self) -> int:
+        return self.state.epoch
+
     # ------------------------------------------------------------------------------------- receiving
 
     def handle(self, data: bytes) -> None:
-        """Take one received datagram (counted; garbage and foreign versions never raise)."""
+        """Take one received datagram (counted; garbage, foreign versions, unsigned, forged, replayed and
+        future packets never raise)."""
+        events: list[LinkEvent] = []
         with self._step_lock:
-            self.stats.packets_received += 1
-            self.stats.bytes_received += len(data)
-            try:
-                pkt = decode_packet(data)
-            except ForeignVersionError:
-                self.stats.foreign_version += 1
-                return
-            except WireError as exc:
-                self.stats.garbage += 1
-                log.debug("member %d: garbage packet dropped: %s", self.own_id, exc)
-                return
-            if pkt.sender == self.own_id:
-                self.stats.own_echoes += 1
-                return
-            events: list[LinkEvent] = []
-            if pkt.rows:
-                res = self.state.merge(pkt.rows, sender=pkt.sender)
-                self.stats.rows_replaced += res.replaced
-                self.stats.vocs_raised += res.raised
-                events += [LinkEvent("joined", member=m) for m in res.joined]
-            part = pkt.board_part
-            if part is not None:
-                held = self.state.board
-                if (part.stamp, part.seq) > (held.stamp, held.seq):
-                    try:
-                        board = self._assembler.add(part)
-                    except WireError as exc:
-                        self.stats.garbage += 1
-                        log.debug("member %d: bad board dropped: %s", self.own_id, exc)
-                        board = None
-                    if board is not None and self.state.merge_board(board):
-                        self.stats.boards_taken += 1
-                        self._board_news = True
-                        events.append(LinkEvent("board", board=board))
+            self._handle(data, events)
         self._notify(events)
+
+    def _handle(self, data: bytes, events: list[LinkEvent]) -> None:
+        """:meth:`handle` under the step lock; what listeners must be told goes into ``events``."""
+        self.stats.packets_received += 1
+        self.stats.bytes_received += len(data)
+        pkt = self._decode(data)
+        if pkt is None:
+            return
+        now = self.clock()
+        verdict = self._guard.check(pkt.sender, pkt.epoch, pkt.pseq, pkt.stamp, now,
+                                    replay=self.key is not None, voice=pkt.sender != self.own_id)
+        if verdict == "future":
+            self._count_future("packet", pkt.sender, pkt.stamp, now)
+            return
+        if verdict == "replayed":
+            self.stats.replayed += 1
+            log.debug("member %d: replayed packet from %d dropped", self.own_id, pkt.sender)
+            return
+        if pkt.sender == self.own_id:
+            if pkt.epoch == self.epoch:
+                self.stats.own_echoes += 1
+            else:
+                events.extend(self._duplicate_of_self(pkt))
+            return
+        if pkt.rows:
+            rows = []
+            for r in pkt.rows:
+                if self._guard.future(r.stamp, now):
+                    self._count_future("row", r.member, r.stamp, now)
+                else:
+                    rows.append(r)
+            self._watch_duplicates(pkt, events)
+            res = self.state.merge(rows, sender=pkt.sender)
+            self.stats.rows_replaced += res.replaced
+            self.stats.vocs_raised += res.raised
+            self.stats.other_epoch += len(res.other_epoch)
+            events += [LinkEvent("joined", member=m) for m in res.joined]
+        part = pkt.board_part
+        if part is not None:
+            if self._guard.future(part.stamp, now):
+                self._count_future("board", STATION_ID, part.stamp, now)
+            elif self.own_id != STATION_ID and self.state.board_acceptable(part.epoch, part.seq):
+                try:
+                    board = self._assembler.add(part)
+                except WireError as exc:
+                    self.stats.garbage += 1
+                    log.debug("member %d: bad board dropped: %s", self.own_id, exc)
+                    board = None
+                if board is not None and self.state.merge_board(board):
+                    self.stats.boards_taken += 1
+                    self._board_news = True
+                    events.append(LinkEvent("board", board=board))
+
+    def _decode(self, data: bytes) -> Packet | None:
+        try:
+            return decode_packet(data, key=self.key)
+        except ForeignVersionError:
+            self.stats.foreign_version += 1
+        except UnsignedError:
+            self.stats.unsigned += 1
+            self._warn_once("unsigned", "unsigned team-link packets heard and dropped (this link has a key)")
+        except BadSignatureError:
+            self.stats.bad_signature += 1
+            self._warn_once("forged", "team-link packets with a bad signature heard and dropped (forged, "
+                                      "modified or another key)")
+        except UnverifiableError:
+            self.stats.unverifiable += 1
+            self._warn_once("unverifiable", "signed team-link packets heard and dropped: this link has no "
+                                            "key (give --team-key FILE)")
+        except WireError as exc:
+            self.stats.garbage += 1
+            log.debug("member %d: garbage packet dropped: %s", self.own_id, exc)
+        return None
+
+    def _warn_once(self, what: str, text: str) -> None:
+        if what not in self._warned:
+            self._warned.add(what)
+            log.warning("member %d: %s", self.own_id, text)
+
+    def _count_future(self, what: str, member: int, stamp: float, now: float) -> None:
+        self.stats.future += 1
+        self._warn_once(f"future-{what}", f"a {what} of member {member} stamped {stamp - now:.0f} s ahead of "
+                                          f"this clock dropped (more than {self.future_s:.0f} s: a clock "
+                                          "far ahead, or a forgery)")
+
+    def _duplicate_of_self(self, pkt: Packet) -> list[LinkEvent]:
+        """A packet with this link's id from another epoch: another process uses the id. The one whose row
+        was published longer keeps it; this link refuses if it is the other one."""
+        self.stats.duplicates += 1
+        if self.refused is not None:
+            return []
+        theirs = next((r for r in pkt.rows if r.member == pkt.sender and r.epoch == pkt.epoch), None)
+        if theirs is None:
+            return []  # a board packet: wait for its row
+        mine = self.state.own()
+        if mine is not None and (mine.seq, self.epoch) > (theirs.seq, pkt.epoch):
+            if (pkt.sender, pkt.epoch) not in self._reported:
+                self._reported.add((pkt.sender, pkt.epoch))
+                log.error("member %d: duplicate id %d: another member (epoch %016x) uses this id; it started "
+                          "later and should refuse to join", self.own_id, self.own_id, pkt.epoch)
+                return [LinkEvent("duplicate", member=pkt.sender)]
+            return []
+        self.refused = (f"duplicate id {self.own_id}: another member (epoch {pkt.epoch:016x}, "
+                        f"{theirs.name!r}) has used this id longer; give this vehicle another id")
+        log.error("member %d: refuses to join the team: %s", self.own_id, self.refused)
+        return [LinkEvent("refused", member=self.own_id, reason=self.refused)]
+
+    def _watch_duplicates(self, pkt: Packet, events: list[LinkEvent]) -> None:
+        """A packet from a member whose held row (of another epoch) is alive and fresh: two processes use
+        one id; reported once per (member, epoch)."""
+        held = self.state.get(pkt.sender)
+        if held is None or held.epoch == pkt.epoch or self.state.stale(pkt.sender):
+            return
+        if (pkt.sender, pkt.epoch) in self._reported:
+            return
+        self._reported.add((pkt.sender, pkt.epoch))
+        log.warning("member %d: duplicate id %d: heard from epoch %016x while epoch %016x is alive; keeping "
+                    "the first", self.own_id, pkt.sender, pkt.epoch, held.epoch)
+        events.append(LinkEvent("duplicate", member=pkt.sender))
 
     def _notify(self, events: list[LinkEvent]) -> None:
         for ev in events:
@@ -173,9 +309,11 @@ class TeamLink:
             if self._last_send is not None and now - self._last_send < self.period_s:
                 return False
             self._last_send = now
-            self._refresh_own(now)
+            if self.refused is None:
+                self._refresh_own(now)
             gone = self.state.tick()
-            self._broadcast(now)
+            if self.refused is None:
+                self._broadcast(now)
         self._notify([LinkEvent("gone", member=m) for m in gone])
         return True
 
@@ -184,6 +322,8 @@ class TeamLink:
         and then broadcasts its selection"); the vocs are not aged (that is the periodic step's job)."""
         now = self.clock() if now is None else now
         with self._step_lock:
+            if self.refused is not None:
+                return
             self._refresh_own(now)
             self._broadcast(now)
         self.stats.announcements += 1
@@ -199,7 +339,7 @@ class TeamLink:
         else:
             return
         seq = cur.seq + 1 if cur is not None else max(content.seq, 0)
-        stamp = max(now, cur.stamp) if cur is not None else now
+        stamp = now  # shown, never ordered on: (epoch, seq) orders rows
         self.state.refresh_own(dataclasses.replace(content, member=self.own_id, stamp=stamp, seq=seq))
 
     def _broadcast(self, now: float) -> None:
@@ -207,16 +347,18 @@ class TeamLink:
         if not rows:
             return
         board = self.state.board
-        send_board = bool(board.tasks) or board.seq > 0 or board.stamp > 0
+        send_board = bool(board.tasks) or board.seq > 0 or board.stamp > 0 or board.epoch != 0
         if send_board and self.own_id != STATION_ID:
             send_board = self._board_news or self.stats.broadcasts % self.relay_board_every == 0
         try:
             packets = encode_packets(self.own_id, rows, board if send_board else None,
-                                     max_size=self.max_packet)
+                                     max_size=self.max_packet, epoch=self.epoch, stamp=now,
+                                     pseq=self._pseq, key=self.key)
         except WireError as exc:
             log.error("member %d: group state not encodable, not sent: %s", self.own_id, exc)
             self.stats.send_errors += 1
             return
+        self._pseq = (self._pseq + len(packets)) & 0xFFFFFFFF
         if send_board:
             self._board_news = False
         self.stats.broadcasts += 1

@@ -20,6 +20,10 @@ resolved"). A task whose tree succeeded is reported DONE in the row until the bo
 whose tree failed (rejected by delegation, or failed in flight) is reported FAILED and not claimed again by
 this vehicle for :data:`~companion.team.decision.RETRY_FAILED_S`. A vehicle bids only once it is
 localized (seed 001's SELF_LOCALIZE active: ArduCopter's EKF takes tens of seconds after boot).
+
+Identity: a member whose link refuses to join (another member has used its id longer:
+:mod:`companion.team.link`) publishes no claims and flies no team task; its report says
+``team: refused: duplicate id N ...`` and its events a "refused" one.
 """
 
 from __future__ import annotations
@@ -36,7 +40,7 @@ from companion.tst.status import ExecutionRequestError
 
 from .decision import Choice, DecisionStep
 from .groupstate import GroupState
-from .link import DEFAULT_PERIOD_S, TeamLink
+from .link import DEFAULT_PERIOD_S, TeamLink, link_drops
 from .switchboard import Controller, Switchboard
 from .task_tst import mission_for
 from .types import Claim, GeoPoint, MemberEntry, MemberStatus, TaskState, TeamTask
@@ -57,12 +61,13 @@ class TeamMember:
     def __init__(self, missions: MissionService, transport: Transport, policy: AllocationPolicy,
                  cost: Callable[[GeoPoint, TeamTask], float], *, member_id: int, name: str = "",
                  period_s: float | None = None, decide_period_s: float = 0.25, settle_s: float | None = None,
-                 voc_max: int | None = None, clock: Callable[[], float] = time.time) -> None:
+                 voc_max: int | None = None, clock: Callable[[], float] = time.time,
+                 key: bytes | None = None) -> None:
         self.missions = missions
         self.node = missions.node
         self.state = GroupState(member_id, **({} if voc_max is None else {"voc_max": voc_max}))
         self.link = TeamLink(self.state, transport, period_s=period_s or DEFAULT_PERIOD_S, clock=clock,
-                             own=self.own_row)
+                             own=self.own_row, key=key)
         link = self.link
         self.policy = policy
         self.cost = cost
@@ -116,8 +121,13 @@ class TeamMember:
                 log.exception("team member %d: decision step failed", self.id)
 
     def _on_link(self, event: Any) -> None:
-        """A new board or a member gone: decide now, not at the next decision period."""
-        if event.kind in ("board", "gone"):
+        """A new board or a member gone: decide now, not at the next decision period. A refusal to join
+        (a duplicate id) or a duplicate heard is an event."""
+        if event.kind == "refused":
+            self._event("refused", reason=f"refused to join the team: {event.reason}")
+        elif event.kind == "duplicate":
+            self._event("duplicate", reason=f"duplicate id {event.member} heard from another member")
+        if event.kind in ("board", "gone", "refused"):
             self._wake.set()
 
     # --- the interface hierarchy (process monitor tier) ----------------------------------------------------
@@ -179,6 +189,8 @@ class TeamMember:
 
     # --- one decision (seed 003 Sec. III-B) -----------------------------------------------------------------
     def step(self, now: float) -> None:
+        if self._refused():
+            return
         s = self.node.vehicle_status()
         with self._lock:
             self._observe(s)
@@ -198,6 +210,16 @@ class TeamMember:
             flying = held.id if held is not None and self.switchboard.controller is Controller.TEAM else None
             choice = self.decision.step(now, self.position, board, rows, self.own_row, flying)
             self._switch(choice, s.on_ground)
+
+    def _refused(self) -> bool:
+        """Refused to join (a duplicate id): no claims, no team task flown."""
+        if self.link.refused is None:
+            return False
+        with self._lock:
+            self.decision.clear()
+            if self.switchboard.controller is Controller.TEAM:
+                self.switchboard.loiter()
+        return True
 
     def _observe(self, s: VehicleStatus) -> None:
         if s.global_position is not None:
@@ -296,7 +318,10 @@ class TeamMember:
         """For the control surface: status, claims, switchboard, what the link knows."""
         with self._lock:
             rows = self.state.entries()
+            refused = self.link.refused
             return {"member": self.id, "name": self.name, "status": self.status.name.lower(),
+                    "team": f"refused: {refused}" if refused is not None else "joined",
+                    "epoch": f"{self.link.epoch:016x}", "authenticated": self.link.key is not None,
                     "taken_reason": self.taken_reason,
                     "controller": self.switchboard.controller.value,
                     "task": self.switchboard.task.id if self.switchboard.task is not None else None,
@@ -305,6 +330,8 @@ class TeamMember:
                     "done": sorted(self.done), "failed": dict(self.failed),
                     "cannot": {t: why for (t, _v), why in self._verdicts.items() if why},
                     "members": sorted(rows), "alive": sorted(self.state.alive()),
+                    "epochs": {str(m): f"{r.epoch:016x}" for m, r in sorted(rows.items())},
+                    "events": self.events[-20:],
                     "board": {"seq": self.state.board.seq,
                               "tasks": [{"id": t.id, "version": t.version, "kind": t.kind.value,
                                          "state": t.state.value} for t in self.state.board.tasks]},
@@ -314,7 +341,8 @@ class TeamMember:
                              "packets_received": self.link.stats.packets_received,
                              "garbage": self.link.stats.garbage,
                              "foreign_version": self.link.stats.foreign_version,
-                             "dropped_by_test_loss": getattr(self.link.transport, "dropped_loss", 0)}}
+                             "dropped_by_test_loss": getattr(self.link.transport, "dropped_loss", 0),
+                             **link_drops(self.link)}}
 
 
 __all__ = ["TaskState", "TeamMember"]

@@ -80,14 +80,15 @@ class TeamControlStation:
 
     def __init__(self, transport: Transport, *, fence: Fence | None = None, period_s: float | None = None,
                  clock: Callable[[], float] = time.time, voc_max: int | None = None, name: str = "station",
-                 first_id: int = 101, position: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> None:
+                 first_id: int = 101, position: tuple[float, float, float] = (0.0, 0.0, 0.0),
+                 key: bytes | None = None) -> None:
         self.clock = clock
         self.name = name
         self.position = position
         self.ledger = TaskLedger(fence, first_id=first_id)
         self.state = GroupState(STATION_ID, **({} if voc_max is None else {"voc_max": voc_max}))
         self.link = TeamLink(self.state, transport, period_s=period_s or DEFAULT_PERIOD_S, clock=clock,
-                             own=self._own_row)
+                             own=self._own_row, key=key)
         self.link.listeners.append(self._on_link)
         self.log = StationLog()
         self.listeners: list[Callable[[dict[str, Any]], None]] = []
@@ -209,12 +210,19 @@ class TeamControlStation:
 
     def _publish(self) -> None:
         board = self.ledger.board(self.clock())
-        if board.newer_than(self.state.board):
+        held = self.state.board
+        if held.epoch != self.state.epoch or board.seq > held.seq:
             self.state.set_board(board)
 
     def _on_link(self, ev: LinkEvent) -> None:
         if ev.kind in ("gone", "joined"):
             self._record(ev.kind, member=ev.member)
+        elif ev.kind == "duplicate":
+            self._record("duplicate", member=ev.member,
+                         message=f"duplicate member id {ev.member}: two members use it; the first keeps its "
+                                 "row, the second should refuse to join (give it another id)")
+        elif ev.kind == "refused":
+            self._record("refused", member=ev.member, message=f"this station refuses to join: {ev.reason}")
 
     def _record(self, event: str, **fields: Any) -> None:
         entry = {"t": round(self.clock(), 3), "event": event, **fields}

@@ -37,7 +37,7 @@ from typing import ClassVar
 from urllib.parse import parse_qsl, urlsplit
 
 from companion.team.types import GeoPoint
-from companion.team.wire import MAGIC
+from companion.team.wire import peek_sender
 
 log = logging.getLogger(__name__)
 
@@ -270,9 +270,7 @@ def distance_m(a: GeoPoint, b: GeoPoint) -> float:
 
 def _sender_of(data: bytes) -> int | None:
     """The sender id in a team-link packet's header (None if it does not look like one)."""
-    if len(data) >= 5 and data[:2] == MAGIC:
-        return data[4]
-    return None
+    return peek_sender(data)
 
 
 class LossyTransport(Transport):

@@ -22,8 +22,10 @@ from enum import IntEnum, StrEnum
 #: a position: (latitude deg, longitude deg, altitude m above the team datum)
 GeoPoint = tuple[float, float, float]
 
-#: member id of the team-control station (vehicles use their MAVLink system id, 1..254)
+#: member id of the team-control station (vehicles use their MAVLink system id by default; ids are 32-bit)
 STATION_ID = 0
+#: the largest member id the wire format carries
+MEMBER_ID_MAX = 0xFFFFFFFF
 
 
 class MemberStatus(IntEnum):
@@ -65,8 +67,12 @@ class Claim:
 class MemberEntry:
     """One row of the group state (seed 003 Sec. III-A).
 
-    ``stamp`` and ``seq`` order refreshes (a received row replaces the local one only if it is newer by
-    (stamp, seq)); ``voc`` is the vote of confidence, a small integer that ages every sample interval
+    ``epoch`` (the owner's boot epoch) and ``seq`` order refreshes: within one epoch a received row
+    replaces the local one only if its ``seq`` is higher; a row of another epoch (a reboot, or another
+    vehicle with the same id) replaces it only under the identity rule of
+    :class:`~companion.team.groupstate.GroupState`. ``stamp`` is the owner's clock at the refresh, shown
+    and checked against a future window, never used to order rows (a companion's clock may be far behind
+    after a reboot). ``voc`` is the vote of confidence, a small integer that ages every sample interval
     the owner has not refreshed the row, raised only by the owner or by a member reporting a higher voc
     for it; zero means gone. ``task`` is the task being flown (0: none). ``claims`` is the member's
     bundle in order (one claim under the greedy policy, several under CBBA).
@@ -82,10 +88,12 @@ class MemberEntry:
     claims: tuple[Claim, ...] = ()
     voc: int = 0
     name: str = ""
+    epoch: int = 0
 
     def newer_than(self, other: MemberEntry) -> bool:
-        """Seed 003 Sec. III-A: the time stamp gives the origin, the sequence number the resolution."""
-        return (self.stamp, self.seq) > (other.stamp, other.seq)
+        """Seed 003 Sec. III-A orders rows by time stamp and sequence number; here the boot epoch gives the
+        origin (no host clock) and the sequence number the resolution: newer only within one epoch."""
+        return self.epoch == other.epoch and self.seq > other.seq
 
 
 class TaskKind(StrEnum):
@@ -140,15 +148,22 @@ class TeamTask:
 
 @dataclass(frozen=True)
 class TaskBoard:
-    """The task list, written only by the team-control station and flooded like a row: newer by
-    (stamp, seq) replaces older."""
+    """The task list, written only by the team-control station and flooded like a row: it carries the
+    station's boot ``epoch`` and its version ``seq``; within one epoch a higher ``seq`` replaces a lower
+    one, a board of another epoch replaces it once the group state has taken that epoch's station row
+    (:meth:`~companion.team.groupstate.GroupState.merge_board`). ``stamp`` is shown, never ordered on."""
 
     stamp: float = 0.0
     seq: int = 0
     tasks: tuple[TeamTask, ...] = field(default_factory=tuple)
+    epoch: int = 0
 
     def newer_than(self, other: TaskBoard) -> bool:
-        return (self.stamp, self.seq) > (other.stamp, other.seq)
+        """Within one epoch: a higher version. The empty initial board (epoch 0, version 0) is older than
+        any board of an epoch."""
+        if self.epoch == other.epoch:
+            return self.seq > other.seq
+        return other.epoch == 0 and other.seq == 0 and not other.tasks
 
     def get(self, task_id: int) -> TeamTask | None:
         for t in self.tasks:

@@ -7,23 +7,27 @@ its vote of confidence) and, optionally, a part of the task board (:class:`~comp
 
 Layout (all integers big-endian, ``struct``)::
 
-    header   magic b"TF" | version u8 (=1) | kind u8 | sender u8
+    header   magic b"TF" | version u8 (=2) | kind u8 | flags u8 (bit 0: signed) | sender u32
+             | epoch u64 (the sender's boot epoch) | stamp f64 (the sender's clock, s) | pseq u32 (the
+             sender's packet number in its epoch)
     body     kind STATE (1): n_rows u8, n_rows x row, has_board u8, [board part]
              kind BOARD (2): board part
-    trailer  crc32 u32 of everything before it
+    trailer  unsigned: crc32 u32 of everything before it
+             signed: the first 16 bytes of HMAC-SHA256(key, everything before it) (:mod:`.auth`)
 
-    row      member u8 | stamp f64 | seq u32 | lat i32 (1e-7 deg) | lon i32 (1e-7 deg) | alt i32 (cm)
-             | vn ve vd i16 (cm/s, clamped to +-327 m/s) | status u8 | task u32 | voc u8
+    row      member u32 | epoch u64 | stamp f64 | seq u32 | lat i32 (1e-7 deg) | lon i32 (1e-7 deg)
+             | alt i32 (cm) | vn ve vd i16 (cm/s, clamped to +-327 m/s) | status u8 | task u32 | voc u8
              | name (u8 length + <= 16 bytes utf-8) | n_claims u8, n_claims x (task u32, version u16,
              cost f64, state u8)
-    board    stamp f64 | seq u32 | body crc32 u32 | part index u8 | part count u8 | chunk length u16
-             | chunk (a slice of the zlib-compressed board body)
+    board    epoch u64 (the station's) | stamp f64 | seq u32 (the board's version) | body crc32 u32
+             | part index u8 | part count u8 | chunk length u16 | chunk (a slice of the zlib-compressed
+             board body)
     body     n_tasks u16, n_tasks x (id u32, version u16, kind u8, state u8, group u32, group_size u16,
              altitude f64, speed f64, name (u8 length + <= 16 bytes), n_points u16, n_points x (lat i32,
              lon i32, alt i32 cm), tst (u32 length, 0xFFFFFFFF for none, + utf-8 text))
 
-A row is 39 bytes plus its name and 15 bytes a claim: 20 members with one claim and an 8-byte name
-take 1251 bytes (one packet); a board of nine tasks of one to six points compresses to about 170
+A row is 50 bytes plus its name and 15 bytes a claim: 20 members with one claim and an 8-byte name
+take 1460 bytes (two packets); a board of nine tasks of one to six points compresses to about 170
 bytes. The board (its whole body zlib-compressed, TST JSON included) travels inline in the last STATE
 packet when it fits there in one part; otherwise :func:`encode_packets` cuts the compressed body into
 chunks sent as BOARD packets (up to 255 parts), each naming the board's (stamp, seq) and the body's
@@ -32,17 +36,28 @@ same body. Rows beyond one packet's room go into further STATE packets (rows are
 packet is at most ``max_size`` bytes (:data:`MAX_PACKET`, 1400: one Ethernet frame with room for the
 IP and UDP headers).
 
+Version 2 (identity, time that survives reboots, authentication): member ids are 32-bit; every row and
+every board carries its writer's boot epoch (a random 64-bit number drawn when the link starts: a
+companion needs no persistent storage for it, and two boots of one vehicle, or two vehicles with one id,
+draw the same epoch with a probability of 2^-64), so freshness is (epoch, seq), never a host clock
+(:mod:`.groupstate`); the header says who sent the packet, in which epoch, when by its clock and with
+which packet number, and with a team key (:mod:`.auth`) the packet is signed as MAVLink 2 signing does
+(HMAC-SHA256 over the whole packet, a time stamp and a per-sender replay window, checked by
+:class:`~.auth.ReplayGuard`). Version 1 packets are foreign (counted, never taken).
+
 Names longer than 16 bytes are cut at a character boundary; positions are rounded to 1e-7 deg and 1 cm,
 velocities to 1 cm/s. Costs are float64: members compare each other's bids in a conflict (seed 003
 Sec. III-B), and a float32 bid would differ from the bidder's own value, so two bidders could each
 think the other cheaper. :func:`decode_packet` raises :class:`WireError` (a ``ValueError``) for any
 input it cannot take: garbage, truncation, a bad magic, a bad CRC, a foreign version
-(:class:`ForeignVersionError`), an unknown kind, status or task kind, bad utf-8; never another
-exception.
+(:class:`ForeignVersionError`), an unknown kind, status or task kind, bad utf-8, and with a key an
+unsigned packet (:class:`UnsignedError`) or a bad signature (:class:`BadSignatureError`); without a key a
+signed packet (:class:`UnverifiableError`); never another exception.
 """
 
 from __future__ import annotations
 
+import hmac
 import math
 import struct
 import zlib
@@ -50,6 +65,7 @@ from collections import OrderedDict
 from dataclasses import dataclass
 
 from companion.team import kinds
+from companion.team.auth import SIG_LEN, sign
 from companion.team.types import (
     Claim,
     ClaimState,
@@ -63,7 +79,7 @@ from companion.team.types import (
 )
 
 MAGIC = b"TF"
-VERSION = 1
+VERSION = 2
 KIND_STATE = 1
 KIND_BOARD = 2
 #: largest packet :func:`encode_packets` makes by default (bytes of UDP payload)
@@ -72,11 +88,16 @@ NAME_MAX = 16
 #: the largest board body accepted after decompression (a guard against compression bombs)
 BOARD_BODY_MAX = 1 << 20
 
-_HEADER = struct.Struct("!2sBBB")
+#: flags bit: the packet ends with a signature, not a CRC
+FLAG_SIGNED = 0x01
+
+_HEADER = struct.Struct("!2sBBBIQdI")
+#: bytes of a packet's header (the body starts there)
+HEADER_SIZE = _HEADER.size
 _CRC = struct.Struct("!I")
-_ROW = struct.Struct("!BdIiiihhhBIB")
+_ROW = struct.Struct("!IQdIiiihhhBIB")
 _CLAIM = struct.Struct("!IHdB")
-_PART = struct.Struct("!dIIBBH")
+_PART = struct.Struct("!QdIIBBH")
 _TASK = struct.Struct("!IHBBIHdd")
 _POINT = struct.Struct("!iii")
 _NO_TST = 0xFFFFFFFF
@@ -96,6 +117,18 @@ class WireError(ValueError):
         self.reason = reason
 
 
+class UnsignedError(WireError):
+    """An unsigned packet where a team key is configured (dropped and counted)."""
+
+
+class BadSignatureError(WireError):
+    """A signed packet whose signature does not match (forged, modified, or another key)."""
+
+
+class UnverifiableError(WireError):
+    """A signed packet heard by a link that has no key to check it."""
+
+
 class ForeignVersionError(WireError):
     """A packet of the team link with another format version (counted apart from garbage)."""
 
@@ -108,6 +141,7 @@ class ForeignVersionError(WireError):
 class BoardPart:
     """One part of a task board on the wire: a slice of its compressed body."""
 
+    epoch: int
     stamp: float
     seq: int
     body_crc: int
@@ -118,12 +152,17 @@ class BoardPart:
 
 @dataclass(frozen=True)
 class Packet:
-    """A decoded packet: who sent it, the group-state rows it carries and maybe a board part."""
+    """A decoded packet: who sent it (member id, boot epoch, its clock's stamp, its packet number in the
+    epoch, signed or not), the group-state rows it carries and maybe a board part."""
 
     sender: int
     kind: int
     rows: tuple[MemberEntry, ...] = ()
     board_part: BoardPart | None = None
+    epoch: int = 0
+    stamp: float = 0.0
+    pseq: int = 0
+    signed: bool = False
 
     @property
     def board(self) -> TaskBoard | None:
@@ -131,7 +170,7 @@ class Packet:
         p = self.board_part
         if p is None or p.count != 1:
             return None
-        return decode_board_body(p.chunk, p.stamp, p.seq, p.body_crc)
+        return decode_board_body(p.chunk, p.stamp, p.seq, p.body_crc, p.epoch)
 
 
 # ---------------------------------------------------------------------------------------------- encoding
@@ -178,7 +217,8 @@ def encode_row(e: MemberEntry) -> bytes:
     """One group-state row."""
     lat, lon, alt = e.position
     vn, ve, vd = e.velocity
-    out = [_ROW.pack(_u(e.member, 8, "member id"), _finite(e.stamp, "stamp"), _u(e.seq, 32, "seq"),
+    out = [_ROW.pack(_u(e.member, 32, "member id"), _u(e.epoch, 64, "epoch"), _finite(e.stamp, "stamp"),
+                     _u(e.seq, 32, "seq"),
                      _deg7(lat, "latitude"), _deg7(lon, "longitude"), _i32(alt * 100.0, "altitude"),
                      _cms16(vn, "velocity north"), _cms16(ve, "velocity east"), _cms16(vd, "velocity down"),
                      _u(int(e.status), 8, "status"), _u(e.task, 32, "task"), _u(e.voc, 8, "voc")),
@@ -210,35 +250,62 @@ def encode_board_body(board: TaskBoard) -> bytes:
     return zlib.compress(b"".join(out), 9)
 
 
-def _frame(kind: int, sender: int, body: bytes) -> bytes:
-    data = _HEADER.pack(MAGIC, VERSION, kind, sender) + body
-    return data + _CRC.pack(zlib.crc32(data))
+@dataclass
+class _Origin:
+    sender: int
+    epoch: int
+    stamp: float
+    pseq: int
+    key: bytes | None
+
+    def frame(self, kind: int, body: bytes) -> bytes:
+        flags = FLAG_SIGNED if self.key is not None else 0
+        data = _HEADER.pack(MAGIC, VERSION, kind, flags, self.sender, self.epoch, self.stamp,
+                            self.pseq & 0xFFFFFFFF) + body
+        self.pseq += 1
+        if self.key is not None:
+            return data + sign(self.key, data)
+        return data + _CRC.pack(zlib.crc32(data))
 
 
-def _part_bytes(stamp: float, seq: int, crc: int, index: int, count: int, chunk: bytes) -> bytes:
-    return _PART.pack(stamp, seq, crc, index, count, len(chunk)) + chunk
+def _part_bytes(epoch: int, stamp: float, seq: int, crc: int, index: int, count: int, chunk: bytes) -> bytes:
+    return _PART.pack(epoch, stamp, seq, crc, index, count, len(chunk)) + chunk
 
 
-_OVERHEAD = _HEADER.size + _CRC.size
+#: room kept for the header and the longer trailer (a signature)
+_OVERHEAD = _HEADER.size + max(_CRC.size, SIG_LEN)
+
+
+def peek_sender(data: bytes) -> int | None:
+    """The sender id in a team-link packet's header (None if it does not look like one), unchecked."""
+    if len(data) >= _HEADER.size and data[:2] == MAGIC and data[2] == VERSION:
+        return int(_HEADER.unpack_from(data)[4])
+    return None
 
 
 def encode_packets(sender: int, entries: list[MemberEntry] | tuple[MemberEntry, ...],
-                   board: TaskBoard | None = None, *, max_size: int = MAX_PACKET) -> list[bytes]:
-    """The packets that carry ``entries`` (and ``board``) from ``sender``, each at most ``max_size``
-    bytes: STATE packets with as many rows as fit, the board inline in the last one when it fits
-    whole, else BOARD packets with its parts. Raises :class:`WireError` for a value the format cannot
-    carry (a member id over 255, a NaN position, a board over 255 parts, a wrong type...)."""
+                   board: TaskBoard | None = None, *, max_size: int = MAX_PACKET, epoch: int = 0,
+                   stamp: float = 0.0, pseq: int = 0, key: bytes | None = None) -> list[bytes]:
+    """The packets that carry ``entries`` (and ``board``) from ``sender`` in its boot ``epoch``, each at
+    most ``max_size`` bytes: STATE packets with as many rows as fit, the board inline in the last one
+    when it fits whole, else BOARD packets with its parts. Each header carries ``stamp`` (the sender's
+    clock) and a packet number (``pseq``, ``pseq + 1``, ... : the caller counts them); with ``key`` every
+    packet is signed. Raises :class:`WireError` for a value the format cannot carry (a member id over
+    32 bits, a NaN position, a board over 255 parts, a wrong type...)."""
     try:
-        return _encode_packets(sender, entries, board, max_size)
+        _u(sender, 32, "sender id")
+        _u(epoch, 64, "epoch")
+        _u(pseq, 32, "packet number")
+        origin = _Origin(sender, epoch, _finite(stamp, "packet stamp"), pseq, key)
+        return _encode_packets(origin, entries, board, max_size)
     except WireError:
         raise
     except (ValueError, TypeError, KeyError, AttributeError, struct.error, OverflowError) as exc:
         raise WireError(f"not encodable ({type(exc).__name__}: {exc})") from exc
 
 
-def _encode_packets(sender: int, entries: list[MemberEntry] | tuple[MemberEntry, ...],
+def _encode_packets(origin: _Origin, entries: list[MemberEntry] | tuple[MemberEntry, ...],
                     board: TaskBoard | None, max_size: int) -> list[bytes]:
-    _u(sender, 8, "sender id")
     if max_size < 200:
         raise WireError(f"max_size {max_size} too small (at least 200 bytes)")
     rows = [encode_row(e) for e in entries]
@@ -247,40 +314,44 @@ def _encode_packets(sender: int, entries: list[MemberEntry] | tuple[MemberEntry,
     used = 0
     for r in rows:
         if len(r) > room:
-            raise WireError(f"row of member {r[0]} is {len(r)} bytes, more than a packet holds")
+            raise WireError(f"row of member {int.from_bytes(r[:4], 'big')} is {len(r)} bytes, more than a "
+                            "packet holds")
         if used + len(r) > room or len(groups[-1]) == 255:
             groups.append([])
             used = 0
         groups[-1].append(r)
         used += len(r)
     inline = b""
-    board_packets: list[bytes] = []
+    board_bodies: list[bytes] = []
     if board is not None:
         body = encode_board_body(board)
         crc = zlib.crc32(body)
         stamp, seq = _finite(board.stamp, "board stamp"), _u(board.seq, 32, "board seq")
+        bepoch = _u(board.epoch, 64, "board epoch")
         if used + _PART.size + len(body) <= room:
-            inline = _part_bytes(stamp, seq, crc, 0, 1, body)
+            inline = _part_bytes(bepoch, stamp, seq, crc, 0, 1, body)
         else:
             chunk_max = max_size - _OVERHEAD - _PART.size
             chunks = [body[i:i + chunk_max] for i in range(0, len(body), chunk_max)]
             if len(chunks) > 255:
                 raise WireError(f"board of {len(body)} compressed bytes needs more than 255 parts")
-            board_packets = [_frame(KIND_BOARD, sender, _part_bytes(stamp, seq, crc, i, len(chunks), c))
-                             for i, c in enumerate(chunks)]
+            board_bodies = [_part_bytes(bepoch, stamp, seq, crc, i, len(chunks), c)
+                            for i, c in enumerate(chunks)]
     out = []
     for i, g in enumerate(groups):
         last = i == len(groups) - 1
         tail = (b"\x01" + inline) if (last and inline) else b"\x00"
-        out.append(_frame(KIND_STATE, sender, bytes([len(g)]) + b"".join(g) + tail))
-    return out + board_packets
+        out.append(origin.frame(KIND_STATE, bytes([len(g)]) + b"".join(g) + tail))
+    return out + [origin.frame(KIND_BOARD, b) for b in board_bodies]
 
 
 def encode_packet(sender: int, entries: list[MemberEntry] | tuple[MemberEntry, ...],
-                  board: TaskBoard | None = None, *, max_size: int = MAX_PACKET) -> bytes:
+                  board: TaskBoard | None = None, *, max_size: int = MAX_PACKET, epoch: int = 0,
+                  stamp: float = 0.0, pseq: int = 0, key: bytes | None = None) -> bytes:
     """One packet carrying all of ``entries`` (and ``board``); :class:`WireError` if they need more
     than one (use :func:`encode_packets`)."""
-    packets = encode_packets(sender, entries, board, max_size=max_size)
+    packets = encode_packets(sender, entries, board, max_size=max_size, epoch=epoch, stamp=stamp, pseq=pseq,
+                             key=key)
     if len(packets) != 1:
         raise WireError(f"{len(entries)} rows{' and the board' if board else ''} need {len(packets)} "
                         f"packets of at most {max_size} bytes; use encode_packets")
@@ -341,51 +412,69 @@ def _finite_in(x: float, what: str) -> float:
 
 
 def _read_row(r: _Reader) -> MemberEntry:
-    (member, stamp, seq, lat, lon, alt, vn, ve, vd, status, task, voc) = r.unpack(_ROW, "row")
+    (member, epoch, stamp, seq, lat, lon, alt, vn, ve, vd, status, task, voc) = r.unpack(_ROW, "row")
     name = r.name("member name")
     claims = []
     for _ in range(r.u8("claim count")):
         ct, cv, cost, cs = r.unpack(_CLAIM, "claim")
         claims.append(Claim(task=ct, version=cv, cost=_finite_in(cost, "claim cost"), state=_claim_state(cs)))
-    return MemberEntry(member=member, stamp=_finite_in(stamp, "stamp"), seq=seq,
+    return MemberEntry(member=member, epoch=epoch, stamp=_finite_in(stamp, "stamp"), seq=seq,
                        position=(lat / 1e7, lon / 1e7, alt / 100.0),
                        velocity=(vn / 100.0, ve / 100.0, vd / 100.0),
                        status=_status(status), task=task, claims=tuple(claims), voc=voc, name=name)
 
 
 def _read_part(r: _Reader) -> BoardPart:
-    stamp, seq, crc, index, count, n = r.unpack(_PART, "board part")
+    epoch, stamp, seq, crc, index, count, n = r.unpack(_PART, "board part")
     if count == 0 or index >= count:
         raise WireError(f"board part {index} of {count}")
-    return BoardPart(stamp=_finite_in(stamp, "board stamp"), seq=seq, body_crc=crc, index=index, count=count,
-                     chunk=r.take(n, "board chunk"))
+    return BoardPart(epoch=epoch, stamp=_finite_in(stamp, "board stamp"), seq=seq, body_crc=crc, index=index,
+                     count=count, chunk=r.take(n, "board chunk"))
 
 
-def decode_packet(data: bytes) -> Packet:
-    """The packet in ``data``; :class:`WireError` (never another exception) when it is not one."""
+def decode_packet(data: bytes, *, key: bytes | None = None) -> Packet:
+    """The packet in ``data``; :class:`WireError` (never another exception) when it is not one. With
+    ``key`` only a packet signed with that key is taken (:class:`UnsignedError`,
+    :class:`BadSignatureError`); without, a signed packet is :class:`UnverifiableError`."""
     try:
-        return _decode(data)
+        return _decode(data, key)
     except WireError:
         raise
     except Exception as exc:  # a guard: any slip in the parser is still a counted drop, not a crash
         raise WireError(f"undecodable packet ({type(exc).__name__}: {exc})") from exc
 
 
-def _decode(data: bytes) -> Packet:
+def _decode(data: bytes, key: bytes | None) -> Packet:
     if not isinstance(data, bytes | bytearray | memoryview):
         raise WireError(f"not bytes: {type(data).__name__}")
     data = bytes(data)
-    if len(data) < _OVERHEAD:
-        raise WireError(f"truncated: {len(data)} bytes, shorter than a header and CRC ({_OVERHEAD})")
-    magic, version, code, sender = _HEADER.unpack_from(data)
+    if len(data) >= 3 and data[:2] == MAGIC and data[2] != VERSION:
+        raise ForeignVersionError(data[2])
+    if len(data) < _HEADER.size + _CRC.size:
+        raise WireError(f"truncated: {len(data)} bytes, shorter than a header and CRC "
+                        f"({_HEADER.size + _CRC.size})")
+    magic, _version, code, flags, sender, epoch, stamp, pseq = _HEADER.unpack_from(data)
     if magic != MAGIC:
         raise WireError(f"bad magic {magic!r} (not a team-link packet)")
-    if version != VERSION:
-        raise ForeignVersionError(version)
-    (crc,) = _CRC.unpack_from(data, len(data) - _CRC.size)
-    if zlib.crc32(data[:-_CRC.size]) != crc:
-        raise WireError("bad CRC (corrupt or truncated packet)")
-    r = _Reader(data, _HEADER.size, len(data) - _CRC.size)
+    if flags & ~FLAG_SIGNED:
+        raise WireError(f"unknown header flags {flags:#x}")
+    signed = bool(flags & FLAG_SIGNED)
+    if signed:
+        if len(data) < _HEADER.size + SIG_LEN:
+            raise WireError("truncated: shorter than a header and a signature")
+        if key is None:
+            raise UnverifiableError("a signed packet and no team key to check it")
+        if not hmac.compare_digest(sign(key, data[:-SIG_LEN]), data[-SIG_LEN:]):
+            raise BadSignatureError("bad signature (forged, modified, or signed with another key)")
+        end = len(data) - SIG_LEN
+    else:
+        if key is not None:
+            raise UnsignedError("an unsigned packet and a team key is configured")
+        (crc,) = _CRC.unpack_from(data, len(data) - _CRC.size)
+        if zlib.crc32(data[:-_CRC.size]) != crc:
+            raise WireError("bad CRC (corrupt or truncated packet)")
+        end = len(data) - _CRC.size
+    r = _Reader(data, _HEADER.size, end)
     if code == KIND_STATE:
         rows = tuple(_read_row(r) for _ in range(r.u8("row count")))
         has_board = r.u8("board flag")
@@ -398,20 +487,21 @@ def _decode(data: bytes) -> Packet:
         raise WireError(f"unknown packet kind {code}")
     if r.pos != r.end:
         raise WireError(f"{r.end - r.pos} trailing bytes")
-    return Packet(sender=sender, kind=code, rows=rows, board_part=part)
+    return Packet(sender=sender, kind=code, rows=rows, board_part=part, epoch=epoch,
+                  stamp=_finite_in(stamp, "packet stamp"), pseq=pseq, signed=signed)
 
 
-def decode_board_body(body: bytes, stamp: float, seq: int, body_crc: int) -> TaskBoard:
+def decode_board_body(body: bytes, stamp: float, seq: int, body_crc: int, epoch: int = 0) -> TaskBoard:
     """The board from its compressed body (checked against ``body_crc``); :class:`WireError` if bad."""
     try:
-        return _decode_board(body, stamp, seq, body_crc)
+        return _decode_board(body, stamp, seq, body_crc, epoch)
     except WireError:
         raise
     except Exception as exc:
         raise WireError(f"undecodable board ({type(exc).__name__}: {exc})") from exc
 
 
-def _decode_board(body: bytes, stamp: float, seq: int, body_crc: int) -> TaskBoard:
+def _decode_board(body: bytes, stamp: float, seq: int, body_crc: int, epoch: int) -> TaskBoard:
     if zlib.crc32(body) != body_crc:
         raise WireError("board body CRC mismatch")
     d = zlib.decompressobj()
@@ -443,7 +533,7 @@ def _decode_board(body: bytes, stamp: float, seq: int, body_crc: int) -> TaskBoa
                               speed=_finite_in(speed, "task speed"), tst=tst, name=name))
     if r.pos != r.end:
         raise WireError(f"{r.end - r.pos} trailing bytes in the board body")
-    return TaskBoard(stamp=stamp, seq=seq, tasks=tuple(tasks))
+    return TaskBoard(stamp=stamp, seq=seq, tasks=tuple(tasks), epoch=epoch)
 
 
 class BoardAssembler:
@@ -453,13 +543,13 @@ class BoardAssembler:
 
     def __init__(self, pending: int = 4) -> None:
         self._pending = pending
-        self._parts: OrderedDict[tuple[float, int, int, int], dict[int, bytes]] = OrderedDict()
+        self._parts: OrderedDict[tuple[int, float, int, int, int], dict[int, bytes]] = OrderedDict()
 
     def add(self, part: BoardPart) -> TaskBoard | None:
         """The board once ``part`` completes it (else None); :class:`WireError` if the joined body is bad."""
         if part.count == 1:
-            return decode_board_body(part.chunk, part.stamp, part.seq, part.body_crc)
-        key = (part.stamp, part.seq, part.body_crc, part.count)
+            return decode_board_body(part.chunk, part.stamp, part.seq, part.body_crc, part.epoch)
+        key = (part.epoch, part.stamp, part.seq, part.body_crc, part.count)
         got = self._parts.get(key)
         if got is None:
             got = self._parts[key] = {}
@@ -470,4 +560,4 @@ class BoardAssembler:
             return None
         del self._parts[key]
         body = b"".join(got[i] for i in range(part.count))
-        return decode_board_body(body, part.stamp, part.seq, part.body_crc)
+        return decode_board_body(body, part.stamp, part.seq, part.body_crc, part.epoch)
