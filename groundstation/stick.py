@@ -41,7 +41,7 @@ log = logging.getLogger(__name__)
 #: a lease lapses this long after its last sample or keepalive (s)
 LEASE_TTL_S = 3.0
 #: forwards of one vehicle's samples in flight at once
-MAX_IN_FLIGHT = 4
+MAX_IN_FLIGHT = 8
 #: a vehicle's sender task ends after this long without samples (s); the next sample starts another
 SENDER_IDLE_S = 10.0
 #: clock exchanges kept (the shortest round trip of these gives the offset)

@@ -19,7 +19,6 @@ import time
 from collections.abc import Iterator
 from typing import Any
 
-import httpx
 import pytest
 
 from companion.builder import CompanionConfig, build_companion
@@ -105,7 +104,8 @@ def test_one_operator_holds_the_stick_and_the_other_sees_it(companion: tuple[Qua
         assert holder.startswith("operator:") and lease["lease_id"].startswith("lease-")
         r = two.post("/api/vehicles/1/stick/lease")
         assert r.status_code == 409 and holder in r.json()["error"], r.text
-        assert two.delete("/api/vehicles/1/stick/lease", params={"lease_id": lease["lease_id"]}).status_code == 409
+        r = two.delete("/api/vehicles/1/stick/lease", params={"lease_id": lease["lease_id"]})
+        assert r.status_code == 409, r.text
 
         with ground.ws(OPERATOR2) as ws2, ground.ws(OPERATOR) as ws1:
             # the other operator's page: the lease shown in its snapshot, its samples refused
