@@ -25,6 +25,7 @@ class DelayProxy:
         self.port = free_ports(1, socket.SOCK_STREAM)[0]
         self.url = f"http://127.0.0.1:{self.port}"
         self.requests = 0
+        self._tasks: set[asyncio.Task[None]] = set()  # held: a pending task only weakly held may be collected
         self._loop = asyncio.new_event_loop()
         self._ready = threading.Event()
         self._server: asyncio.Server | None = None
@@ -41,6 +42,10 @@ class DelayProxy:
         self._loop.run_forever()
 
     async def _serve(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        me = asyncio.current_task()
+        if me is not None:
+            self._tasks.add(me)
+            me.add_done_callback(self._tasks.discard)
         try:
             up_reader, up_writer = await asyncio.open_connection(*self.target)
         except OSError:
@@ -71,6 +76,9 @@ class DelayProxy:
             writer.close()
 
         tasks = [asyncio.create_task(c()) for c in (client_to_server, delayed_writer, server_to_client)]
+        for t in tasks:
+            self._tasks.add(t)
+            t.add_done_callback(self._tasks.discard)
         with contextlib.suppress(Exception):
             await asyncio.wait(tasks, return_when=asyncio.FIRST_EXCEPTION)
             await tasks[2]
@@ -84,6 +92,8 @@ class DelayProxy:
         def stop() -> None:
             if self._server is not None:
                 self._server.close()
-            self._loop.stop()
+            for t in list(self._tasks):
+                t.cancel()
+            self._loop.call_later(0.1, self._loop.stop)
         self._loop.call_soon_threadsafe(stop)
         self._thread.join(10)

@@ -170,7 +170,8 @@ class UpRig(GroundRig):
         port = free_ports(1, socket.SOCK_STREAM)[0]
         self.up = UpProcess(["--vehicles", str(n), "--speedup", str(speedup), "--base-instance",
                              str(self.base), "--ground-port", str(port), "--tokens", str(tokens),
-                             "--no-persist", *(["--scenario", str(scenario)] if scenario else [])],
+                             "--no-persist", "--ready-timeout", "170",  # a loaded machine starts slowly
+                             *(["--scenario", str(scenario)] if scenario else [])],
                             tmp / "state")
         try:
             summary = self.up.wait_ready(180.0)

@@ -48,6 +48,7 @@ MAX_VALIDITY_S, DEFAULT_VALIDITY_S = 0.5, 0.3
 #: the largest velocity (m/s) and yaw rate (deg/s) a sample may carry
 MAX_SPEED, MAX_YAW_RATE = 20.0, 180.0
 AUTH_TIMEOUT_S = 10.0
+_BACKGROUND: set[asyncio.Task[Any]] = set()
 #: how often the service asks a page for its clock (s)
 CLOCK_PERIOD_S = 5.0
 
@@ -231,10 +232,12 @@ async def _joystick(client: Client, stick: StickDesk, svc: GroundService, msg: d
                               "break-in?)") | {"vehicle": vid})
         if vid not in client.joysticked:  # the first sample per vehicle is audited with its outcome
             client.joysticked.add(vid)
-            asyncio.get_running_loop().create_task(asyncio.to_thread(
+            task = asyncio.get_running_loop().create_task(asyncio.to_thread(
                 svc.audit, client.who, "joystick", f"vehicle {vid}", {"values": j.values, "validity_s":
                                                                       j.validity_s, "lease": j.lease},
                 status or 502, {"status": status, "reason": reason}))
+            _BACKGROUND.add(task)  # held until done (the loop holds tasks only weakly)
+            task.add_done_callback(_BACKGROUND.discard)
 
     stick.forwarder.submit(StickSample(vid, url, j.values, j.validity_s, made, client.seq, j.lease, reply))
 
