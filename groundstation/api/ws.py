@@ -48,6 +48,8 @@ MAX_VALIDITY_S, DEFAULT_VALIDITY_S = 0.5, 0.3
 #: the largest velocity (m/s) and yaw rate (deg/s) a sample may carry
 MAX_SPEED, MAX_YAW_RATE = 20.0, 180.0
 AUTH_TIMEOUT_S = 10.0
+#: a companion refusing every sample tells the page once per this period (s), not 15 times a second
+ERROR_EVERY_S = 1.0
 _BACKGROUND: set[asyncio.Task[Any]] = set()
 #: how often the service asks a page for its clock (s)
 CLOCK_PERIOD_S = 5.0
@@ -61,6 +63,8 @@ class Client:
         self.sock, self.who, self.out = sock, who, queue
         self.joysticked: set[int] = set()
         self.clock = ClockSync()
+        #: when this page was last told a sample was refused, per vehicle (at most every ERROR_EVERY_S)
+        self.refused_at: dict[int, float] = {}
         self.seq = 0
         #: (vehicle, lease id) this socket's samples used: released when it closes
         self.leases: set[tuple[int, str]] = set()
@@ -226,7 +230,9 @@ async def _joystick(client: Client, stick: StickDesk, svc: GroundService, msg: d
     made = client.clock.to_service(j.t_ms, now) if j.t_ms is not None else now
 
     def reply(status: int, reason: str | None) -> None:
-        if status != 200:
+        t = time.monotonic()
+        if status != 200 and t - client.refused_at.get(vid, -math.inf) >= ERROR_EVERY_S:
+            client.refused_at[vid] = t
             client.put(_error(f"vehicle {vid}: joystick sample not taken (companion answered "
                               f"{status or 'nothing'}: {reason}; is the vehicle paused with the joystick "
                               "break-in?)") | {"vehicle": vid})
