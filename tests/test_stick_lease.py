@@ -2,8 +2,9 @@
 stream's validity).
 
 * the forwarder keeps only the newest sample per vehicle and never waits for a slow companion: with a
-  transport answering in 300 ms, samples made at 20 Hz are forwarded while young, none is forwarded past
-  its validity, and once the samples stop at most the ones in flight and the one waiting still go;
+  transport answering in 600 ms, samples made at 20 Hz are forwarded while young (a waiting one replaced
+  by a newer), none past its validity, the last one always; once the samples stop, at most the ones in
+  flight and the one waiting still go;
 * the stick lease over REST and the WebSocket, on a real companion's HTTP surface (a companion never
   started: its queue takes the samples): one operator takes it; a second operator's take is refused
   naming the holder, its samples (without the lease or with the other's) are refused and reach nothing;
@@ -33,7 +34,7 @@ def test_a_slow_companion_never_makes_samples_queue() -> None:
     sent: list[tuple[int, float, float]] = []  # (seq, age when forwarded, when it arrived)
 
     async def slow(sample: StickSample, age_s: float) -> tuple[int, str | None]:
-        await asyncio.sleep(0.3)
+        await asyncio.sleep(0.6)  # answers slower than MAX_IN_FLIGHT forwards at the stick's rate
         sent.append((sample.seq, age_s, time.monotonic()))
         return 200, None
 
@@ -43,18 +44,18 @@ def test_a_slow_companion_never_makes_samples_queue() -> None:
             fwd.submit(StickSample(1, "http://x", [1.0, 0, 0, 0], 0.3, time.monotonic(), seq, "lease-t"))
             await asyncio.sleep(0.05)
         last = time.monotonic()
-        await asyncio.sleep(1.5)
+        await asyncio.sleep(2.0)
         await fwd.close()
         return last, fwd
 
     last, fwd = asyncio.run(run())
     seqs = [s for s, _, _ in sent]
-    assert len(sent) >= 30, f"only {len(sent)} of 60 forwarded: the forwards waited for each other"
+    assert len(sent) >= 20, f"only {len(sent)} of 60 forwarded: the forwards waited for each other"
     assert max(age for _, age, _ in sent) < 0.3, "a sample forwarded past its validity"
     # after the last sample, only what was in flight or waiting: never a backlog
     assert sum(1 for *_, t in sent if t > last) <= MAX_IN_FLIGHT + 1
-    assert max(t for *_, t in sent) <= last + 0.3 + 0.3 + 0.1
-    assert seqs[-1] >= 55 and fwd.replaced > 0
+    assert fwd.replaced > 0, "no sample was ever replaced by a newer one: the companion was not slow"
+    assert seqs == sorted(seqs) and seqs[-1] == 59, "the newest sample (the operator's last) not forwarded"
 
 
 @pytest.fixture(scope="module")
