@@ -306,6 +306,12 @@ class QuadNode:
         """An external-data sample (Sec. IV-C), stamped now on the queue's clock."""
         return self.queue.push_external(stream, values, validity_s)
 
+    def offer_external(self, stream: str, values: Sequence[float], validity_s: float, *, age_s: float = 0.0,
+                       seq: int | None = None, sender: str | None = None) -> str | None:
+        """An external-data sample made ``age_s`` ago (Sec. IV-C): None when taken, else why it was
+        dropped (stale on arrival, out of order)."""
+        return self.queue.offer_external(stream, values, validity_s, age_s=age_s, seq=seq, sender=sender)
+
     def vehicle_status(self) -> VehicleStatus:
         """The vehicle as the upper layers see it (a frozen snapshot; see :class:`VehicleStatus`)."""
         return VehicleStatus.of(self.link.mirror.snapshot(), self.clock.now(),

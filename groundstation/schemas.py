@@ -262,3 +262,34 @@ class FenceOut(BaseModel):
     """The operational fence the station refuses tasks outside of (``taskflight ground --fence``)."""
 
     points: list[Point] | None = Field(description="[lat, lon] vertices, or null without a fence")
+
+
+# --- the stick lease ---------------------------------------------------------------------------------
+class StickLeaseView(BaseModel):
+    """Who holds a vehicle's stick (what every page sees)."""
+
+    holder: str = Field(description="the holding operator's token name (role and fingerprint)")
+    expires_in: float = Field(description="s until the lease lapses unless a sample or keepalive renews it")
+
+
+class StickLeaseRequest(_Strict):
+    """Take the stick (no body, or no ``lease_id``) or keep a lease alive (its ``lease_id``)."""
+
+    lease_id: str | None = Field(None, min_length=1, max_length=64,
+                                 description="the lease to renew (a keepalive); left out: take a new one")
+
+
+class StickLeaseOut(BaseModel):
+    """A lease taken or renewed: send its ``lease_id`` with each stick sample on the WebSocket."""
+
+    vehicle: int
+    lease_id: str
+    holder: str
+    expires_in: float
+    ttl_s: float = Field(description="how long a lease lives after its last sample or keepalive (s)")
+
+
+class StickLeaseState(BaseModel):
+    vehicle: int
+    stick_lease: StickLeaseView | None = Field(description="null: nobody holds the stick")
+    released: bool | None = Field(None, description="DELETE: false when the lease had already lapsed")

@@ -38,7 +38,9 @@ from taskflight.sitlproc import stop_child
 from taskflight_common.ports import free_ports
 
 OPERATOR, OBSERVER = "op-token-for-tests", "ob-token-for-tests"
-TOKENS = {"operator": [OPERATOR], "observer": [OBSERVER]}
+#: a second operator (two operators' pages, one stick lease)
+OPERATOR2 = "op2-token-for-tests"
+TOKENS = {"operator": [OPERATOR, OPERATOR2], "observer": [OBSERVER]}
 COMPANION_TOKEN = "companion-token-for-tests"
 
 

@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from harness import ROOT
-from harness.ground import OBSERVER, OPERATOR, GroundRig, _Api
+from harness.ground import OBSERVER, OPERATOR, OPERATOR2, GroundRig, _Api
 from harness.observer import Gcs
 from taskflight_common.ports import free_base, free_ports
 
@@ -163,14 +163,15 @@ class UpRig(GroundRig):
         self.tmp, self.n, self.speedup = tmp, n, speedup
         self.base = free_base(n)
         tokens = tmp / "tokens.yaml"
-        tokens.write_text(f"operator: [{OPERATOR}]\nobserver: [{OBSERVER}]\n")
+        tokens.write_text(f"operator: [{OPERATOR}, {OPERATOR2}]\nobserver: [{OBSERVER}]\n")
         tokens.chmod(0o600)
         self.companions = []
         self.gcs: list[Gcs] = []
         port = free_ports(1, socket.SOCK_STREAM)[0]
         self.up = UpProcess(["--vehicles", str(n), "--speedup", str(speedup), "--base-instance",
                              str(self.base), "--ground-port", str(port), "--tokens", str(tokens),
-                             "--no-persist", *(["--scenario", str(scenario)] if scenario else [])],
+                             "--no-persist", "--ready-timeout", "170",  # a loaded machine starts slowly
+                             *(["--scenario", str(scenario)] if scenario else [])],
                             tmp / "state")
         try:
             summary = self.up.wait_ready(180.0)

@@ -200,7 +200,7 @@ def test_openapi_documents_request_and_response_schemas(http: httpx.Client) -> N
     assert set(schemas["RetargetRequest"]["properties"]) == {"north", "east", "altitude", "speed", "heading"}
     assert schemas["FlightCommandModel"]["required"] == ["end"]
     assert schemas["FlightCommandModel"].get("examples")
-    assert set(schemas["ExternalSample"]["properties"]) == {"values", "validity_s"}
+    assert set(schemas["ExternalSample"]["properties"]) == {"values", "validity_s", "age_ms", "seq", "source"}
     expected = {("get", "/status"): "StatusResponse", ("get", "/commands"): "CommandListResponse",
                 ("post", "/commands"): "AddedResponse", ("get", "/events"): "EventsResponse",
                 ("get", "/events/wait"): "EventWaitResponse",
@@ -356,7 +356,7 @@ def test_verbs_and_lists(node: QuadNode, http: httpx.Client) -> None:
     assert node.queue.routine_id == "hover"
     assert http.post("/reset").json()["status"]["generation"] == 1
     r = http.post("/external/ext_vel", json={"values": [1, 0.0, 0.0, 0.0], "validity_s": 0.5})
-    assert r.status_code == 200 and r.json() == {"accepted": True}
+    assert r.status_code == 200 and r.json() == {"accepted": True, "reason": None}
     sample = node.queue.external_sample("ext_vel")
     assert sample is not None and sample.values == (1.0, 0.0, 0.0, 0.0)
 

@@ -160,6 +160,9 @@ def _stick(rig: GroundRig, vid: int, values: list[float], seconds: float,
     loaded machine runs the simulation slower than its speed-up: judge by what moved, not by the clock);
     returns the error messages."""
     errors: list[dict[str, Any]] = []
+    r = post(rig, f"/api/vehicles/{vid}/stick/lease")
+    assert r.status_code == 200, r.text
+    lease, seq = r.json()["lease_id"], 0
     with rig.ground.ws() as ws:
         stop = threading.Event()
 
@@ -178,7 +181,9 @@ def _stick(rig: GroundRig, vid: int, values: list[float], seconds: float,
         reader.start()
         end = time.monotonic() + seconds
         while time.monotonic() < end and not (until is not None and until()):
-            ws.send(json.dumps({"type": "joystick", "vehicle": vid, "values": values, "validity_s": 0.5}))
+            seq += 1
+            ws.send(json.dumps({"type": "joystick", "vehicle": vid, "lease": lease, "seq": seq,
+                                "values": values, "validity_s": 0.5}))
             time.sleep(0.05)
         stop.set()
         reader.join(2)

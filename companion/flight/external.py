@@ -24,6 +24,12 @@ is not > 0 or above the configured maximum, a time that is not finite) raises
 :class:`ExternalDataError` and changes nothing. A sample older than the stream's newest one is
 ignored (``push`` returns False): UDP may reorder.
 
+A sample stamped where it was made (an operator's stick: ``t_s`` = arrival minus the age it already
+had, so its validity counts from the operator's hand, not from its arrival) that is already past its
+validity on arrival is dropped (:meth:`ExternalData.offer` says why). A sample may carry a sequence
+number per ``source`` (e.g. a stick lease): one not above that source's last is out of order and
+dropped, whatever its time stamp says (a clock estimate may jitter; the sender's counter does not).
+
 Thread safety: not locked itself; the :class:`~companion.flight.queue.CommandQueue` owns one and
 mutates it only under its own lock (``CommandQueue.push_external``).
 """
@@ -38,6 +44,8 @@ from dataclasses import dataclass
 #: would defeat the stop-on-loss of Sec. IV-C (a dead joystick must stop the vehicle promptly).
 DEFAULT_MAX_VALIDITY_S = 5.0
 #: Stream name -> number of values.
+#: How many (stream, source) sequence counters are remembered (the least recently used forgotten).
+MAX_SOURCES = 64
 STREAMS: dict[str, int] = {"ext_pos": 3, "ext_vel": 4, "ext_heading": 1, "ext_point": 2, "rc_vel": 4}
 #: Source name -> where its samples come from.
 SOURCES: dict[str, str] = {"joystick": "the operator's stick (POST /behaviors/joystick)",
@@ -57,7 +65,10 @@ class Sample:
     values: tuple[float, ...]
     t_s: float
     validity_s: float
+    #: which stream of the vehicle's sources it is (:data:`SOURCES`: the joystick, external data)
     source: str = DEFAULT_SOURCE
+    #: who sent it (sequence numbers are per sender, e.g. a stick lease); None: anonymous
+    sender: str | None = None
 
     def fresh(self, now_s: float) -> bool:
         return now_s <= self.t_s + self.validity_s
@@ -88,6 +99,8 @@ class ExternalData:
     def selected(self, stream: str) -> str | None:
         """The one source ``stream`` is taken from, or None (any)."""
         return self._selected.get(stream)
+        #: (stream, sender) -> the last sequence number taken (the oldest senders forgotten first)
+        self._seqs: dict[tuple[str, str | None], int] = {}
 
     def validate(self, stream: str, values: Sequence[float], validity_s: float, t_s: float) -> Sample:
         """Check a sample without storing it; raise :class:`ExternalDataError` when malformed."""
@@ -119,18 +132,44 @@ class ExternalData:
              source: str = DEFAULT_SOURCE) -> bool:
         """Store a sample; False when older than the newest one of that stream, or from another source
         than the one the stream is tied to (then ignored)."""
+        return self.offer(stream, values, validity_s, t_s, source=source) is None
+
+    def offer(self, stream: str, values: Sequence[float], validity_s: float, t_s: float, *,
+              seq: int | None = None, sender: str | None = None, now_s: float | None = None,
+              source: str = DEFAULT_SOURCE) -> str | None:
+        """Store a sample, or say why it was dropped: from another source than the one the stream is tied
+        to, stale at ``now_s`` (past its validity on arrival), out of order (``seq`` not above ``sender``'s
+        last), or older than the stream's newest sample. Malformed: :class:`ExternalDataError`, nothing
+        changed."""
         sample = self.validate(stream, values, validity_s, t_s)
         if source not in SOURCES:
             raise ExternalDataError(f"{stream}: unknown source {source!r} "
                                     f"(known: {', '.join(sorted(SOURCES))})")
+        if seq is not None and (isinstance(seq, bool) or not isinstance(seq, int) or seq < 0):
+            raise ExternalDataError(f"{stream}: seq must be an integer >= 0, got {seq!r}")
+        if sender is not None and not isinstance(sender, str):
+            raise ExternalDataError(f"{stream}: sender must be a string, got {sender!r}")
         if self._selected.get(stream, source) != source:
-            return False
-        sample = Sample(sample.values, sample.t_s, sample.validity_s, source)
+            return f"{stream} is tied to the {self._selected[stream]} source, not {source}"
+        sample = Sample(sample.values, sample.t_s, sample.validity_s, source, sender)
+        if now_s is not None and not sample.fresh(now_s):
+            return (f"stale: {now_s - sample.t_s:.3f} s old on arrival, valid for {sample.validity_s:g} s")
+        key = (stream, sender)
+        if seq is not None:
+            last = self._seqs.get(key)
+            if last is not None and seq <= last:
+                return f"out of order: seq {seq} after {last} from {sender or 'this sender'}"
         old = self._latest.get(stream)
-        if old is not None and sample.t_s < old.t_s:
-            return False
+        same_sender = seq is not None and old is not None and old.sender == sender
+        if old is not None and sample.t_s < old.t_s and not same_sender:
+            return "older than the stream's newest sample"
+        if seq is not None:
+            self._seqs.pop(key, None)
+            self._seqs[key] = seq
+            while len(self._seqs) > MAX_SOURCES:
+                del self._seqs[next(iter(self._seqs))]
         self._latest[stream] = sample
-        return True
+        return None
 
     def latest(self, stream: str, now_s: float) -> tuple[float, ...] | None:
         """The newest sample's values if still valid at ``now_s``, else None."""
@@ -149,3 +188,4 @@ class ExternalData:
 
     def clear(self) -> None:
         self._latest.clear()
+        self._seqs.clear()

@@ -17,6 +17,7 @@ contract are documented in :mod:`companion.flight.qapi`.
 from __future__ import annotations
 
 import logging
+import math
 import threading
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
@@ -27,7 +28,7 @@ from taskflight_common.clock import Clock
 from .commands import CommandError, FlightCommand
 from .events import EventKind, EventLog, QueueEvent, new_command_id
 from .execution import CommandExecution, streamed_setpoint
-from .external import DEFAULT_MAX_VALIDITY_S, DEFAULT_SOURCE, ExternalData, Sample
+from .external import DEFAULT_MAX_VALIDITY_S, DEFAULT_SOURCE, ExternalData, ExternalDataError, Sample
 from .limits import Envelope, Limits
 from .pause_routines import DEFAULT_ROUTINE, PauseRoutine, PauseRoutineCatalog, default_catalog
 from .qapi import (
@@ -327,6 +328,17 @@ class CommandQueue:
         """Take ``stream``'s samples from ``source`` only (None: any), :meth:`ExternalData.select`."""
         with self._lock:
             self._ext.select(stream, source)
+
+    def offer_external(self, stream: str, values: Sequence[float], validity_s: float, *, age_s: float = 0.0,
+                       seq: int | None = None, sender: str | None = None) -> str | None:
+        """A sample stamped where it was made, ``age_s`` before now: stored (None), or why it was dropped
+        (stale on arrival, out of order; :meth:`ExternalData.offer`). Malformed: ExternalDataError."""
+        if isinstance(age_s, bool) or not isinstance(age_s, int | float) or not math.isfinite(age_s) \
+                or age_s < 0:
+            raise ExternalDataError(f"{stream}: age must be a finite number of seconds >= 0, got {age_s!r}")
+        with self._lock:
+            now = self._clock.now() if self._clock is not None else (self._last_t or 0.0)
+            return self._ext.offer(stream, values, validity_s, now - age_s, seq=seq, sender=sender, now_s=now)
 
     def external_sample(self, stream: str) -> Sample | None:
         """The newest sample of an external stream, fresh or not (read-only view)."""

@@ -87,15 +87,27 @@ class PauseRequest(BaseModel):
 
 
 class ExternalSample(BaseModel):
-    """An external-data sample (Sec. IV-C), stamped on arrival with the queue's clock."""
+    """An external-data sample (Sec. IV-C), stamped with the queue's clock: on arrival, minus ``age_ms``
+    (how old it already was when sent, e.g. an operator's stick sample forwarded by the ground service).
+    A sample already past its validity, or with a ``seq`` not above its ``sender``'s last, is dropped
+    (``accepted: false`` with the reason)."""
 
     model_config = ConfigDict(extra="forbid", json_schema_extra={"examples": [
-        {"values": [1.0, 0.0, 0.0, 0.0], "validity_s": 0.5}]})
+        {"values": [1.0, 0.0, 0.0, 0.0], "validity_s": 0.5},
+        {"values": [1.0, 0.0, 0.0, 0.0], "validity_s": 0.3, "age_ms": 40, "seq": 17,
+         "sender": "lease-1f2e"}]})
 
     values: list[Number] = Field(description="the stream's values: ext_pos 3 (north, east, down), ext_vel 4 "
                                  "(vn, ve, vd, yaw rate), ext_heading 1, ext_point 2, rc_vel 4")
     validity_s: Number = Field(0.5, gt=0, description="how long the sample stays fresh (s; at most the "
                                "node's maximum, ``--max-validity``)")
+    age_ms: Number = Field(0.0, ge=0, le=60_000, description="how old the sample already is when sent (ms, "
+                           "measured by the sender from where it was made); its validity counts from then")
+    seq: Annotated[int, Strict()] | None = Field(None, ge=0, description="the sender's sequence number: a "
+                                                 "sample not above the last one of its sender is dropped")
+    sender: str | None = Field(None, min_length=1, max_length=64,
+                               description="who sends (sequence numbers are per sender), e.g. a stick "
+                               "lease id")
 
 
 class RetargetRequest(BaseModel):
@@ -194,7 +206,9 @@ class PauseRoutinesResponse(BaseModel):
 
 
 class AcceptedResponse(BaseModel):
-    accepted: bool = Field(description="false: older than the stream's newest sample (ignored)")
+    accepted: bool = Field(description="false: dropped (older than the stream's newest sample, stale on "
+                           "arrival, or out of order)")
+    reason: str | None = Field(None, description="why it was dropped (null when accepted)")
 
 
 

@@ -13,7 +13,9 @@ and the external-data streams.
 ``POST /run``, ``/stop``, ``/reset``,      the verbs -> ``{"ok": true, "status": {...}}``
 ``/user_confirm``
 ``POST /external/{stream}``                an external-data sample ``{"values": [...], "validity_s": 0.5}``
-                                           (streams: ext_pos, ext_vel, ext_heading, ext_point, rc_vel)
+                                           (streams: ext_pos, ext_vel, ext_heading, ext_point, rc_vel),
+                                           optionally ``age_ms``, ``seq``, ``sender``: stale or out-of-order
+                                           samples are dropped -> ``{"accepted": false, "reason"}``
 =========================================  ===========================================================
 
 With the executive layer on (seed 001: one writer of the queue, the behavior coordinator)
@@ -166,10 +168,11 @@ def router(node: QuadNode, layer: ExecutiveLayer | None = None) -> APIRouter:
                  body: ExternalSample, role: Role) -> AcceptedResponse:
         hold_check(layer, role, f"external/{stream}")
         try:
-            accepted = node.push_external(stream, body.values, body.validity_s)
+            reason = node.offer_external(stream, body.values, body.validity_s, age_s=body.age_ms / 1000.0,
+                                         seq=body.seq, sender=body.sender)
         except ExternalDataError as exc:
             raise ApiError(400, f"malformed sample: {exc}") from None
-        return AcceptedResponse(accepted=accepted)
+        return AcceptedResponse(accepted=reason is None, reason=reason)
 
     return api
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from typing import Annotated, Any
 
-from fastapi import APIRouter, Body, Path, Request
+from fastapi import APIRouter, Body, Path, Query, Request
 from fastapi.responses import JSONResponse
 
 from companion.api_models import ParamAnswer, ParamSet  # the companion's own contract, proxied
@@ -15,13 +15,17 @@ from groundstation.schemas import (
     CommandAnswer,
     MissionRequest,
     PauseRequest,
+    StickLeaseOut,
+    StickLeaseRequest,
+    StickLeaseState,
     TakeRequest,
     VehicleList,
     VehicleOut,
     VehicleRegistration,
 )
+from groundstation.stick import Lease, StickLeases, desk_of
 
-from . import audited, service_of
+from . import audited, principal_of, service_of
 
 router = APIRouter(tags=["vehicles"])
 VehicleId = Annotated[int, Path(ge=1, le=255, description="the vehicle's MAVLink system id")]
@@ -183,3 +187,51 @@ def put_param(request: Request, vid: VehicleId, name: ParamName, body: ParamSet)
     """In-flight gain tuning: the answer is the autopilot's read-back."""
     return audited(request, "param", f"vehicle {vid} {name}", body.model_dump(),
                    lambda: _param(request, vid, "PUT", name, body.model_dump()))
+
+
+# --- the stick lease (groundstation.stick): one operator flies a vehicle's stick at a time ------------------
+def _leases(request: Request) -> StickLeases:
+    return desk_of(request.app.state, service_of(request).client).leases
+
+
+def _lease_out(leases: StickLeases, lease: Lease) -> dict[str, Any]:
+    return {"vehicle": lease.vehicle, "lease_id": lease.lease_id, "holder": lease.holder,
+            "expires_in": leases.ttl_s, "ttl_s": leases.ttl_s}
+
+
+@router.get("/vehicles/{vid}/stick/lease", response_model=StickLeaseState)
+def get_stick_lease(request: Request, vid: VehicleId) -> Any:
+    """Who holds the vehicle's stick (null: nobody)."""
+    _vehicle(request, vid)
+    return {"vehicle": vid, "stick_lease": _leases(request).view(vid)}
+
+
+@router.post("/vehicles/{vid}/stick/lease", response_model=StickLeaseOut,
+             responses={409: {"description": "another operator holds the stick, or the lease lapsed"}})
+def take_stick_lease(request: Request, vid: VehicleId,
+                     body: Annotated[StickLeaseRequest | None, Body()] = None) -> Any:
+    """Take the vehicle's stick (no ``lease_id``), or keep a lease alive (its ``lease_id``). The joystick
+    samples on the WebSocket carry the lease id; they renew it too. It lapses a few seconds after the last
+    sample or keepalive; every page sees who holds it (the snapshot's ``stick_lease``)."""
+    _vehicle(request, vid)
+    leases, who = _leases(request), principal_of(request)
+    if body is not None and body.lease_id is not None:
+        return _lease_out(leases, leases.renew(vid, body.lease_id, who.name))
+
+    return audited(request, "stick_lease", f"vehicle {vid}", None,
+                   lambda: _lease_out(leases, leases.take(vid, who.name)))
+
+
+@router.delete("/vehicles/{vid}/stick/lease", response_model=StickLeaseState,
+               responses={409: {"description": "the lease is another operator's"}})
+def release_stick_lease(request: Request, vid: VehicleId,
+                        lease_id: Annotated[str, Query(min_length=1, max_length=64,
+                                                       description="the lease to release")]) -> Any:
+    """Let go of the vehicle's stick (samples stop: the vehicle stops within their validity)."""
+    _vehicle(request, vid)
+    leases, who = _leases(request), principal_of(request)
+
+    def run() -> dict[str, Any]:
+        released = leases.release(vid, lease_id, who.name)
+        return {"vehicle": vid, "stick_lease": leases.view(vid), "released": released}
+    return audited(request, "stick_release", f"vehicle {vid}", {"lease_id": lease_id}, run)

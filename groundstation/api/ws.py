@@ -2,16 +2,24 @@
 
 The server sends ``{"type": "hello", "role"}``, then fleet snapshots ``{"type": "snapshot", "seq", "t",
 "vehicles": [...], "tasks": [...]}`` every ``snapshot_period_s`` (default 0.1 s: 10 Hz) and events
-``{"type": "event", ...}`` as they happen.
+``{"type": "event", ...}`` as they happen. Each vehicle of a snapshot carries ``stick_lease``: null, or
+``{"holder", "expires_in"}`` while an operator holds its stick (:mod:`groundstation.stick`).
 
 The client authenticates with ``?token=`` or a first message ``{"type": "auth", "token": "..."}``, then
-may send ``{"type": "ping"}`` (answered ``pong``) and, as an operator, stick samples ``{"type":
-"joystick", "vehicle": 1, "values": [v_north, v_east, v_down, yaw_rate], "validity_s": 0.3}`` at 10-20 Hz
-(seed 000 Sec. VII: the operator's break-in). Each is forwarded to the vehicle's ExtVel stream
-(``/external/ext_vel``, which the joystick break-in flies on all channels) with a short validity (at
-most :data:`MAX_VALIDITY_S`), so a lost browser stops
-the vehicle instead of running it away. A malformed message is answered ``{"type": "error", "error"}``
-and changes nothing.
+may send ``{"type": "ping"}`` (answered ``pong``) and, as an operator holding the vehicle's stick lease
+(``POST /api/vehicles/{vid}/stick/lease``), stick samples ``{"type": "joystick", "vehicle": 1, "lease":
+"lease-...", "values": [v_north, v_east, v_down, yaw_rate], "validity_s": 0.3, "seq": 12, "t": 8123.4}``
+at 10-20 Hz (seed 000 Sec. VII: the operator's break-in). ``t`` is the page's clock when the sample was
+made (ms, ``performance.now()``); the service sends ``{"type": "clock", "t"}`` now and then and the page
+answers ``{"type": "clock", "t": <the same>, "page_t": <its clock>}``, from which the service knows the
+page's clock (:class:`groundstation.stick.ClockSync`). ``seq`` increases per page.
+
+Each sample renews the lease and goes to the vehicle's ExtVel stream (``/external/ext_vel``, which the
+joystick break-in flies on all channels) with a short validity (at most :data:`MAX_VALIDITY_S`) counted
+from when it was made: only the newest sample per vehicle is forwarded, without awaiting the previous
+forward (:class:`groundstation.stick.StickForwarder`), so a slow companion never makes samples queue and
+a lost browser stops the vehicle instead of running it away. A malformed message, or a sample without
+the vehicle's lease, is answered ``{"type": "error", "error"}`` and changes nothing.
 """
 
 from __future__ import annotations
@@ -22,6 +30,7 @@ import json
 import logging
 import math
 import time
+from dataclasses import dataclass
 from typing import Any
 
 from fastapi import APIRouter, FastAPI, WebSocket, WebSocketDisconnect
@@ -29,6 +38,7 @@ from fastapi import APIRouter, FastAPI, WebSocket, WebSocketDisconnect
 from groundstation.auth import Principal
 from groundstation.companions import ApiError
 from groundstation.service import GroundService
+from groundstation.stick import ClockSync, LeaseError, StickDesk, StickSample, desk_of
 
 log = logging.getLogger(__name__)
 router = APIRouter(tags=["live"])
@@ -38,6 +48,11 @@ MAX_VALIDITY_S, DEFAULT_VALIDITY_S = 0.5, 0.3
 #: the largest velocity (m/s) and yaw rate (deg/s) a sample may carry
 MAX_SPEED, MAX_YAW_RATE = 20.0, 180.0
 AUTH_TIMEOUT_S = 10.0
+#: a companion refusing every sample tells the page once per this period (s), not 15 times a second
+ERROR_EVERY_S = 1.0
+_BACKGROUND: set[asyncio.Task[Any]] = set()
+#: how often the service asks a page for its clock (s)
+CLOCK_PERIOD_S = 5.0
 
 
 class Client:
@@ -47,6 +62,12 @@ class Client:
     def __init__(self, sock: WebSocket, who: Principal, queue: asyncio.Queue[Any]) -> None:
         self.sock, self.who, self.out = sock, who, queue
         self.joysticked: set[int] = set()
+        self.clock = ClockSync()
+        #: when this page was last told a sample was refused, per vehicle (at most every ERROR_EVERY_S)
+        self.refused_at: dict[int, float] = {}
+        self.seq = 0
+        #: (vehicle, lease id) this socket's samples used: released when it closes
+        self.leases: set[tuple[int, str]] = set()
 
     def put(self, item: Any) -> None:
         if not self.out.full():
@@ -61,22 +82,36 @@ class Client:
                 await self.sock.send_json(item)
 
 
-def snapshot_message(svc: GroundService, seq: int) -> str:
-    return json.dumps({"type": "snapshot", "seq": seq, "t": time.time(), "vehicles": svc.fleet.snapshot(),
+def desk(app: FastAPI, svc: GroundService) -> StickDesk:
+    return desk_of(app.state, svc.client)
+
+
+def snapshot_message(svc: GroundService, seq: int, stick: StickDesk | None = None) -> str:
+    leases = stick.leases.views() if stick is not None else {}
+    vehicles = [{**v, "stick_lease": leases.get(v["id"])} for v in svc.fleet.snapshot()]
+    return json.dumps({"type": "snapshot", "seq": seq, "t": time.time(), "vehicles": vehicles,
                        "tasks": svc.tasks()})
 
 
 async def broadcast(app: FastAPI, svc: GroundService, period_s: float) -> None:
     """Send every client a fleet snapshot each period (built once, in a worker thread)."""
+    try:
+        await _broadcast(app, svc, period_s)
+    finally:
+        await desk(app, svc).aclose()
+
+
+async def _broadcast(app: FastAPI, svc: GroundService, period_s: float) -> None:
     seq = 0
     next_t = time.monotonic()
+    stick = desk(app, svc)
     while True:
         next_t += period_s
         clients: set[Client] = app.state.sockets
         if clients:
             seq += 1
             try:
-                text = await asyncio.to_thread(snapshot_message, svc, seq)
+                text = await asyncio.to_thread(snapshot_message, svc, seq, stick)
             except Exception:
                 log.exception("snapshot failed")
             else:
@@ -98,7 +133,7 @@ def _parse(text: str) -> dict[str, Any]:
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise ValueError(f"malformed JSON: {exc}") from None
     if not isinstance(msg, dict) or not isinstance(msg.get("type"), str):
-        raise ValueError("expected an object with a 'type' (auth, ping, joystick)")
+        raise ValueError("expected an object with a 'type' (auth, ping, joystick, clock)")
     return msg
 
 
@@ -108,9 +143,21 @@ def _number(v: Any, where: str, limit: float) -> float:
     return float(v)
 
 
-def parse_joystick(msg: dict[str, Any]) -> tuple[int, list[float], float]:
-    """(vehicle, values, validity) of a stick sample; ValueError naming the field."""
-    extra = set(msg) - {"type", "vehicle", "values", "validity_s"}
+@dataclass(frozen=True)
+class JoystickMessage:
+    """A parsed stick sample (module doc)."""
+
+    vehicle: int
+    values: list[float]
+    validity_s: float
+    lease: str | None
+    seq: int | None
+    t_ms: float | None
+
+
+def parse_joystick(msg: dict[str, Any]) -> JoystickMessage:
+    """The stick sample of ``msg``; ValueError naming the field."""
+    extra = set(msg) - {"type", "vehicle", "values", "validity_s", "lease", "seq", "t"}
     if extra:
         raise ValueError(f"joystick: unknown fields {sorted(extra)}")
     vid = msg.get("vehicle")
@@ -124,7 +171,17 @@ def parse_joystick(msg: dict[str, Any]) -> tuple[int, list[float], float]:
     if (isinstance(validity, bool) or not isinstance(validity, int | float)
             or not 0 < validity <= MAX_VALIDITY_S):
         raise ValueError(f"validity_s: expected 0 < validity_s <= {MAX_VALIDITY_S}, got {validity!r}")
-    return vid, vals, float(validity)
+    lease = msg.get("lease")
+    if lease is not None and (not isinstance(lease, str) or not 0 < len(lease) <= 64):
+        raise ValueError(f"lease: expected the lease id of POST /api/vehicles/{vid}/stick/lease, "
+                         f"got {lease!r}")
+    seq = msg.get("seq")
+    if seq is not None and (isinstance(seq, bool) or not isinstance(seq, int) or seq < 0):
+        raise ValueError(f"seq: expected an integer >= 0, got {seq!r}")
+    t_ms = msg.get("t")
+    if t_ms is not None:
+        t_ms = _number(t_ms, "t", 1e13)
+    return JoystickMessage(vid, vals, float(validity), lease, seq, t_ms)
 
 
 async def _authenticate(sock: WebSocket, svc: GroundService) -> Principal | None:
@@ -147,29 +204,63 @@ async def _authenticate(sock: WebSocket, svc: GroundService) -> Principal | None
     return who
 
 
-async def _joystick(client: Client, svc: GroundService, msg: dict[str, Any]) -> None:
+async def _joystick(client: Client, stick: StickDesk, svc: GroundService, msg: dict[str, Any]) -> None:
     if not client.who.may_command:
         client.put(_error(f"forbidden: the {client.who.role} role may not send joystick samples"))
         return
-    vid, values, validity = parse_joystick(msg)
+    now = time.monotonic()
+    j = parse_joystick(msg)
+    vid = j.vehicle
+    if j.lease is None:
+        holder = stick.leases.view(vid)
+        client.put(_error(f"vehicle {vid}: take the stick first (POST /api/vehicles/{vid}/stick/lease)"
+                          + (f"; it is held by {holder['holder']}" if holder else "")) | {"vehicle": vid})
+        return
     try:
+        stick.leases.renew(vid, j.lease, client.who.name)
         url = svc.fleet.url_of(vid)
     except ApiError as exc:
-        client.put(_error(exc.message))
+        client.put(_error(exc.message) | {"vehicle": vid})
         return
     if not url:
-        client.put(_error(f"vehicle {vid} has no control URL"))
+        client.put(_error(f"vehicle {vid} has no control URL") | {"vehicle": vid})
         return
-    sample = {"values": values, "validity_s": validity}
-    status = await svc.client.post_async(url, "/external/ext_vel", sample, timeout_s=1.0)
-    if vid not in client.joysticked:
-        client.joysticked.add(vid)
-        await asyncio.to_thread(svc.audit, client.who, "joystick", f"vehicle {vid}",
-                                {"values": values, "validity_s": validity}, status or 502, {"status": status})
-    if status != 200:
-        client.put(_error(f"vehicle {vid}: joystick sample not taken (companion answered "
-                          f"{status or 'nothing'}; is the vehicle paused with the joystick break-in?)")
-                   | {"vehicle": vid})
+    client.leases.add((vid, j.lease))
+    client.seq = j.seq if j.seq is not None else client.seq + 1
+    made = client.clock.to_service(j.t_ms, now) if j.t_ms is not None else now
+
+    def reply(status: int, reason: str | None) -> None:
+        t = time.monotonic()
+        if status != 200 and t - client.refused_at.get(vid, -math.inf) >= ERROR_EVERY_S:
+            client.refused_at[vid] = t
+            client.put(_error(f"vehicle {vid}: joystick sample not taken (companion answered "
+                              f"{status or 'nothing'}: {reason}; is the vehicle paused with the joystick "
+                              "break-in?)") | {"vehicle": vid})
+        if vid not in client.joysticked:  # the first sample per vehicle is audited with its outcome
+            client.joysticked.add(vid)
+            task = asyncio.get_running_loop().create_task(asyncio.to_thread(
+                svc.audit, client.who, "joystick", f"vehicle {vid}", {"values": j.values, "validity_s":
+                                                                      j.validity_s, "lease": j.lease},
+                status or 502, {"status": status, "reason": reason}))
+            _BACKGROUND.add(task)  # held until done (the loop holds tasks only weakly)
+            task.add_done_callback(_BACKGROUND.discard)
+
+    stick.forwarder.submit(StickSample(vid, url, j.values, j.validity_s, made, client.seq, j.lease, reply))
+
+
+def _clock_echo(client: Client, msg: dict[str, Any]) -> None:
+    sent, page_t = msg.get("t"), msg.get("page_t")
+    if isinstance(sent, bool) or isinstance(page_t, bool) or not isinstance(sent, int | float) \
+            or not isinstance(page_t, int | float) or not math.isfinite(sent) or not math.isfinite(page_t):
+        raise ValueError("clock: expected {\"type\": \"clock\", \"t\": <the service's t>, \"page_t\": ms}")
+    client.clock.echo(float(sent), float(page_t), time.monotonic())
+
+
+async def _ask_clock(client: Client) -> None:
+    """Ask the page for its clock now and every :data:`CLOCK_PERIOD_S` (module doc)."""
+    while True:
+        client.put({"type": "clock", "t": time.monotonic()})
+        await asyncio.sleep(CLOCK_PERIOD_S if client.clock.synced else 0.5)
 
 
 @router.websocket("/ws")
@@ -184,6 +275,8 @@ async def websocket(sock: WebSocket) -> None:
     client = Client(sock, who, svc.hub.subscribe())
     await sock.send_json({"type": "hello", "role": who.role, "name": who.name})
     writer = asyncio.create_task(client.writer())
+    clocker = asyncio.create_task(_ask_clock(client)) if who.may_command else None
+    stick = desk(sock.app, svc)
     sock.app.state.sockets.add(client)
     try:
         while True:
@@ -198,11 +291,14 @@ async def websocket(sock: WebSocket) -> None:
                 if msg["type"] == "ping":
                     client.put({"type": "pong", "t": time.time()})
                 elif msg["type"] == "joystick":
-                    await _joystick(client, svc, msg)
+                    await _joystick(client, stick, svc, msg)
+                elif msg["type"] == "clock":
+                    _clock_echo(client, msg)
                 elif msg["type"] == "auth":
                     client.put(_error("already authenticated"))
                 else:
-                    raise ValueError(f"type: unknown message type {msg['type']!r} (auth, ping, joystick)")
+                    raise ValueError(f"type: unknown message type {msg['type']!r} "
+                                     "(auth, ping, joystick, clock)")
             except ValueError as exc:
                 client.put(_error(str(exc)))
     except (WebSocketDisconnect, RuntimeError):
@@ -210,6 +306,12 @@ async def websocket(sock: WebSocket) -> None:
     finally:
         sock.app.state.sockets.discard(client)
         svc.hub.unsubscribe(client.out)
-        writer.cancel()
-        with contextlib.suppress(asyncio.CancelledError, Exception):
-            await writer
+        for vid, lease_id in client.leases:  # a closed page lets go of the sticks it flew
+            with contextlib.suppress(LeaseError):
+                if stick.leases.release(vid, lease_id, who.name):
+                    log.info("vehicle %d: stick lease %s released (its page closed)", vid, lease_id)
+        for task in (writer, clocker):
+            if task is not None:
+                task.cancel()
+                with contextlib.suppress(asyncio.CancelledError, Exception):
+                    await task

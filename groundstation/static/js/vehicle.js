@@ -52,7 +52,9 @@ export class VehiclePanel {
       <div class="joystick" hidden><b>Break-in joystick</b> — arrows/WASD move, Q/E yaw, R/F up/down, or a gamepad.
         <div style="display:flex;gap:1em;align-items:center"><div class="pad"><div class="knob"></div></div>
         <label>speed <input class="jspeed" type="range" min="0.5" max="5" step="0.5" value="2"></label>
-        <span class="jout"></span></div></div>
+        <span class="jout"></span></div>
+        <div><span class="jlease"></span> <button type="button" class="jtake" data-cmd>take the stick</button>
+        <button type="button" class="jrelease" data-cmd>release the stick</button></div></div>
       <canvas class="plot" width="440" height="90"></canvas>
       <div class="tree"><ul></ul></div>
       <details class="procs"><summary>Processes</summary><div class="plist"></div></details>
@@ -62,6 +64,8 @@ export class VehiclePanel {
         <span class="pout"></span></details>`;
     for (const b of this.el.querySelectorAll("[data-verb]")) b.addEventListener("click", () => this.command(b.dataset.verb));
     this.ui.joystick.bindPad(this.el.querySelector(".pad"));
+    this.el.querySelector(".jtake").addEventListener("click", () => this.ui.joystick.engage(this.vid));
+    this.el.querySelector(".jrelease").addEventListener("click", () => this.ui.joystick.engage(null));
     this.el.querySelector(".jspeed").addEventListener("input", (e) => { this.ui.joystick.speed = Number(e.target.value); });
     this.el.querySelector(".procs").addEventListener("toggle", () => this.processes());
     this.el.querySelector(".pget").addEventListener("click", () => this.param("GET"));
@@ -85,10 +89,23 @@ export class VehiclePanel {
     this.tree();
   }
 
-  setBreakIn(on) {
+  /** The joystick panel shown (paused); ``fly``: this page takes the stick lease and streams. */
+  setBreakIn(on, fly = on) {
     this.breakIn = on;
     this.el.querySelector(".joystick").hidden = !on;
-    this.ui.joystick.engage(on ? this.vid : null);
+    if (fly || !on) this.ui.joystick.engage(fly ? this.vid : null);
+  }
+
+  /** Who holds the stick (``v.stick_lease`` of the snapshot), shown on every page. */
+  showLease(v) {
+    const j = this.ui.joystick, mine = j.holds(v.id), lease = v.stick_lease;
+    const text = mine ? "stick: this page flies it" : lease ? `stick held by ${lease.holder} (lease lapses ` +
+      `${Number(lease.expires_in).toFixed(1)} s after its last sample)` : `stick free${j.status ? ": " + j.status : ""}`;
+    const el = this.el.querySelector(".jlease");
+    if (el.textContent !== text) el.textContent = text;
+    el.dataset.holder = mine ? "me" : lease ? lease.holder : "";
+    this.el.querySelector(".jtake").hidden = mine || !!lease || !this.ui.canCommand();
+    this.el.querySelector(".jrelease").hidden = !mine;
   }
 
   async tree() {
@@ -125,11 +142,12 @@ export class VehiclePanel {
     const st = this.el.querySelector(".vstate");
     const text = `${v.mode || ""} · ${m.state || "no mission"}${m.node ? " · " + m.node : ""}${v.alert ? " · ⚠ " + v.alert : ""}`;
     if (st.textContent !== text) st.textContent = text;
-    // a break-in begun elsewhere (another operator's page): the stick here too, on the change to paused only
-    // (a snapshot older than our own resume still says paused)
-    if (m.state === "paused" && this.lastState !== "paused" && !this.breakIn && this.ui.canCommand()) {
-      this.setBreakIn(true);
-    }
+    // a break-in begun elsewhere (another operator's page): shown paused with who holds the stick, nothing
+    // sent (the stick is taken explicitly), on the change to paused only (a snapshot older than our own
+    // resume still says paused)
+    if (m.state === "paused" && this.lastState !== "paused" && !this.breakIn) this.setBreakIn(true, false);
+    if (this.breakIn && m.state && m.state !== "paused" && this.lastState === "paused") this.setBreakIn(false);
+    this.showLease(v);
     this.lastState = m.state;
     if (this.breakIn) {
       const j = this.ui.joystick;
