@@ -123,7 +123,8 @@ def test_a_failed_write_answers_503_and_nothing_is_half_done(tmp_path: Path) -> 
     svc = g.service
     try:
         with g.http() as c:
-            assert c.post("/api/tasks", json={"type": "visit", "point": [47.3977, 8.5456, 6]}).status_code == 201
+            first = c.post("/api/tasks", json={"type": "visit", "point": [47.3977, 8.5456, 6]})
+            assert first.status_code == 201
             board_before = svc.station.state.board
             tasks_before = c.get("/api/tasks").json()["tasks"]
             svc.db._db.execute("PRAGMA query_only = ON")  # every write of the service fails from here
@@ -215,7 +216,8 @@ def test_alert_history_acknowledgement_and_the_track(tmp_path: Path) -> None:
             assert acks and acks[0]["id"] == eid and acks[0]["acked_by"] == r.json()["acked_by"]
             assert c.post(f"/api/events/{eid}/ack").json()["acked_at"] == first_at  # the first one stays
             assert c.post("/api/events/999999/ack").status_code == 404
-            assert c.get("/api/alerts").json()["alerts"][0]["acked_by"] == r.json()["acked_by"]  # after a reload too
+            # after a reload too
+            assert c.get("/api/alerts").json()["alerts"][0]["acked_by"] == r.json()["acked_by"]
             assert [e["action"] for e in c.get("/api/audit").json()["entries"]].count("ack") == 3
             track = c.get("/api/track/2", params={"since": now - 25, "until": now}).json()["points"]
             assert len(track) == 15 and track[0]["t"] < track[-1]["t"] and track[0]["mode"] == "GUIDED"
@@ -229,7 +231,8 @@ def test_retention_prunes_events_and_telemetry_by_age(tmp_path: Path) -> None:
     now = time.time()
     db.add_event("old", "x", t=now - 100)
     db.add_event("new", "y", t=now)
-    db.add_telemetry([(now - 100, 1, 0, 0, 0, 0, "G", 1, 1, "green"), (now, 1, 0, 0, 0, 0, "G", 1, 1, "green")])
+    db.add_telemetry([(now - 100, 1, 0, 0, 0, 0, "G", 1, 1, "green"),
+                      (now, 1, 0, 0, 0, 0, "G", 1, 1, "green")])
     db.audit("op", "operator", "land", "vehicle 1", None, 200, {})
     assert db.prune(events_keep_s=50, telemetry_keep_s=50, now=now) == (1, 1)
     assert [e["kind"] for e in db.events()] == ["new"] and len(db.track(1, 0, now + 1)) == 1
