@@ -101,7 +101,8 @@ def test_alert_history_after_a_reload_and_an_acknowledgement_every_operator_sees
     d = page
     lost = '#alerts li[data-kind="link_lost"]'
     wait_for(lambda: any("vehicle 3" in li.text or "(3)" in li.text
-                         for li in d.find_elements(By.CSS_SELECTOR, lost)), 30, "vehicle 3's link-lost alert listed")
+                         for li in d.find_elements(By.CSS_SELECTOR, lost)), 30,
+             "vehicle 3's link-lost alert listed")
     other = browser()
     try:
         login(other, ground_rig.ground.url, OPERATOR)  # a page opened after the alert: the history
