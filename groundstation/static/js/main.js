@@ -99,6 +99,7 @@ async function ackAlert(id) {
 async function loadAlerts() {
   const r = await call("GET", "/api/alerts?limit=200");
   if (r.status === 200) alerts.load(r.body.alerts, r.body.kinds);
+  applyRole();
 }
 
 /** The replay: the selected vehicle's stored track of the last ``minutes`` drawn on the map. */
@@ -173,7 +174,7 @@ function onMessage(msg) {
   } else if (msg.type === "ack") {
     alerts.acked(msg.id, msg.acked_by, msg.acked_at);
   } else if (msg.type === "event") {
-    alerts.add(msg);
+    if (alerts.add(msg)) applyRole();
     const d = msg.data || {};
     const pos = Number.isFinite(d.lat) && Number.isFinite(d.lon) ? [d.lat, d.lon] : (d.position || d.point);
     if (msg.kind === "detection" && Array.isArray(pos) && getHome()) fmap.addDetection(pos[0], pos[1], msg.message);
@@ -205,7 +206,9 @@ function render(snap) {
   fmap.updateTasks(snap.tasks);
   fmap.updateVehicles(snap.vehicles, tasksById, now);
   fleet.update(snap.vehicles);
+  const taskRows = tasks.rows.size;
   tasks.update(snap.tasks);
+  if (tasks.rows.size !== taskRows) applyRole();  // new rows' buttons: disabled for an observer
   panel.record(snap.vehicles, now);
   panel.update(vehiclesById.get(panel.vid));
   updateConfirm(snap.vehicles);
