@@ -266,11 +266,11 @@ class TeamControlStation:
                 self._record("resolved", task=tid, holder=holder)
 
     def _keep_flown(self, rows: dict[int, MemberEntry]) -> None:
-        """The team is heard after a restore with hold: the held tasks a live vehicle claims or flies are
-        kept (published again), the others stay held."""
+        """The team is heard after a restore with hold: the held tasks a live vehicle claims, flies or
+        reports done are kept (published again), the others stay held."""
         self._hold_pending = False
         flown = {c.task for e in rows.values() if e.status.available for c in e.claims
-                 if c.state in (ClaimState.CLAIMED, ClaimState.ACTIVE)}
+                 if c.state in (ClaimState.CLAIMED, ClaimState.ACTIVE, ClaimState.DONE)}
         kept = self._held & flown
         self._held -= kept
         self.ledger.touch(self.clock())
