@@ -12,15 +12,28 @@ would flood it, moving on a circle), then measures
   station -> snapshot -> socket path; includes the wait for the next snapshot period);
 * the service's CPU share (% of one core, /proc) over the window.
 
-Run: ``python bench/bench_ground.py [--vehicles 100] [--seconds 20]``.
+``--companions F`` registers every member with a companion control URL, as ``taskflight up`` does:
+a fraction F of them answer (a companion-like HTTP endpoint per vehicle, each on its own port, served by
+one asyncio process: ``GET /status``, ``/mission``, ``/beliefs`` with a realistic status, ``POST`` verbs
+with ``{"ok": true}``; a collaborator, not under test), the others are *blackholes* (a port that
+accepts connections and never answers: each poll of them runs into its time-out). Then also
+
+* the WebSocket update interval (p95 of the time between two snapshots at the client);
+* a command to a reachable vehicle (``POST /api/vehicles/{vid}/pause``: the service -> companion round
+  trip) while the unreachable ones are polled.
+
+Run: ``python bench/bench_ground.py [--vehicles 100] [--seconds 20] [--companions 0.75]``.
 """
 
 from __future__ import annotations
 
 import argparse
+import asyncio
 import json
 import math
 import os
+import socket
+import subprocess
 import sys
 import tempfile
 import threading
@@ -33,6 +46,7 @@ from companion.team.types import MemberEntry, MemberStatus
 from companion.team.wire import encode_packets
 from harness.ground import OBSERVER, GroundProcess
 from harness.team import new_team_url
+from taskflight_common.ports import free_ports
 
 HOME = (-35.363261, 149.165230)
 WRAP_S = 300.0  # send times ride in the altitude modulo this (cm16 carries up to 327 m)
@@ -66,17 +80,89 @@ def feed(url: str, n: int, rate_hz: float, stop: threading.Event) -> None:
     tr.close()
 
 
+STATUS = {"queue": {"queue_status": "IDLE", "queue_system_status": "NORMAL",
+                    "confirmation_required_status": False},
+          "awaits_operator": False, "link": {"connected": True},
+          "vehicle": {"mode": "GUIDED", "armed": True, "battery_remaining": 87.0, "battery_voltage": 12.4,
+                      "attitude": [0.0, 0.0, 0.3], "velocity": [1.0, 0.5, 0.0], "gps_fix_type": 3,
+                      "home": [HOME[0], HOME[1], 584.0], "global_position": [HOME[0], HOME[1], 590.0, 6.0]},
+          "flight": {"phase": "hover"}, "team": {"member": 1}}
+MISSION = {"state": "none", "active_node": None, "tree": None}
+
+
+async def _serve(ports: list[int], blackholes: list[int]) -> None:
+    """Companion-like endpoints on ``ports``; listening sockets never accepted on ``blackholes``."""
+    status = json.dumps(STATUS).encode()
+    bodies = {b"/status": status, b"/mission": json.dumps(MISSION).encode(),
+              b"/beliefs": b'{"bindings": []}'}
+
+    async def handle(reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        try:
+            while True:
+                head = await reader.readuntil(b"\r\n\r\n")
+                line = head.split(b"\r\n", 1)[0].split()
+                length = 0
+                for h in head.split(b"\r\n")[1:]:
+                    if h.lower().startswith(b"content-length:"):
+                        length = int(h.split(b":", 1)[1])
+                if length:
+                    await reader.readexactly(length)
+                path = line[1].split(b"?", 1)[0] if len(line) > 1 else b"/"
+                body = bodies.get(path, b'{"ok": true}')
+                writer.write(b"HTTP/1.1 200 OK\r\nContent-Type: application/json\r\nContent-Length: "
+                             + str(len(body)).encode() + b"\r\n\r\n" + body)
+                await writer.drain()
+        except (asyncio.IncompleteReadError, ConnectionError, asyncio.LimitOverrunError):
+            writer.close()
+
+    servers = [await asyncio.start_server(handle, "127.0.0.1", p) for p in ports]
+    holes = []
+    for p in blackholes:  # accept in the kernel (the backlog), never in the application: no answer ever
+        s = socket.socket()
+        s.bind(("127.0.0.1", p))
+        s.listen(4096)
+        holes.append(s)
+    print("SERVING", flush=True)
+    await asyncio.gather(*(srv.serve_forever() for srv in servers))
+
+
+def fake_companions(ports: list[int], blackholes: list[int]) -> subprocess.Popen[str]:
+    """The companion-like endpoints in a process of their own (not the bench's nor the service's CPU)."""
+    proc = subprocess.Popen([sys.executable, __file__, "--serve", ",".join(map(str, ports)),
+                             "--holes", ",".join(map(str, blackholes))], stdout=subprocess.PIPE, text=True)
+    assert proc.stdout is not None and proc.stdout.readline().strip() == "SERVING"
+    return proc
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--vehicles", type=int, default=100)
     ap.add_argument("--rate", type=float, default=10.0, help="rows per member per second")
     ap.add_argument("--seconds", type=float, default=20.0, help="measurement window")
+    ap.add_argument("--companions", type=float, default=None, metavar="F",
+                    help="register every member's companion; the fraction F answers, the rest are blackholes")
+    ap.add_argument("--serve", default=None, help=argparse.SUPPRESS)
+    ap.add_argument("--holes", default="", help=argparse.SUPPRESS)
     args = ap.parse_args()
+    if args.serve is not None:
+        asyncio.run(_serve([int(p) for p in args.serve.split(",") if p],
+                           [int(p) for p in args.holes.split(",") if p]))
+        return 0
     team = new_team_url()
-    ground = GroundProcess(Path(tempfile.mkdtemp(prefix="bench_ground")), team, {}).start()
+    companions: dict[int, str] = {}
+    server: subprocess.Popen[str] | None = None
+    reachable: list[int] = []
+    if args.companions is not None:
+        ports = free_ports(args.vehicles, socket.SOCK_STREAM)
+        n_ok = round(args.companions * args.vehicles)
+        reachable = list(range(1, n_ok + 1))
+        server = fake_companions(ports[:n_ok], ports[n_ok:])
+        companions = {m: f"http://127.0.0.1:{ports[m - 1]}" for m in range(1, args.vehicles + 1)}
+    ground = GroundProcess(Path(tempfile.mkdtemp(prefix="bench_ground")), team, companions).start()
     assert ground.proc is not None
     pid = ground.proc.pid
     http = ground.http(timeout=10)
+    ophttp = ground.http(timeout=10)
     stop = threading.Event()
     feeder = threading.Thread(target=feed, args=(team, args.vehicles, args.rate, stop), daemon=True)
     try:
@@ -87,8 +173,11 @@ def main() -> int:
                 raise SystemExit("not every member heard")
             time.sleep(0.2)
         lat_ws: list[float] = []
+        intervals: list[float] = []
         snaps = [0]
         ws_stop = threading.Event()
+
+        last = [0.0]
 
         def watch() -> None:
             with ground.ws(OBSERVER) as ws:
@@ -97,6 +186,9 @@ def main() -> int:
                     if m["type"] != "snapshot":
                         continue
                     now = time.time()
+                    if snaps[0]:
+                        intervals.append(now - last[0])
+                    last[0] = now
                     sent = [v["position"]["alt"] for v in m["vehicles"] if v["position"]]
                     if len(sent) < args.vehicles:
                         continue
@@ -109,6 +201,7 @@ def main() -> int:
         c0, t0 = cpu_s(pid), time.monotonic()
         lat: dict[str, list[float]] = {"GET /api/vehicles": [], "GET /api/tasks": [],
                                        "POST+DELETE /api/tasks": []}
+        cmd: list[float] = []
         end = t0 + args.seconds
         k = 0
         while time.monotonic() < end:
@@ -125,17 +218,30 @@ def main() -> int:
                 r = http.post("/api/tasks", json={"type": "visit", "point": [HOME[0] + 0.0002, HOME[1], 10]})
                 http.delete(f"/api/tasks/{r.json()['ids'][0]}")
                 lat["POST+DELETE /api/tasks"].append(time.perf_counter() - a)
+            if reachable and k % 3 == 0:
+                a = time.perf_counter()
+                r = ophttp.post(f"/api/vehicles/{reachable[k % len(reachable)]}/pause")
+                cmd.append(time.perf_counter() - a)
+                assert r.status_code == 200, r.text
             time.sleep(0.02)
         wall = time.monotonic() - t0
         cpu = 100.0 * (cpu_s(pid) - c0) / wall
         ws_stop.set()
         watcher.join(6)
-        print(f"# bench_ground: {args.vehicles} members at {args.rate:g} Hz on the team link, {wall:.0f} s")
+        extra = (f"; companions registered: {len(reachable)} answering, {args.vehicles - len(reachable)} "
+                 "blackholes" if companions else "; no companion registered")
+        print(f"# bench_ground: {args.vehicles} members at {args.rate:g} Hz on the team link, "
+              f"{wall:.0f} s{extra}")
         print(f"# {machine()}")
         rows = [[name, len(v), f"{1e3 * pct(v, 0.5):.1f}", f"{1e3 * pct(v, 0.99):.1f}", "<= 50"]
                 for name, v in lat.items()]
         rows.append(["WebSocket snapshot (feed -> socket)", len(lat_ws), f"{1e3 * pct(lat_ws, 0.5):.1f}",
                      f"{1e3 * pct(lat_ws, 0.95):.1f} (p95)", "<= 250 (p95)"])
+        rows.append(["WebSocket update interval", len(intervals), f"{1e3 * pct(intervals, 0.5):.1f}",
+                     f"{1e3 * pct(intervals, 0.95):.1f} (p95)", "<= 250 (p95)"])
+        if cmd:
+            rows.append(["command to a reachable vehicle (pause)", len(cmd), f"{1e3 * pct(cmd, 0.5):.1f}",
+                         f"{1e3 * pct(cmd, 0.99):.1f}", "<= 200"])
         print(table(["measure", "n", "p50 ms", "p99 ms", "target ms"], rows))
         print()
         print(table(["service CPU (% of one core)", "snapshots/s"],
@@ -143,7 +249,11 @@ def main() -> int:
     finally:
         stop.set()
         http.close()
+        ophttp.close()
         ground.close()
+        if server is not None:
+            server.kill()
+            server.wait(10)
     return 0
 
 

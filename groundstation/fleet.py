@@ -286,6 +286,23 @@ class Fleet:
             self.emit("failsafe", f"vehicle {vid} switched to {mode} (from {was_mode})", severity="warning",
                       vehicle=vid, data={"mode": mode, "from": was_mode})
 
+    def duplicates(self) -> dict[int, Any]:
+        """Vehicle -> what its companion's status says of a duplicate id (its team member refused to join:
+        ``team.team`` is ``"refused: duplicate id N ..."``; or ``team.duplicate_id``), for the vehicles
+        whose companion says so."""
+        with self._lock:
+            statuses = {v: p.status for v, p in self._polled.items() if p.status}
+        out = {}
+        for vid, st in statuses.items():
+            team = st.get("team") if isinstance(st, dict) else None
+            dup = team.get("duplicate_id") if isinstance(team, dict) else None
+            joined = team.get("team") if isinstance(team, dict) else None
+            if not dup and isinstance(joined, str) and joined.startswith("refused") and "duplicate" in joined:
+                dup = joined
+            if dup:
+                out[vid] = dup
+        return out
+
     # --- the merged view -------------------------------------------------------------------------------
     def snapshot(self, max_age_s: float = 0.05) -> list[dict[str, Any]]:
         """One record per vehicle (the fields of :class:`~groundstation.schemas.VehicleOut`); a snapshot

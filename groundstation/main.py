@@ -1,10 +1,14 @@
 """``taskflight ground``: the ground service.
 
 ``taskflight ground [--team URL] [--db FILE] [--host H --port P] [--tokens FILE] [--companion ID=URL ...]
-[--companion-token T]``. Without ``--tokens`` an operator and an observer token are generated and
-printed. The companion token (``--companion-token`` or ``$TASKFLIGHT_CONTROL_TOKEN``) is the bearer token
-the service sends to the companions' control surfaces. Imports its layers only when run (the parser is
-light).
+[--companion-token-file FILE] [--resume-tasks] [--events-keep-days D] [--telemetry-keep S]``. Without
+``--tokens`` an operator and an observer token are generated and printed. The companion token (the
+bearer token the service sends to the companions' control surfaces) comes from
+``$TASKFLIGHT_CONTROL_TOKEN`` or ``--companion-token-file`` (its first line): never from the command line,
+which every user of the machine reads in ``ps`` (``--companion-token`` is still taken, with a warning).
+Restarted on a database an earlier run left, the open tasks come back held (not given to the team)
+until the operator releases them, except those live vehicles are found flying; ``--resume-tasks``
+releases them at start. Imports its layers only when run (the parser is light).
 """
 
 from __future__ import annotations
@@ -13,6 +17,7 @@ import argparse
 import logging
 import os
 import sys
+from pathlib import Path
 
 from taskflight_common.runtime import freeze_startup_heap
 from taskflight_common.tokens import TOKEN_ENV
@@ -38,8 +43,20 @@ def add_ground_arguments(parser: argparse.ArgumentParser) -> None:
                         help="YAML {operator: [tokens], observer: [tokens]} (default: generated, printed)")
     parser.add_argument("--companion", action="append", default=[], metavar="ID=URL",
                         help="a vehicle's companion control URL, e.g. 1=http://127.0.0.1:8765 (repeatable)")
+    parser.add_argument("--companion-token-file", default=None, metavar="FILE",
+                        help=f"a file whose first line is the bearer token toward the companions (default "
+                             f"${TOKEN_ENV})")
     parser.add_argument("--companion-token", default=None, metavar="TOKEN",
-                        help=f"bearer token toward the companions (default ${TOKEN_ENV})")
+                        help=f"deprecated: the token is visible in ps; use ${TOKEN_ENV} or "
+                             "--companion-token-file")
+    parser.add_argument("--resume-tasks", action="store_true",
+                        help="give the open tasks of the database's earlier run to the team at start "
+                             "(default: held until the operator releases them, except those live "
+                             "vehicles fly)")
+    parser.add_argument("--events-keep-days", type=float, default=30.0, metavar="D",
+                        help="events (alerts, history) older than D days are pruned (default 30)")
+    parser.add_argument("--telemetry-keep", type=float, default=3600.0, metavar="S",
+                        help="vehicle telemetry (the replay) older than S seconds is pruned (default 3600)")
     parser.add_argument("--fence", default=None, metavar="YAML",
                         help="the operational fence, 'fence: [[lat, lon], ...]': tasks outside it are "
                              "refused and the map draws it")
@@ -60,12 +77,27 @@ def parse_companions(items: list[str]) -> dict[int, str]:
     return out
 
 
+def companion_token(args: argparse.Namespace) -> str | None:
+    """The token toward the companions: ``--companion-token-file``, ``$TASKFLIGHT_CONTROL_TOKEN``, or the
+    deprecated ``--companion-token`` (a warning). ValueError for an empty or unreadable file."""
+    if args.companion_token_file:
+        lines = Path(args.companion_token_file).read_text().splitlines()
+        if not lines or not lines[0].strip():
+            raise ValueError(f"--companion-token-file {args.companion_token_file}: empty")
+        return lines[0].strip()
+    if args.companion_token:
+        log.warning("--companion-token puts the token on the command line (ps shows it): use $%s or "
+                    "--companion-token-file", TOKEN_ENV)
+        return str(args.companion_token)
+    return os.environ.get(TOKEN_ENV) or None
+
+
 def run_ground(args: argparse.Namespace) -> int:
     import uvicorn
 
     from .app import create_app
     from .auth import Tokens
-    from .service import GroundService, load_fence
+    from .service import GroundService, Retention, load_fence
 
     try:
         companions = parse_companions(args.companion)
@@ -75,9 +107,12 @@ def run_ground(args: argparse.Namespace) -> int:
         fence = load_fence(args.fence) if args.fence else None
         from companion.team.auth import team_key
 
+        retention = Retention(events_keep_s=args.events_keep_days * 86400.0,
+                              telemetry_keep_s=args.telemetry_keep)
         service = GroundService(args.db, tokens, team_url=args.team, companions=companions,
-                                companion_token=args.companion_token or os.environ.get(TOKEN_ENV),
-                                fence=fence, team_key=team_key(args.team_key))
+                                companion_token=companion_token(args), fence=fence,
+                                resume_tasks=args.resume_tasks, retention=retention,
+                                team_key=team_key(args.team_key))
     except (ValueError, OSError) as exc:
         print(f"taskflight ground: error: {exc}", file=sys.stderr)
         return 2

@@ -6,7 +6,7 @@ frame the operator gives team tasks in (seed 003 Sec. II). Every refusal answers
 
 from __future__ import annotations
 
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
@@ -82,7 +82,8 @@ class TaskOut(BaseModel):
     id: int
     group: int = Field(description="the operator's divided task this is a piece of (0: none)")
     kind: str
-    state: str = Field(description="unassigned, assigned, active, done, cancelled")
+    state: str = Field(description="unassigned, assigned, active, done, cancelled; held: restored from an "
+                                   "earlier run and kept from the team until the operator releases it")
     holder: int | None = Field(description="the vehicle holding it (the assignee)")
     cost: float | None = Field(description="the holder's cost (s of flight)")
     version: int
@@ -205,11 +206,48 @@ class EventOut(BaseModel):
     task: int | None
     message: str
     data: dict[str, Any]
+    acked_by: str | None = Field(None, description="the operator who acknowledged it (alerts)")
+    acked_at: float | None = None
 
 
 class EventList(BaseModel):
     events: list[EventOut]
     last_id: int
+
+
+class AlertList(BaseModel):
+    alerts: list[EventOut] = Field(description="the newest alerts, oldest first")
+    kinds: list[str] = Field(description="the event kinds that are alerts")
+
+
+class TrackPoint(BaseModel):
+    t: float
+    lat: float | None
+    lon: float | None
+    alt: float | None
+    heading: float | None
+    mode: str | None
+    armed: bool | None
+    battery: float | None
+    health: str | None
+
+
+class TrackOut(BaseModel):
+    vehicle: int
+    since: float
+    until: float
+    points: list[TrackPoint] = Field(description="about 1 Hz, oldest first")
+
+
+class ReleaseRequest(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    ids: list[Annotated[int, Field(ge=1, le=10**9)]] | None = Field(
+        None, max_length=10000, description="the held tasks to release (absent: every held task)")
+
+
+class TasksReleased(BaseModel):
+    released: list[int]
+    held: list[int] = Field(description="the tasks still held")
 
 
 class AuditOut(BaseModel):

@@ -12,11 +12,12 @@ with the same ids and states and publishes it with a newer (stamp, seq): the veh
 from __future__ import annotations
 
 import asyncio
+import collections
 import logging
 import math
 import threading
 import time
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -29,6 +30,7 @@ from companion.team.tasks import Fence, TaskDef
 from companion.team.transport import Transport, open_transport
 from taskflight_common.geo import check_point
 
+from .alerts import AlertWatch
 from .auth import Principal, Tokens
 from .companions import VERBS, ApiError, CompanionClient
 from .db import Database
@@ -36,40 +38,68 @@ from .fleet import Fleet
 
 log = logging.getLogger(__name__)
 
-#: station log entries that change the task list (the ledger is saved after each)
-_LEDGER_EVENTS = frozenset({"added", "cancelled", "task", "redivided", "restored"})
+
+
+class Outbox:
+    """One WebSocket client's outbound messages: events queued in order (bounded: the oldest dropped and
+    counted), snapshots in one slot that the next one replaces, so a slow client is sent the newest
+    snapshot, never a backlog of old ones. Used from its event loop's thread only."""
+
+    def __init__(self, max_events: int = 1000) -> None:
+        self.events: collections.deque[Any] = collections.deque(maxlen=max_events)
+        self.snapshot: Any = None
+        self.dropped_events = self.replaced_snapshots = 0
+        self._ready = asyncio.Event()
+
+    def put_event(self, item: Any) -> None:
+        if len(self.events) == self.events.maxlen:
+            self.dropped_events += 1
+        self.events.append(item)
+        self._ready.set()
+
+    def put_snapshot(self, item: Any) -> None:
+        if self.snapshot is not None:
+            self.replaced_snapshots += 1
+        self.snapshot = item
+        self._ready.set()
+
+    async def get(self) -> Any:
+        """The next message: the queued events first, then the newest snapshot."""
+        while True:
+            if self.events:
+                return self.events.popleft()
+            if self.snapshot is not None:
+                item, self.snapshot = self.snapshot, None
+                return item
+            self._ready.clear()
+            await self._ready.wait()
 
 
 class EventHub:
-    """Fans events out to the WebSocket clients' queues (any thread may publish)."""
+    """Fans events out to the WebSocket clients' outboxes (any thread may publish)."""
 
     def __init__(self) -> None:
-        self._subs: dict[asyncio.Queue[dict[str, Any]], asyncio.AbstractEventLoop] = {}
+        self._subs: dict[Outbox, asyncio.AbstractEventLoop] = {}
         self._lock = threading.Lock()
 
-    def subscribe(self) -> asyncio.Queue[dict[str, Any]]:
-        q: asyncio.Queue[dict[str, Any]] = asyncio.Queue(maxsize=1000)
+    def subscribe(self) -> Outbox:
+        box = Outbox()
         with self._lock:
-            self._subs[q] = asyncio.get_running_loop()
-        return q
+            self._subs[box] = asyncio.get_running_loop()
+        return box
 
-    def unsubscribe(self, q: asyncio.Queue[dict[str, Any]]) -> None:
+    def unsubscribe(self, box: Outbox) -> None:
         with self._lock:
-            self._subs.pop(q, None)
+            self._subs.pop(box, None)
 
     def publish(self, event: dict[str, Any]) -> None:
         with self._lock:
             subs = list(self._subs.items())
-        for q, loop in subs:
+        for box, loop in subs:
             try:
-                loop.call_soon_threadsafe(_offer, q, event)
+                loop.call_soon_threadsafe(box.put_event, event)
             except RuntimeError:  # the loop is closed
-                self.unsubscribe(q)
-
-
-def _offer(q: asyncio.Queue[dict[str, Any]], event: dict[str, Any]) -> None:
-    if not q.full():
-        q.put_nowait(event)
+                self.unsubscribe(box)
 
 
 def fence_of(points: list[list[float]]) -> Fence:
@@ -102,10 +132,14 @@ class GroundService:
                  transport: Transport | None = None, companions: dict[int, str] | None = None,
                  companion_token: str | None = None, station_period_s: float | None = None,
                  poll_period_s: float = 0.5, fence: list[list[float]] | None = None,
-                 team_key: bytes | None = None) -> None:
+                 team_key: bytes | None = None, resume_tasks: bool = False,
+                 retention: Retention | None = None) -> None:
         self.db = Database(db_path)
         self.tokens = tokens
+        self.retention = retention or Retention()
         self.hub = EventHub()
+        self.alerts = AlertWatch(self.emit)
+        self._dirty: set[int] = set()  #: tasks whose last write failed (written again with the next)
         self.client = CompanionClient(companion_token)
         if transport is None:
             transport = open_transport(team_url or "udp://239.255.70.1:14600", member=0,
@@ -115,6 +149,7 @@ class GroundService:
         self.station = TeamControlStation(transport, period_s=station_period_s, name="ground",
                                           fence=fence_of(fence) if fence else None, key=team_key)
         self.station.listeners.append(self._on_station)
+        self.station.persist = self._persist
         self.fleet = Fleet(self.station, self.client, self.emit, poll_period_s=poll_period_s)
         for v in self.db.vehicles():
             self.fleet.register(v["id"], v["name"], v["control_url"])
@@ -122,15 +157,22 @@ class GroundService:
             self.register(vid, "", url)
         snap = self.db.ledger()
         if snap is not None:
-            self.station.restore(snap)
+            self.station.restore(snap, hold=not resume_tasks)
         self.started = time.time()
+        self._stop = threading.Event()
+        self._keeper: threading.Thread | None = None
 
     def start(self) -> GroundService:
         self.station.start()
         self.fleet.start()
+        self._keeper = threading.Thread(target=self._keep, name="ground-keeper", daemon=True)
+        self._keeper.start()
         return self
 
     def close(self) -> None:
+        self._stop.set()
+        if self._keeper is not None:
+            self._keeper.join(timeout=5.0)
         self.fleet.close()
         self.station.close()
         self.client.close()
@@ -139,27 +181,81 @@ class GroundService:
     # --- events -------------------------------------------------------------------------------------------
     def emit(self, kind: str, message: str, *, severity: str = "info", vehicle: int | None = None,
              task: int | None = None, data: dict[str, Any] | None = None) -> None:
+        """Store an event and send it to every client (a failed write is logged: the event still goes
+        out live, with id 0)."""
         t = time.time()
-        eid = self.db.add_event(kind, message, severity=severity, vehicle=vehicle, task=task, data=data, t=t)
+        try:
+            eid = self.db.add_event(kind, message, severity=severity, vehicle=vehicle, task=task, data=data,
+                                    t=t)
+        except ApiError as exc:
+            log.error("event %s not stored: %s", kind, exc.message)
+            eid = 0
         self.hub.publish({"type": "event", "id": eid, "t": t, "kind": kind, "severity": severity,
-                          "vehicle": vehicle, "task": task, "message": message, "data": data or {}})
+                          "vehicle": vehicle, "task": task, "message": message, "data": data or {},
+                          "acked_by": None, "acked_at": None})
+
+    def acknowledge(self, eid: int, who: Principal) -> dict[str, Any]:
+        """An operator acknowledges alert ``eid``: stored once (the first acknowledgement stays) and sent
+        to every client (``{"type": "ack", ...}``). ApiError 404 for an unknown id."""
+        row = self.db.ack_event(eid, who.name)
+        if row is None:
+            raise ApiError(404, f"no event {eid}")
+        self.hub.publish({"type": "ack", "id": eid, "acked_by": row["acked_by"], "acked_at": row["acked_at"]})
+        return row
+
+    # --- persistence of the task ledger: one task a change, never the whole ledger ---------------------
+    def _task_rows(self, ids: list[int]) -> list[Any]:
+        led = self.station.ledger
+        return [(led.task(i), led.state(i), led.holder(i), self.station.cost_of(i)) for i in ids]
+
+    def _meta(self) -> dict[str, Any]:
+        stamp, seq = self.station.ledger.stamp_seq
+        return {"next_id": self.station.ledger.next_id, "seq": seq, "stamp": stamp}
+
+    def _persist(self, entry: dict[str, Any]) -> None:
+        """The station's hook for an operator verb (added, cancelled, redivided): its tasks, groups,
+        assignment rows and the board's meta in one transaction, before the change is published (a
+        failure raises :class:`~.db.StorageError`, 503, and the station undoes the change)."""
+        ev, t, ids = entry["event"], entry.get("t"), [int(i) for i in entry.get("ids", [])]
+        led = self.station.ledger
+        dirty, self._dirty = self._dirty, set()
+        if ev == "redivided":  # rare: the old pieces were cancelled as well, so the whole ledger
+            snap = led.export()
+            rows = [(task, st, h, self.station.cost_of(task.id)) for task, st, h in snap.tasks]
+            groups = list(snap.groups)
+        else:
+            gids = sorted({led.task(i).group for i in ids} - {0})
+            groups = [(g, *grp) for g in gids if (grp := led.group(g)) is not None]
+            rows = self._task_rows(sorted(set(ids) | dirty))
+        state = "cancelled" if ev == "cancelled" else "unassigned"
+        try:
+            self.db.save_tasks(rows, groups, self._meta(), [(i, state, None, t) for i in ids])
+        except BaseException:
+            self._dirty |= dirty
+            raise
+
+    def _save_changed(self, ids: list[int], assignments: list[tuple[int, str, int | None, float | None]]
+                      ) -> None:
+        """A task event of the team (or a restore): these tasks and the meta; a failure is logged and the
+        tasks written again with the next change."""
+        dirty, self._dirty = self._dirty, set()
+        try:
+            self.db.save_tasks(self._task_rows(sorted(set(ids) | dirty)), (), self._meta(), assignments)
+        except ApiError as exc:
+            self._dirty |= dirty | set(ids)
+            log.error("task change not stored (written again with the next): %s", exc.message)
 
     def _on_station(self, entry: dict[str, Any]) -> None:
-        """The station's log: task changes are persisted and become events."""
+        """The station's log: team task changes are persisted and become events (an operator verb's
+        change was persisted before it was published, :meth:`_persist`)."""
         ev = entry.get("event")
-        if ev in _LEDGER_EVENTS:
-            self.save_ledger()
         t = entry.get("t")
         if ev == "added":
-            for tid in entry["ids"]:
-                self.db.add_assignment(tid, "unassigned", None, t)
             self.emit("task_added", f"{entry['kind']} added: tasks {entry['ids']}", data=entry)
         elif ev == "cancelled":
-            for tid in entry["ids"]:
-                self.db.add_assignment(tid, "cancelled", None, t)
             self.emit("task_cancelled", f"tasks {entry['ids']} cancelled", data=entry)
         elif ev == "task":
-            self.db.add_assignment(entry["task"], entry["state"], entry["holder"], t)
+            self._save_changed([entry["task"]], [(entry["task"], entry["state"], entry["holder"], t)])
             who = f" by vehicle {entry['holder']}" if entry["holder"] is not None else ""
             self.emit("task_state", f"task {entry['task']} {entry['state']}{who}", task=entry["task"],
                       vehicle=entry["holder"], data=entry)
@@ -176,11 +272,49 @@ class GroundService:
             self.emit("duplicate_id", entry["message"], severity="warning", vehicle=entry.get("member"),
                       data=entry)
         elif ev == "restored":
-            self.emit("restored", f"task list restored: {entry['tasks']} tasks", data=entry)
+            self._save_changed([], [])
+            held = entry.get("held") or []
+            self.emit("restored", f"task list restored: {entry['tasks']} tasks"
+                                  + (f", {len(held)} open ones held until the operator releases them ({held})"
+                                     if held else ""), severity="warning" if held else "info", data=entry)
+        elif ev == "kept":
+            self._save_changed([], [])
+            if entry["ids"]:
+                self.emit("tasks_kept", f"tasks {entry['ids']} kept: live vehicles fly them", data=entry)
+        elif ev == "released":
+            self._save_changed([], [])
+            self.emit("tasks_released", f"tasks {entry['ids']} released to the team", data=entry)
 
     def save_ledger(self) -> None:
+        """The whole ledger in one transaction (not used on task events)."""
         costs = {v.id: v.cost for v in self.station.tasks()}
         self.db.save_ledger(self.station.ledger.export(), costs)
+
+    def release_tasks(self, ids: list[int] | None) -> list[int]:
+        """Give held tasks (all: ``None``) to the team. ApiError 409 naming ids that are not held."""
+        try:
+            return list(self.station.release(ids))
+        except ValueError as exc:
+            raise ApiError(409, str(exc)) from None
+
+    # --- telemetry, alerts, retention ---------------------------------------------------------------------
+    def _keep(self) -> None:
+        """Once a ``telemetry_period_s``: every vehicle's position and status stored (the replay) and looked
+        at for alerts; once a ``prune_period_s``: events and telemetry past their keep times deleted."""
+        r = self.retention
+        next_prune = time.monotonic() + 5.0
+        while not self._stop.wait(r.telemetry_period_s):
+            try:
+                records = self.fleet.snapshot()
+                self.alerts.look(records, self.fleet.duplicates())
+                self.db.add_telemetry(telemetry_rows(records, time.time()))
+                if time.monotonic() >= next_prune:
+                    next_prune = time.monotonic() + r.prune_period_s
+                    ev, tel = self.db.prune(r.events_keep_s, r.telemetry_keep_s)
+                    if ev or tel:
+                        log.info("retention: %d events and %d telemetry samples pruned", ev, tel)
+            except Exception:
+                log.exception("ground keeper: telemetry or retention failed")
 
     # --- audit ----------------------------------------------------------------------------------------
     def audit(self, who: Principal, action: str, target: str, body: Any, status: int, answer: Any) -> None:
@@ -263,6 +397,35 @@ class GroundService:
                 raise ApiError(409, f"vehicle {vid}: accepted but not started: {started['error']}")
             out["answer"] = {"accepted": answer, "started": started["answer"]}
         return out
+
+
+@dataclass(frozen=True)
+class Retention:
+    """How long events and telemetry are kept (s), how often telemetry is sampled and pruning runs."""
+
+    events_keep_s: float = 30 * 86400.0
+    telemetry_keep_s: float = 3600.0
+    telemetry_period_s: float = 1.0
+    prune_period_s: float = 60.0
+
+    def __post_init__(self) -> None:
+        for name in ("events_keep_s", "telemetry_keep_s", "telemetry_period_s", "prune_period_s"):
+            v = getattr(self, name)
+            if not (isinstance(v, int | float) and math.isfinite(v) and v > 0):
+                raise ValueError(f"retention: {name} must be a positive number of seconds, got {v!r}")
+
+
+def telemetry_rows(records: list[dict[str, Any]], t: float) -> list[tuple[Any, ...]]:
+    """The telemetry table's rows of one look at the fleet (vehicles with a position)."""
+    out = []
+    for v in records:
+        p = v.get("position")
+        if not p:
+            continue
+        armed = v.get("armed")
+        out.append((t, v["id"], p["lat"], p["lon"], p["alt"], v.get("heading"), v.get("mode"),
+                    None if armed is None else int(bool(armed)), v.get("battery"), v["health"]["level"]))
+    return out
 
 
 def task_out(v: Any) -> dict[str, Any]:

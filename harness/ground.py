@@ -12,6 +12,7 @@
 from __future__ import annotations
 
 import json
+import os
 import signal
 import socket
 import subprocess
@@ -36,6 +37,7 @@ from harness.team import PLATFORM, new_team_url
 from harness.timing import wait_for
 from taskflight.sitlproc import stop_child
 from taskflight_common.ports import free_ports
+from taskflight_common.tokens import TOKEN_ENV
 
 OPERATOR, OBSERVER = "op-token-for-tests", "ob-token-for-tests"
 #: a second operator (two operators' pages, one stick lease)
@@ -110,15 +112,17 @@ class GroundProcess(_Api):
         # python -m from the repository root: this checkout's code (the console script may be another's)
         args = [sys.executable, "-m", "taskflight.cli", "ground", "--team", self.team_url,
                 "--db", str(self.db),
-                "--host", "127.0.0.1", "--port", str(self.port), "--tokens", str(self.tokens),
-                "--companion-token", COMPANION_TOKEN]
+                "--host", "127.0.0.1", "--port", str(self.port), "--tokens", str(self.tokens)]
         for vid, url in self.companions.items():
             args += ["--companion", f"{vid}={url}"]
         out = open(self.tmp / f"ground{self.runs}.out", "ab")  # noqa: SIM115 - the child owns it
         self.runs += 1
-        self.proc = subprocess.Popen(args, stdout=out, stderr=subprocess.STDOUT, cwd=ROOT)
+        # the token in the environment: never on a command line (ps shows it to every user)
+        self.proc = subprocess.Popen(args, stdout=out, stderr=subprocess.STDOUT, cwd=ROOT,
+                                     env={**os.environ, TOKEN_ENV: COMPANION_TOKEN})
         out.close()
-        wait_for(lambda: self.proc.poll() is not None or self.alive(), 60, "taskflight ground answering")
+        # a deadline for a machine loaded by other suites (start-up imports take ~1 min at load 40)
+        wait_for(lambda: self.proc.poll() is not None or self.alive(), 180, "taskflight ground answering")
         assert self.proc.poll() is None, (self.tmp / f"ground{self.runs - 1}.out").read_text()
         return self
 

@@ -136,6 +136,7 @@ class UpOptions:
     ready_timeout_s: float | None = None
     persist: bool = True
     companion_nice: int = 0
+    resume_tasks: bool = False
     scenario: Path | None = None
 
     def check(self) -> None:
@@ -349,12 +350,14 @@ class Up:
         assert self.tokens_path is not None
         argv = [*self._exe(), *ground_arguments(self.member_url, o.state_dir / "ground.db", o.host,
                                                 o.ground_port, self.tokens_path, self.vehicles,
-                                                self.control_token)]
+                                                o.resume_tasks)]
         fence = write_fence(o.platform, o.state_dir / "fence.yaml")
         if fence is not None:
             argv += ["--fence", str(fence)]
         self.children.append(Child("ground", argv, o.state_dir / "logs" / "ground.log",
-                                   env={**self._pythonpath(), **self._key_env()}, cwd=ROOT).start())
+                                   env={**self._pythonpath(), **self._key_env(),
+                                        TOKEN_ENV: self.control_token},
+                                   cwd=ROOT).start())
 
     def _wait_ready(self, stop: threading.Event | None) -> None:
         end = self._deadline()
@@ -460,13 +463,15 @@ def write_fence(platform: Path, path: Path) -> Path | None:
 
 
 def ground_arguments(team_url: str, db: Path, host: str, port: int, tokens: Path,
-                     vehicles: list[VehicleInfo], companion_token: str) -> list[str]:
-    """``taskflight ground ...``'s arguments for this fleet (each vehicle's companion by system id)."""
+                     vehicles: list[VehicleInfo], resume_tasks: bool = False) -> list[str]:
+    """``taskflight ground ...``'s arguments for this fleet (each vehicle's companion by system id). The
+    companion token is not among them (``ps`` shows every argument to every user): the ground service
+    takes it from its environment (:data:`~taskflight_common.tokens.TOKEN_ENV`)."""
     argv = ["ground", "--team", team_url, "--db", str(db), "--host", host, "--port", str(port),
             "--tokens", str(tokens)]
     for v in vehicles:
         argv += ["--companion", f"{v.sysid}={v.control_url}"]
-    return [*argv, f"--companion-token={companion_token}"]  # '=': a token is never taken for an option
+    return [*argv, "--resume-tasks"] if resume_tasks else argv
 
 
 # --- command line ------------------------------------------------------------------------------------
@@ -510,6 +515,9 @@ def add_up_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--companion-nice", type=int, default=0, metavar="K",
                    help="run the companions at niceness K (0..19), so that the models' one process keeps "
                         "its clock when many companions load the machine (default 0)")
+    p.add_argument("--resume-tasks", action="store_true",
+                   help="the open tasks an earlier run left in <state-dir>/ground.db are given to the new "
+                        "vehicles at start (default: shown held until the operator releases them)")
     p.add_argument("--ready-timeout", type=float, default=None, metavar="S",
                    help="give up starting after S seconds (default 60 + 3 N)")
 
@@ -525,7 +533,8 @@ def options_from_args(args: argparse.Namespace) -> UpOptions:
                      team_key=Path(args.team_key) if args.team_key else None, first_sysid=args.first_sysid,
                      persist=not args.no_persist, platform=Path(args.platform),
                      companion_nice=args.companion_nice,
-                     scenario=Path(args.scenario) if args.scenario else None)
+                     scenario=Path(args.scenario) if args.scenario else None,
+                     resume_tasks=args.resume_tasks)
 
 
 def run_up(args: argparse.Namespace) -> int:

@@ -14,6 +14,13 @@ of UAVs assigned to the border patrol task. In this event, the border task is au
 a smaller number of individual tasks and reassigned." :meth:`TeamControlStation.add` answers such a
 request with the offer and changes nothing; the operator adds it again with the smaller N, or with
 ``force`` to keep N (the pieces wait for vehicles). :meth:`redivide` re-divides a task already added.
+
+Durability: an operator verb's change is handed to :attr:`TeamControlStation.persist` (the ground
+service's database) before it is published; if that raises, the ledger is put back as it was and the
+error goes to the caller (nothing half-done, nothing flown that is not stored). Restored with
+``hold=True``, the open tasks of a previous run are held: kept off the published board (no vehicle flies
+them) until :meth:`release`, except those a live vehicle is found claiming or flying once the team is
+heard again (a restart under running vehicles keeps what they fly).
 """
 
 from __future__ import annotations
@@ -22,7 +29,7 @@ import logging
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 from . import kinds
@@ -30,7 +37,7 @@ from .groupstate import GroupState
 from .link import DEFAULT_PERIOD_S, LinkEvent, TeamLink
 from .tasks import Fence, LedgerSnapshot, TaskDef, TaskLedger, derive_states, offer_smaller_n, validate
 from .transport import Transport
-from .types import STATION_ID, ClaimState, MemberEntry, MemberStatus, TaskState
+from .types import STATION_ID, ClaimState, MemberEntry, MemberStatus, TaskBoard, TaskState
 
 log = logging.getLogger(__name__)
 
@@ -99,6 +106,10 @@ class TeamControlStation:
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._settle_until = 0.0
+        #: writes an operator verb's change ({"event", "ids", ...}) before it is published; raising undoes it
+        self.persist: Callable[[dict[str, Any]], None] | None = None
+        self._held: set[int] = set()
+        self._hold_pending = False
 
     # --- lifecycle --------------------------------------------------------------------------------------
     def start(self) -> TeamControlStation:
@@ -135,36 +146,81 @@ class TeamControlStation:
                 if offer is not None:
                     self._record("offer", kind=defn.kind, requested=defn.n, offer=offer, free=free)
                     return AddResult(offer=offer, free=free)
+            before = self.ledger.export() if self.persist else None
             ids = self.ledger.add(defn, self.clock())
-            self._record("added", kind=defn.kind, ids=list(ids), name=defn.name)
-            self._publish()
+            self._commit(before, "added", kind=defn.kind, ids=list(ids), name=defn.name)
             return AddResult(ids=ids, free=free)
 
     def cancel(self, task_id: int) -> tuple[int, ...]:
         """Cancel a task or a divided task's live pieces (ValueError for an unknown or finished task)."""
         with self._lock:
+            before = self.ledger.export() if self.persist else None
             ids = self.ledger.cancel(task_id, self.clock())
-            self._record("cancelled", ids=list(ids))
-            self._publish()
+            self._commit(before, "cancelled", ids=list(ids))
+            self._held -= set(ids)
             return ids
 
     def redivide(self, group: int, n: int) -> tuple[int, ...]:
         with self._lock:
+            before = self.ledger.export() if self.persist else None
             ids = self.ledger.redivide(group, n, self.clock())
-            self._record("redivided", group=group, n=n, ids=list(ids))
-            self._publish()
+            self._commit(before, "redivided", group=group, n=n, ids=list(ids))
             return ids
 
-    def restore(self, snap: LedgerSnapshot, settle_s: float = 10.0) -> None:
+    def _commit(self, before: LedgerSnapshot | None, event: str, **fields: Any) -> None:
+        """Persist an operator verb's change (undone if that fails, the error raised), then record and
+        publish it."""
+        if self.persist is not None and before is not None:
+            try:
+                self.persist({"t": round(self.clock(), 3), "event": event, **fields})
+            except BaseException:
+                self.ledger.restore(before, self.clock())
+                raise
+        self._record(event, **fields)
+        self._publish()
+
+    def release(self, ids: list[int] | None = None) -> tuple[int, ...]:
+        """Give held tasks (all with ``None``) to the team: they are published and flown. ValueError
+        naming the ids that are not held."""
+        with self._lock:
+            want = set(self._held) if ids is None else set(ids)
+            if ids is not None and not want <= self._held:
+                raise ValueError(f"ids: tasks {sorted(want - self._held)} are not held")
+            if not want:
+                return ()
+            self._held -= want
+            self.ledger.touch(self.clock())
+            self._record("released", ids=sorted(want))
+            self._publish()
+            return tuple(sorted(want))
+
+    def cost_of(self, task_id: int) -> float | None:
+        """The holder's cost of a task (None: not held or not known)."""
+        with self._lock:
+            return self._costs.get(task_id) if self.ledger.holder(task_id) is not None else None
+
+    def held(self) -> tuple[int, ...]:
+        with self._lock:
+            return tuple(sorted(self._held))
+
+    def restore(self, snap: LedgerSnapshot, settle_s: float = 10.0, hold: bool = False) -> None:
         """Take the task list of a previous run (a restarted ground service): the same ids and states,
-        published at once with a newer (stamp, seq), so the vehicles keep the tasks they hold. For up
-        to ``settle_s`` the follow-up waits until every holder of a live task is heard again (a station
-        that has heard nobody yet would otherwise read every held task as unassigned)."""
+        published with a newer (stamp, seq), so the vehicles keep the tasks they hold. For up to
+        ``settle_s`` the follow-up waits until every holder of a live task is heard again (a station
+        that has heard nobody yet would otherwise read every held task as unassigned).
+
+        ``hold``: every open task is held (module docstring); once the team is heard (or ``settle_s``
+        passed) the tasks a live vehicle claims or flies are kept and published, the others stay held
+        until :meth:`release`. Nothing is published before that."""
         with self._lock:
             self.ledger.restore(snap, self.clock())
             self._settle_until = self.clock() + settle_s
-            self._record("restored", tasks=len(snap.tasks), groups=len(snap.groups))
-            self._publish()
+            if hold:
+                self._held = {t for t in self.ledger.ids() if not self.ledger.state(t).final}
+                self._hold_pending = bool(self._held)
+            self._record("restored", tasks=len(snap.tasks), groups=len(snap.groups), held=sorted(self._held))
+            if not self._hold_pending:
+                self._publish()
 
     # --- following the team ----------------------------------------------------------------------------
     def step(self) -> list[tuple[int, TaskState, int | None]]:
@@ -177,7 +233,9 @@ class TeamControlStation:
                 if not holders <= set(rows):
                     return []
                 self._settle_until = 0.0
-            board = self.ledger.board(self.clock())
+            if self._hold_pending:
+                self._keep_flown(rows)
+            board = self._board()
             derived = derive_states(board, rows)
             self._costs = {tid: cost for tid, (_s, _h, cost) in derived.items()}
             self._watch_conflicts(rows)
@@ -208,10 +266,29 @@ class TeamControlStation:
                 holder = claimants.get(tid, [None])[0]
                 self._record("resolved", task=tid, holder=holder)
 
-    def _publish(self) -> None:
+    def _keep_flown(self, rows: dict[int, MemberEntry]) -> None:
+        """The team is heard after a restore with hold: the held tasks a live vehicle claims, flies or
+        reports done are kept (published again), the others stay held."""
+        self._hold_pending = False
+        flown = {c.task for e in rows.values() if e.status.available for c in e.claims
+                 if c.state in (ClaimState.CLAIMED, ClaimState.ACTIVE, ClaimState.DONE)}
+        kept = self._held & flown
+        self._held -= kept
+        self.ledger.touch(self.clock())
+        self._record("kept", ids=sorted(kept), held=sorted(self._held))
+        self._publish()
+
+    def _board(self) -> TaskBoard:
+        """The ledger's board without the held tasks."""
         board = self.ledger.board(self.clock())
-        held = self.state.board
-        if held.epoch != self.state.epoch or board.seq > held.seq:
+        if not self._held:
+            return board
+        return replace(board, tasks=tuple(t for t in board.tasks if t.id not in self._held))
+
+    def _publish(self) -> None:
+        board = self._board()
+        current = self.state.board
+        if current.epoch != self.state.epoch or board.seq > current.seq:
             self.state.set_board(board)
 
     def _on_link(self, ev: LinkEvent) -> None:
@@ -256,7 +333,10 @@ class TeamControlStation:
                 state = self.ledger.state(tid)
                 holder = self.ledger.holder(tid)
                 cost = self._costs.get(tid) if holder is not None else None
-                out.append(TaskView(tid, t.kind.value, state.value, holder, cost, t.group, t.version, t.name,
+                # held, except while the restore waits for a holder that may come back flying it
+                shown = "held" if tid in self._held and (not self._hold_pending or holder is None) \
+                    else state.value
+                out.append(TaskView(tid, t.kind.value, shown, holder, cost, t.group, t.version, t.name,
                                     t.points))
             return out
 
@@ -265,4 +345,5 @@ class TeamControlStation:
         return {v.id: (v.state, v.holder) for v in self.tasks()}
 
     def all_final(self) -> bool:
-        return all(TaskState(v.state).final for v in self.tasks())
+        with self._lock:
+            return all(self.ledger.state(t).final for t in self.ledger.ids())

@@ -257,6 +257,25 @@ class TaskLedger:
         self._stamp = max(float(snap.stamp), self._stamp)
         self._changed(now)
 
+    @property
+    def next_id(self) -> int:
+        return self._next
+
+    @property
+    def stamp_seq(self) -> tuple[float, int]:
+        """The board's (stamp, seq) now."""
+        return self._stamp, self._seq
+
+    def group(self, gid: int) -> tuple[TaskDef, tuple[int, ...]] | None:
+        """A divided task's definition and pieces (None: no such group)."""
+        g = self._groups.get(gid)
+        return (g.defn, tuple(g.pieces)) if g is not None else None
+
+    def touch(self, now: float | None = None) -> None:
+        """Advance the board's (stamp, seq) with nothing else changed: the station publishes a board
+        whose view it changed (tasks held back from the team, then released)."""
+        self._changed(now)
+
     # --- state machine ----------------------------------------------------------------------------
     def transition(self, task_id: int, to: TaskState, holder: int | None = None, now: float | None = None
                    ) -> None:

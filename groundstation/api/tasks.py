@@ -4,9 +4,17 @@ from __future__ import annotations
 
 from typing import Annotated, Any
 
-from fastapi import APIRouter, Path, Request
+from fastapi import APIRouter, Body, Path, Request
 
-from groundstation.schemas import ErrorAnswer, TaskAdded, TaskCancelled, TaskList, TaskRequest
+from groundstation.schemas import (
+    ErrorAnswer,
+    ReleaseRequest,
+    TaskAdded,
+    TaskCancelled,
+    TaskList,
+    TaskRequest,
+    TasksReleased,
+)
 
 from . import audited, service_of
 
@@ -34,3 +42,15 @@ def cancel_task(request: Request, tid: Annotated[int, Path(ge=1, le=10**9)]) -> 
     """Cancel a task, or every live piece of a divided task (its group id)."""
     svc = service_of(request)
     return audited(request, "cancel_task", f"task {tid}", None, lambda: {"cancelled": svc.cancel_task(tid)})
+
+
+@router.post("/tasks/release", response_model=TasksReleased,
+             responses={409: {"model": ErrorAnswer, "description": "a task named is not held"}})
+def release_tasks(request: Request, body: Annotated[ReleaseRequest | None, Body()] = None) -> Any:
+    """Release held tasks (restored from an earlier run, kept from the team) to the team: the vehicles
+    divide and fly them. Without ``ids``: every held task."""
+    svc = service_of(request)
+    ids = body.ids if body is not None else None
+    return audited(request, "release_tasks", "tasks" if ids is None else f"tasks {ids}",
+                   body.model_dump() if body is not None else None,
+                   lambda: {"released": svc.release_tasks(ids), "held": list(svc.station.held())})

@@ -1,9 +1,13 @@
 """``/api/ws``: the live stream and the operator's stick.
 
 The server sends ``{"type": "hello", "role"}``, then fleet snapshots ``{"type": "snapshot", "seq", "t",
-"vehicles": [...], "tasks": [...]}`` every ``snapshot_period_s`` (default 0.1 s: 10 Hz) and events
-``{"type": "event", ...}`` as they happen. Each vehicle of a snapshot carries ``stick_lease``: null, or
-``{"holder", "expires_in"}`` while an operator holds its stick (:mod:`groundstation.stick`).
+"vehicles": [...], "tasks": [...], "stale_s", "lost_s"}`` every ``snapshot_period_s`` (default 0.1 s:
+10 Hz), events ``{"type": "event", ...}`` as they happen and ``{"type": "ack", "id", "acked_by",
+"acked_at"}`` when an operator acknowledges an alert. Events are queued per client; snapshots are not:
+a client slower than the stream is sent the newest snapshot when it is ready for one, never a backlog
+(:class:`~groundstation.service.Outbox`).
+Each vehicle of a snapshot carries ``stick_lease``: null, or ``{"holder", "expires_in"}`` while an
+operator holds its stick (:mod:`groundstation.stick`).
 
 The client authenticates with ``?token=`` or a first message ``{"type": "auth", "token": "..."}``, then
 may send ``{"type": "ping"}`` (answered ``pong``) and, as an operator holding the vehicle's stick lease
@@ -29,6 +33,7 @@ import contextlib
 import json
 import logging
 import math
+import socket
 import time
 from dataclasses import dataclass
 from typing import Any
@@ -37,7 +42,8 @@ from fastapi import APIRouter, FastAPI, WebSocket, WebSocketDisconnect
 
 from groundstation.auth import Principal
 from groundstation.companions import ApiError
-from groundstation.service import GroundService
+from groundstation.fleet import LOST_S, STALE_S
+from groundstation.service import GroundService, Outbox
 from groundstation.stick import ClockSync, LeaseError, StickDesk, StickSample, desk_of
 
 log = logging.getLogger(__name__)
@@ -56,11 +62,11 @@ CLOCK_PERIOD_S = 5.0
 
 
 class Client:
-    """One connected socket: an outbound queue drained by one writer task (a slow client drops
-    snapshots, never blocks the others)."""
+    """One connected socket: an outbox (events queued, the newest snapshot in one slot) drained by one
+    writer task: a slow client is sent the newest snapshot, and never blocks the others."""
 
-    def __init__(self, sock: WebSocket, who: Principal, queue: asyncio.Queue[Any]) -> None:
-        self.sock, self.who, self.out = sock, who, queue
+    def __init__(self, sock: WebSocket, who: Principal, outbox: Outbox) -> None:
+        self.sock, self.who, self.out = sock, who, outbox
         self.joysticked: set[int] = set()
         self.clock = ClockSync()
         #: when this page was last told a sample was refused, per vehicle (at most every ERROR_EVERY_S)
@@ -70,8 +76,12 @@ class Client:
         self.leases: set[tuple[int, str]] = set()
 
     def put(self, item: Any) -> None:
-        if not self.out.full():
-            self.out.put_nowait(item)
+        """A message in order (errors, pongs: queued like events)."""
+        self.out.put_event(item)
+
+    def put_snapshot(self, text: str) -> None:
+        """A snapshot: replaces one not sent yet."""
+        self.out.put_snapshot(text)
 
     async def writer(self) -> None:
         while True:
@@ -86,11 +96,33 @@ def desk(app: FastAPI, svc: GroundService) -> StickDesk:
     return desk_of(app.state, svc.client)
 
 
+#: the kernel's send buffer of a live-stream socket (bytes; Linux doubles it): small, so that a client slower
+#: than the stream holds back the writer (and its snapshot slot is replaced) instead of megabytes of old
+#: snapshots queueing in an autotuned buffer; 128 kB a 50 ms round trip still carries 2.5 MB/s (a 100-vehicle
+#: snapshot at 10 Hz is 0.65 MB/s)
+SEND_BUFFER = 64 * 1024
+
+
+def limit_send_buffer(sock: WebSocket, size: int = SEND_BUFFER) -> bool:
+    """Cap the connection's kernel send buffer (best effort: False when the server does not expose its
+    transport; the outbox still replaces snapshots, only later)."""
+    protocol = getattr(getattr(sock, "_receive", None), "__self__", None)
+    transport = getattr(protocol, "transport", None)
+    raw = transport.get_extra_info("socket") if transport is not None else None
+    if raw is None:
+        return False
+    try:
+        raw.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, size)
+    except OSError:
+        return False
+    return True
+
+
 def snapshot_message(svc: GroundService, seq: int, stick: StickDesk | None = None) -> str:
     leases = stick.leases.views() if stick is not None else {}
     vehicles = [{**v, "stick_lease": leases.get(v["id"])} for v in svc.fleet.snapshot()]
     return json.dumps({"type": "snapshot", "seq": seq, "t": time.time(), "vehicles": vehicles,
-                       "tasks": svc.tasks()})
+                       "tasks": svc.tasks(), "stale_s": STALE_S, "lost_s": LOST_S})
 
 
 async def broadcast(app: FastAPI, svc: GroundService, period_s: float) -> None:
@@ -116,7 +148,7 @@ async def _broadcast(app: FastAPI, svc: GroundService, period_s: float) -> None:
                 log.exception("snapshot failed")
             else:
                 for c in list(clients):
-                    c.put(text)
+                    c.put_snapshot(text)
         delay = next_t - time.monotonic()
         if delay < -period_s:  # fell behind (a loaded machine): do not burst
             next_t = time.monotonic()
@@ -272,6 +304,7 @@ async def websocket(sock: WebSocket) -> None:
     if who is None:
         await sock.close(code=1008)
         return
+    limit_send_buffer(sock)
     client = Client(sock, who, svc.hub.subscribe())
     await sock.send_json({"type": "hello", "role": who.role, "name": who.name})
     writer = asyncio.create_task(client.writer())

@@ -4,7 +4,7 @@
 import { call, Live, setToken, token } from "./api.js";
 import { getHome, setHome, toGeo } from "./geo.js";
 import { Joystick } from "./joystick.js";
-import { Alerts, FleetList, TaskList } from "./lists.js";
+import { Alerts, FleetList, linkOf, TaskList } from "./lists.js";
 import { FleetMap } from "./map.js";
 import { VehiclePanel } from "./vehicle.js";
 
@@ -13,6 +13,10 @@ const stats = { snapshots: 0, renders: 0, renderTimes: [], frameTimes: [], inter
 let role = null, live = null, fmap = null, fleet = null, tasks = null, alerts = null, panel = null, joystick = null;
 let pending = null, vehiclesById = new Map(), tasksById = new Map();
 let fencePoints = null, fenceDrawn = false;
+// the header: "live" only while snapshots arrive; "stale" when none came for STALE_MS (the socket may
+// still be open: a stopped or hung service), "offline" when the socket is closed too
+const STALE_MS = 2000;
+let lastSnapshotAt = 0, socketUp = false;
 
 /** A modal dialog; resolves to the value of the button pressed. */
 function dialog(title, bodyHtml, buttons) {
@@ -76,6 +80,53 @@ function endDraw() {
   $("draw-cancel").hidden = true;
 }
 
+async function releaseTasks(ids) {
+  const what = ids ? `task${ids.length > 1 ? "s" : ""} ${ids.join(", ")}` : "every held task";
+  const ans = await dialog(`Release ${what}?`, "<p>Held tasks come from an earlier run. Released, the vehicles divide and fly them.</p>",
+    [["yes", "Release"], ["", "Cancel"]]);
+  if (ans !== "yes") return;
+  const r = await call("POST", "/api/tasks/release", ids ? { ids } : {});
+  $("draw-hint").textContent = r.status === 200 ? `released ${r.body.released.join(", ") || "nothing"}` : `refused: ${r.body?.error}`;
+}
+
+async function ackAlert(id) {
+  const r = await call("POST", `/api/events/${id}/ack`);
+  if (r.status === 200) alerts.acked(r.body.id, r.body.acked_by, r.body.acked_at);
+  else $("draw-hint").textContent = `acknowledgement refused: ${r.body?.error}`;
+}
+
+/** The alerts the service keeps (every (re)connect: nothing lost by a reload or a dropped socket). */
+async function loadAlerts() {
+  const r = await call("GET", "/api/alerts?limit=200");
+  if (r.status === 200) alerts.load(r.body.alerts, r.body.kinds);
+  applyRole();
+}
+
+/** The replay: the selected vehicle's stored track of the last ``minutes`` drawn on the map. */
+async function replay() {
+  const vid = fleet.selected;
+  if (vid == null) { $("draw-hint").textContent = "click a vehicle first, then Replay"; return; }
+  if (fmap.replay) { fmap.showReplay(vid, null); $("replay-go").textContent = "Replay"; return; }
+  const minutes = Number($("replay-min").value) || 10;
+  const now = Date.now() / 1000;
+  const r = await call("GET", `/api/track/${vid}?since=${now - minutes * 60}&until=${now}`);
+  if (r.status !== 200) { $("draw-hint").textContent = `replay refused: ${r.body?.error}`; return; }
+  const n = fmap.showReplay(vid, r.body.points);
+  $("draw-hint").textContent = `vehicle ${vid}: ${n} samples of the last ${minutes} min`;
+  $("replay-go").textContent = n ? "Clear replay" : "Replay";
+}
+
+function headerState() {
+  const fresh = lastSnapshotAt && performance.now() - lastSnapshotAt <= STALE_MS;
+  const state = socketUp && fresh ? "live" : lastSnapshotAt && !fresh ? "stale" : socketUp ? "waiting" : "offline";
+  const el = $("link");
+  const age = lastSnapshotAt ? ((performance.now() - lastSnapshotAt) / 1000).toFixed(0) : null;
+  const text = state === "stale" ? `stale (${age} s${socketUp ? "" : ", offline"})` : state;
+  if (el.textContent !== text) el.textContent = text;
+  el.className = `link ${state === "live" ? "ok" : state === "stale" ? "warn" : "bad"}`;
+  el.dataset.state = state;
+}
+
 async function cancelTask(t) {
   const r = await call("DELETE", `/api/tasks/${t.group || t.id}`);
   $("draw-hint").textContent = r.status === 200 ? `cancelled ${r.body.cancelled.join(", ")}` : `refused: ${r.body?.error}`;
@@ -116,9 +167,14 @@ function updateConfirm(vehicles) {
 function onMessage(msg) {
   if (msg.type === "snapshot") {
     stats.snapshots += 1;
+    lastSnapshotAt = performance.now();
     pending = msg;
+  } else if (msg.type === "hello") {
+    loadAlerts();
+  } else if (msg.type === "ack") {
+    alerts.acked(msg.id, msg.acked_by, msg.acked_at);
   } else if (msg.type === "event") {
-    alerts.add(msg);
+    if (alerts.add(msg)) applyRole();
     const d = msg.data || {};
     const pos = Number.isFinite(d.lat) && Number.isFinite(d.lon) ? [d.lat, d.lon] : (d.position || d.point);
     if (msg.kind === "detection" && Array.isArray(pos) && getHome()) fmap.addDetection(pos[0], pos[1], msg.message);
@@ -140,11 +196,19 @@ function render(snap) {
   if (fencePoints && !fenceDrawn) { fmap.setFence(fencePoints); fenceDrawn = true; }
   tasksById = new Map(snap.tasks.map((t) => [t.id, t]));
   vehiclesById = new Map(snap.vehicles.map((v) => [v.id, v]));
-  for (const v of snap.vehicles) v.alert = v.confirmation_required ? "confirmation required" : alerts.of(v.id);
+  for (const v of snap.vehicles) {
+    v.alert = v.confirmation_required ? "confirmation required" : alerts.of(v.id);
+    v.link = linkOf(v, snap.stale_s, snap.lost_s);
+  }
+  const held = snap.tasks.filter((t) => t.state === "held").length;
+  $("release-all").hidden = !held;
+  $("release-all").textContent = `Release ${held} held task${held === 1 ? "" : "s"}`;
   fmap.updateTasks(snap.tasks);
   fmap.updateVehicles(snap.vehicles, tasksById, now);
   fleet.update(snap.vehicles);
+  const taskRows = tasks.rows.size;
   tasks.update(snap.tasks);
+  if (tasks.rows.size !== taskRows) applyRole();  // new rows' buttons: disabled for an observer
   panel.record(snap.vehicles, now);
   panel.update(vehiclesById.get(panel.vid));
   updateConfirm(snap.vehicles);
@@ -184,9 +248,12 @@ async function start() {
   $("app").hidden = false;
   fmap = new FleetMap($("map"), pick);
   fleet = new FleetList(document.querySelector("#fleet tbody"), pick);
-  tasks = new TaskList(document.querySelector("#tasks tbody"), cancelTask);
-  alerts = new Alerts($("alerts"), $("alert-count"));
-  live = new Live(onMessage, (up) => { $("link").textContent = up ? "live" : "offline"; $("link").className = `link ${up ? "ok" : "bad"}`; });
+  tasks = new TaskList(document.querySelector("#tasks tbody"), cancelTask, releaseTasks);
+  alerts = new Alerts($("alerts"), $("alert-count"), ackAlert);
+  live = new Live(onMessage, (up) => { socketUp = up; headerState(); });
+  setInterval(headerState, 250);
+  $("release-all").addEventListener("click", () => releaseTasks(null));
+  $("replay-go").addEventListener("click", replay);
   joystick = new Joystick(live);
   panel = new VehiclePanel($("vehicle"), { joystick, canCommand, applyRole });
   for (const b of document.querySelectorAll("[data-draw]")) b.addEventListener("click", () => startDraw(b.dataset.draw));

@@ -55,12 +55,18 @@ export class FleetMap {
       }
       e.marker.setLatLng(p);
       if (!e.el) e.el = e.marker.getElement()?.querySelector(".vmarker");
+      const link = v.link || "live";
       if (e.el) {
         e.el.dataset.n = p[0].toFixed(2);
         e.el.dataset.e = p[1].toFixed(2);
+        e.el.dataset.link = link;
+        e.el.classList.toggle("stale", link === "stale");
+        e.el.classList.toggle("lost", link === "lost");
         e.el.querySelector(".hdg").setAttribute("transform", `rotate(${v.heading || 0})`);
         const warn = v.alert ? ` <span class="alert">⚠ ${v.alert}</span>` : "";
-        const text = `${v.name || "vehicle " + v.id}${warn}`;
+        const age = v.age_s != null ? ` ${v.age_s.toFixed(0)} s` : "";
+        const state = link === "live" ? "" : ` <span class="linkstate">${link}${age}</span>`;
+        const text = `${v.name || "vehicle " + v.id}${state}${warn}`;
         const label = e.el.querySelector(".label");
         if (label.innerHTML !== text) label.innerHTML = text;
       }
@@ -68,6 +74,7 @@ export class FleetMap {
       if (!last || Math.hypot(last[0] - p[0], last[1] - p[1]) > 0.3 || now - last[2] > 2) e.pts.push([p[0], p[1], now]);
       while (e.pts.length && now - e.pts[0][2] > TRACK_S) e.pts.shift();
       e.track.setLatLngs(e.pts.map((q) => [q[0], q[1]]));
+      e.track.setStyle({ color: link === "lost" ? GREY : colour(v.id), dashArray: link === "lost" ? "2 4" : null });
       const t = v.task != null ? tasksById.get(v.task) : null;
       const goal = t && t.points.length ? toLocal(t.points[0][0], t.points[0][1]) : null;
       e.target.setLatLngs(goal ? [p, goal] : []);
@@ -138,6 +145,24 @@ export class FleetMap {
     if (pts.length > 1) (this.draw.type === "area_scan" ? L.polygon : L.polyline)(pts, { color: "#000", dashArray: "3 3" })
       .addTo(this.drawLayer);
     if (this.draw.type === "visit") this.finish();
+  }
+
+  /** The replay: a vehicle's stored track (GET /api/track) drawn over the map, the samples as dots with
+   * their time, mode and health; ``null`` clears it. */
+  showReplay(vid, points) {
+    if (this.replay) { this.replay.remove(); this.replay = null; }
+    if (!points || !points.length) return 0;
+    const pts = points.filter((q) => q.lat != null).map((q) => [toLocal(q.lat, q.lon), q]);
+    const layer = L.layerGroup();
+    L.polyline(pts.map(([p]) => p), { color: colour(vid), weight: 3, opacity: 0.9, dashArray: "1 5",
+      className: "replay", interactive: false }).addTo(layer);
+    for (const [p, q] of pts) {
+      const dot = L.circleMarker(p, { radius: 2.5, color: colour(vid), fillOpacity: 1, className: "replay-dot" });
+      dot.bindTooltip(`${new Date(q.t * 1000).toLocaleTimeString()} ${q.mode || ""} ${q.health || ""} alt ${(q.alt ?? 0).toFixed(1)} m`);
+      dot.addTo(layer);
+    }
+    this.replay = layer.addTo(this.map);
+    return pts.length;
   }
 
   /** The map's container pixel of the point ``n`` m north and ``e`` m east of home (for the tests). */
