@@ -23,6 +23,7 @@ import json
 import logging
 import math
 import os
+import re
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -110,6 +111,21 @@ class ParamStore:
 
     def names(self) -> list[str]:
         return list(self._defs)
+
+    def metadata(self) -> dict[str, dict[str, object]]:
+        """Every parameter's range and meaning, by name, as the guard of parameter writes reads it
+        (``mission_specs/params_model.yaml``, written by :mod:`autopilot_model.param_table`): ``min``,
+        ``max``, ``units`` (the doc's trailing parenthesis), ``description``, ``integer`` and ``values``."""
+        out: dict[str, dict[str, object]] = {}
+        for d in self._defs.values():
+            m = re.search(r"\(([^()]*)\)\s*$", d.doc.split(",")[0]) if d.doc else None
+            units = m.group(1) if m else ""
+            entry: dict[str, object] = {"min": d.lo, "max": d.hi, "units": units, "description": d.doc,
+                                        "integer": d.kind == PARAM_INT}
+            if d.values:
+                entry["values"] = list(d.values)
+            out[d.name] = entry
+        return out
 
     def index_of(self, name: str) -> int:
         return list(self._defs).index(name)
