@@ -43,5 +43,5 @@ class ParamAnswer(BaseModel):
     max: float | None = Field(default=None, description="the highest value accepted")
     units: str | None = None
     description: str | None = None
-    autopilot: str | None = Field(default=None, description="the table the range is from: arducopter or model; "
-                                  "null: not a parameter written through this station")
+    autopilot: str | None = Field(default=None, description="the table the range is from: arducopter or "
+                                  "model; null: not a parameter written through this station")
