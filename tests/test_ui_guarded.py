@@ -82,7 +82,9 @@ def flying(up_rig: GroundRig) -> int:
 @pytest.fixture(scope="module")
 def page(up_rig: GroundRig) -> Iterator[Any]:
     d = browser(WIDTH, HEIGHT)
-    try:
+    try:  # the page's viewport is the tablet's screen (the window's size would include the browser's frame)
+        d.execute_cdp_cmd("Emulation.setDeviceMetricsOverride",
+                          {"width": WIDTH, "height": HEIGHT, "deviceScaleFactor": 1, "mobile": False})
         login(d, up_rig.ground.url, "op-token-for-tests")
         WebDriverWait(d, 30).until(lambda d: len(d.find_elements(By.CSS_SELECTOR, "#fleet tbody tr")) == 3)
         yield d
@@ -256,7 +258,7 @@ def test_a_tablet_shows_the_map_and_the_panel_and_lists_the_shortcuts(up_rig: Gr
     d = page
     pick(d, 1)
     lay = _layout(d)
-    assert lay["w"] <= WIDTH and lay["h"] <= HEIGHT, lay
+    assert (lay["w"], lay["h"]) == (WIDTH, HEIGHT), lay
     assert lay["scrollW"] <= lay["w"] and lay["scrollH"] <= lay["h"], f"the page scrolls: {lay}"
     assert lay["asideShown"] and lay["asideR"] <= lay["w"] + 0.5 and lay["asideL"] >= lay["mapR"] - 0.5, lay
     assert lay["mapW"] >= 0.5 * lay["w"] and lay["mapH"] >= 0.6 * lay["h"], f"the map is too small: {lay}"
