@@ -23,6 +23,7 @@ import json
 import logging
 import math
 import os
+import re
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -32,6 +33,8 @@ log = logging.getLogger(__name__)
 
 PARAM_INT = "int"
 PARAM_FLOAT = "float"
+#: words a doc puts in parentheses that are not units
+_NOT_UNITS = frozenset({"stored", "down"})
 
 
 class ParamError(ValueError):
@@ -110,6 +113,21 @@ class ParamStore:
 
     def names(self) -> list[str]:
         return list(self._defs)
+
+    def metadata(self) -> dict[str, dict[str, object]]:
+        """Every parameter's range and meaning, by name, as the guard of parameter writes reads it
+        (``mission_specs/params_model.yaml``, written by :mod:`autopilot_model.param_table`): ``min``,
+        ``max``, ``units`` (the doc's first parenthesis), ``description``, ``integer`` and ``values``."""
+        out: dict[str, dict[str, object]] = {}
+        for d in self._defs.values():
+            m = re.search(r"\(([^(),\s]{1,12})[),]", d.doc)  # the doc's first "(unit)" or "(unit, ..."
+            units = m.group(1) if m and m.group(1) not in _NOT_UNITS and "_" not in m.group(1) else ""
+            entry: dict[str, object] = {"min": d.lo, "max": d.hi, "units": units, "description": d.doc,
+                                        "integer": d.kind == PARAM_INT}
+            if d.values:
+                entry["values"] = list(d.values)
+            out[d.name] = entry
+        return out
 
     def index_of(self, name: str) -> int:
         return list(self._defs).index(name)

@@ -7,15 +7,29 @@ it from here (the ground service imports no module of the companion's HTTP surfa
 
 from __future__ import annotations
 
-from pydantic import BaseModel, ConfigDict, Field
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict, Field, field_validator
+
+from mission_specs.param_table import ParamWriteError, check_number
 
 
 class ParamSet(BaseModel):
-    """``PUT /params/{name}``: the value to set."""
+    """``PUT /params/{name}``: the value to set; ``force``: the operator's override of the in-flight
+    bound (a change of more than 50 % of the current value while armed)."""
 
     model_config = ConfigDict(extra="forbid")
 
     value: float = Field(..., allow_inf_nan=False)
+    force: bool = Field(False, description="operator only: accept more than a 50 % change in flight")
+
+    @field_validator("value", mode="before")
+    @classmethod
+    def _number(cls, v: Any) -> float:
+        try:
+            return check_number(v)  # an empty or non-numeric value is refused (never read as 0)
+        except ParamWriteError as exc:
+            raise ValueError(exc.reason) from None
 
 
 class ParamAnswer(BaseModel):
@@ -24,3 +38,10 @@ class ParamAnswer(BaseModel):
     name: str
     value: float
     type: int
+    old: float | None = Field(default=None, description="after a write: the value read before it")
+    min: float | None = Field(default=None, description="the lowest value accepted (the autopilot's table)")
+    max: float | None = Field(default=None, description="the highest value accepted")
+    units: str | None = None
+    description: str | None = None
+    autopilot: str | None = Field(default=None, description="the table the range is from: arducopter or "
+                                  "model; null: not a parameter written through this station")

@@ -12,6 +12,10 @@ parameter ``token`` or in its first message (browsers cannot set its headers).
 Errors: every refusal is ``{"error": "..."}`` (400 a bad body naming the field, 401, 403, 404, 409 the
 wrong state, 422 rejected with ``reasons``, 502 / 504 a companion unreachable / silent). The bearer check
 and the error shape are the companion's control surface's too (:mod:`taskflight_common.httpapi`).
+
+Nothing from the data runs as code: every answer carries a Content-Security-Policy (:data:`CSP`) that lets a
+page run only the service's own scripts and styles (no inline script, no inline style, no other host), and
+the web UI inserts every text from the service as text (``static/js/text.js``).
 """
 
 from __future__ import annotations
@@ -42,6 +46,12 @@ from .service import GroundService
 log = logging.getLogger(__name__)
 
 READ_METHODS = frozenset({"GET", "HEAD", "OPTIONS"})
+#: the pages' Content-Security-Policy: the service's own scripts, styles, images and connections only
+#: (``'self'`` covers the WebSocket of the same host in CSP 3); data: images for the empty favicon
+CSP = ("default-src 'self'; script-src 'self'; style-src 'self'; img-src 'self' data:; connect-src 'self'; "
+       "font-src 'self'; object-src 'none'; base-uri 'none'; form-action 'self'; frame-ancestors 'none'")
+SECURITY_HEADERS = [(b"content-security-policy", CSP.encode("ascii")),
+                    (b"x-content-type-options", b"nosniff"), (b"referrer-policy", b"no-referrer")]
 #: the operator's web UI: plain ES modules and a vendored Leaflet, served at ``/``
 STATIC = Path(__file__).with_name("static")
 
@@ -65,6 +75,27 @@ class Access(BearerAuth):
         return error_response(403, message)
 
 
+class SecurityHeaders:
+    """ASGI middleware: :data:`SECURITY_HEADERS` on every HTTP answer (the page, its assets, the API)."""
+
+    def __init__(self, app: Any) -> None:
+        self.app = app
+
+    async def __call__(self, scope: Scope, receive: Any, send: Any) -> None:
+        if scope["type"] != "http":
+            await self.app(scope, receive, send)
+            return
+
+        async def with_headers(message: dict[str, Any]) -> None:
+            if message["type"] == "http.response.start":
+                names = {k.lower() for k, _ in message.get("headers", [])}
+                message["headers"] = list(message.get("headers", [])) + [
+                    (k, v) for k, v in SECURITY_HEADERS if k not in names]
+            await send(message)
+
+        await self.app(scope, receive, with_headers)
+
+
 def create_app(service: GroundService, snapshot_period_s: float = 0.1) -> FastAPI:
     """The application serving ``service`` (started and closed with the application's lifespan)."""
 
@@ -85,6 +116,7 @@ def create_app(service: GroundService, snapshot_period_s: float = 0.1) -> FastAP
     app.state.service = service
     app.state.sockets = set()
     app.add_middleware(Access, service=service)
+    app.add_middleware(SecurityHeaders)
 
     advertise_bearer(app)
     install_error_handlers(app)

@@ -46,6 +46,8 @@ def test_bad_parameter_requests_change_nothing(flight_session: FlightSession) ->
     r = flight_session.http.put("/params/ATC_RAT_RLL_P", content=b"{nope",
                                 headers={"Content-Type": "application/json"})
     assert r.status_code == 400
-    r = flight_session.http.put("/params/NO_SUCH_PARAM_X", json={"value": 1.0})
+    r = flight_session.http.put("/params/NO_SUCH_PARAM_X", json={"value": 1.0})  # not in the table
+    assert r.status_code == 400 and r.json()["error"].startswith("name: NO_SUCH_PARAM_X"), r.text
+    r = flight_session.http.get("/params/NO_SUCH_PARAM_X")  # a read asks the autopilot: unknown
     assert r.status_code == 504 and "no PARAM_VALUE" in r.json()["error"]
     assert flight_session.http.get("/params/ATC_RAT_RLL_P").json()["value"] == value

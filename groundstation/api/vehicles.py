@@ -13,6 +13,7 @@ from companion.api_models import ParamAnswer, ParamSet  # the companion's own co
 from groundstation.companions import ApiError
 from groundstation.schemas import (
     CommandAnswer,
+    ErrorAnswer,
     MissionRequest,
     PauseRequest,
     StickLeaseOut,
@@ -24,6 +25,7 @@ from groundstation.schemas import (
     VehicleRegistration,
 )
 from groundstation.stick import Lease, StickLeases, desk_of
+from mission_specs.param_table import ParamSpec, ParamWriteError, check_change, check_range, known
 
 from . import audited, principal_of, service_of
 
@@ -182,11 +184,44 @@ def get_param(request: Request, vid: VehicleId, name: ParamName) -> Any:
     return _param(request, vid, "GET", name)
 
 
-@router.put("/vehicles/{vid}/params/{name}", response_model=ParamAnswer)
+def _param_spec(name: str, current: dict[str, Any]) -> ParamSpec:
+    """The range to check: the vehicle's own table as its companion reported it, else the widest range
+    of the bundled tables (the companion then applies its own)."""
+    if current.get("autopilot") and current.get("min") is not None and current.get("max") is not None:
+        return ParamSpec(name, float(current["min"]), float(current["max"]), current.get("units") or "")
+    specs = known(name)
+    return ParamSpec(name, min(s.min for s in specs), max(s.max for s in specs))
+
+
+@router.put("/vehicles/{vid}/params/{name}", response_model=ParamAnswer,
+            responses={400: {"model": ErrorAnswer, "description": "refused (the field named): a name "
+                             "outside the tables of tunable parameters, an empty, non-numeric or "
+                             "out-of-range value, more than 50 % of a change in flight without force"}})
 def put_param(request: Request, vid: VehicleId, name: ParamName, body: ParamSet) -> Any:
-    """In-flight gain tuning: the answer is the autopilot's read-back."""
-    return audited(request, "param", f"vehicle {vid} {name}", body.model_dump(),
-                   lambda: _param(request, vid, "PUT", name, body.model_dump()))
+    """In-flight gain tuning, guarded (:mod:`mission_specs.param_table`): only a parameter of the
+    bundled tables, inside its range; while the vehicle is armed (or its state unknown) at most a 50 %
+    change of the value read first unless ``force`` (operators only: observers cannot write). The answer
+    is the autopilot's read-back; the audit log records the old and the new value."""
+    record: dict[str, Any] = {"value": body.value, "force": body.force, "old": None}
+
+    def run() -> dict[str, Any]:
+        if not known(name):
+            raise ApiError(400, f"name: {name} is not in the tables of tunable parameters")
+        current = _param(request, vid, "GET", name)
+        old = float(current["value"])
+        record["old"] = old
+        spec = _param_spec(name, current)
+        armed = _vehicle(request, vid).get("armed")
+        try:
+            check_range(spec, body.value)
+            if armed is not False and not body.force:
+                check_change(spec, old, body.value)
+        except ParamWriteError as exc:
+            raise ApiError(400, str(exc)) from None
+        answer = _param(request, vid, "PUT", name, {"value": body.value, "force": body.force})
+        record["read_back"] = answer.get("value")
+        return {**answer, "old": old}
+    return audited(request, "param", f"vehicle {vid} {name}", record, run)
 
 
 # --- the stick lease (groundstation.stick): one operator flies a vehicle's stick at a time ------------------

@@ -2,6 +2,7 @@
 // members displays each UAV's map icon, current task, and most recent communication. The task list displays
 // the list of assigned tasks, any of which can be canceled at any time.").
 import { colour } from "./geo.js";
+import { esc } from "./text.js";
 
 // the service's alert kinds (GET /api/alerts names them; this is the set until it answered)
 let ALERT_KINDS = new Set(["failsafe", "override", "link_lost", "battery_low", "battery_critical", "duplicate_id",
@@ -34,8 +35,9 @@ export class FleetList {
         tr = document.createElement("tr");
         tr.dataset.vehicle = v.id;
         tr.innerHTML = `<td><input type="checkbox" title="tick for a command to several vehicles"></td>
-          <td><span class="swatch" style="background:${colour(v.id)}"></span> <span class="dot"></span></td>
+          <td><span class="swatch"></span> <span class="dot"></span></td>
           <td></td><td></td><td></td><td></td><td></td><td></td>`;
+        tr.querySelector(".swatch").style.background = colour(v.id);
         tr.addEventListener("click", (ev) => { if (ev.target.tagName !== "INPUT") this.onPick(v.id); });
         const after = [...this.rows.keys()].filter((id) => id > v.id).sort((a, b) => a - b)[0];
         this.tbody.insertBefore(tr, after ? this.rows.get(after) : null);
@@ -75,7 +77,7 @@ export class TaskList {
       if (!tr) {
         tr = document.createElement("tr");
         tr.dataset.task = t.id;
-        tr.innerHTML = `<td>${t.id}</td><td></td><td class="state"></td><td class="holder"></td><td></td>
+        tr.innerHTML = `<td>${esc(t.id)}</td><td></td><td class="state"></td><td class="holder"></td><td></td>
           <td><button type="button" class="release" data-cmd hidden title="give this task of an earlier run to the team">Release</button>
           <button type="button" class="cancel" data-cmd>Cancel</button></td>`;
         tr.querySelector("button.cancel").addEventListener("click", () => this.onCancel(t));
@@ -85,7 +87,12 @@ export class TaskList {
       }
       set(cell(tr, 1), `${t.kind}${t.group ? " (group " + t.group + ")" : ""}${t.name ? " " + t.name : ""}`);
       set(cell(tr, 2), t.state);
-      cell(tr, 3).innerHTML = t.holder ? `<span class="swatch" style="background:${colour(t.holder)}"></span> ${t.holder}` : "—";
+      const holder = cell(tr, 3);
+      if (holder.dataset.holder !== String(t.holder ?? "")) {  // a swatch and the holder's id, as text
+        holder.dataset.holder = String(t.holder ?? "");
+        holder.textContent = t.holder ? ` ${t.holder}` : "—";
+        if (t.holder) { const sw = document.createElement("span"); sw.className = "swatch"; sw.style.background = colour(t.holder); holder.prepend(sw); }
+      }
       set(cell(tr, 4), t.cost != null ? `${t.cost.toFixed(0)} s` : "");
       tr.querySelector("button.cancel").hidden = t.state === "done" || t.state === "cancelled";
       tr.querySelector("button.release").hidden = t.state !== "held";

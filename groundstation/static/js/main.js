@@ -6,6 +6,8 @@ import { getHome, setHome, toGeo } from "./geo.js";
 import { Joystick } from "./joystick.js";
 import { Alerts, FleetList, linkOf, TaskList } from "./lists.js";
 import { FleetMap } from "./map.js";
+import { installShortcuts } from "./shortcuts.js";
+import { esc } from "./text.js";
 import { VehiclePanel } from "./vehicle.js";
 
 const $ = (id) => document.getElementById(id);
@@ -23,7 +25,7 @@ function dialog(title, bodyHtml, buttons) {
   const d = $("dialog");
   $("dialog-title").textContent = title;
   $("dialog-body").innerHTML = bodyHtml;
-  $("dialog-buttons").innerHTML = buttons.map(([v, label]) => `<button value="${v}" data-answer="${v}">${label}</button>`).join("");
+  $("dialog-buttons").innerHTML = buttons.map(([v, label]) => `<button value="${esc(v)}" data-answer="${esc(v)}">${esc(label)}</button>`).join("");
   return new Promise((resolve) => {
     d.addEventListener("close", () => resolve(d.returnValue), { once: true });
     d.returnValue = "";
@@ -55,8 +57,8 @@ async function addTask(type, points) {
   if (type === "border_patrol" || type === "area_scan") body.vehicles = Math.max(1, Number($("task-n").value) || 1);
   let r = await call("POST", "/api/tasks", body);
   if (r.status === 409 && r.body && r.body.offer != null) {
-    const ans = await dialog("Fewer vehicles free", `<p>${body.vehicles} vehicles asked for; ${r.body.free} free.
-      The service offers N = <b class="offer">${r.body.offer}</b>.</p>`,
+    const ans = await dialog("Fewer vehicles free", `<p>${esc(body.vehicles)} vehicles asked for; ${esc(r.body.free)} free.
+      The service offers N = <b class="offer">${esc(r.body.offer)}</b>.</p>`,
     [["accept", `Accept N = ${r.body.offer}`], ["force", `Keep N = ${body.vehicles} (pieces wait)`], ["", "Cancel"]]);
     if (!ans) return;
     r = await call("POST", "/api/tasks", ans === "accept" ? { ...body, vehicles: r.body.offer } : { ...body, force: true });
@@ -136,7 +138,7 @@ async function commandMany() {
   const ids = fleet.ticked();
   const verb = $("multi-cmd").value;
   if (!ids.length) { $("draw-hint").textContent = "tick the vehicles first"; return; }
-  const list = ids.map((id) => `<li>${vehiclesById.get(id)?.name || "vehicle " + id} (${id})</li>`).join("");
+  const list = ids.map((id) => `<li>${esc(vehiclesById.get(id)?.name || "vehicle " + id)} (${esc(id)})</li>`).join("");
   const ans = await dialog(`${verb} ${ids.length} vehicles?`, `<p>Every target:</p><ul class="targets">${list}</ul>`,
     [["yes", `${verb} all ${ids.length}`], ["", "Cancel"]]);
   if (ans !== "yes") return;
@@ -153,8 +155,8 @@ function updateConfirm(vehicles) {
   const key = waiting.map((v) => `${v.id}:${v.mission?.node || ""}`).join(",");
   if (ul.dataset.key !== key) {
     ul.dataset.key = key;
-    ul.innerHTML = waiting.map((v) => `<li data-vehicle="${v.id}">${v.name || "vehicle " + v.id}: ${v.mission?.node ||
-      "the mission"} <button type="button" data-cmd data-confirm="${v.id}">Confirm</button></li>`).join("");
+    ul.innerHTML = waiting.map((v) => `<li data-vehicle="${esc(v.id)}">${esc(v.name || "vehicle " + v.id)}: ${esc(v.mission?.node ||
+      "the mission")} <button type="button" data-cmd data-confirm="${esc(v.id)}">Confirm</button></li>`).join("");
     for (const b of ul.querySelectorAll("[data-confirm]")) {
       b.addEventListener("click", () => call("POST", `/api/vehicles/${b.dataset.confirm}/user_confirm`));
     }
@@ -255,11 +257,12 @@ async function start() {
   $("release-all").addEventListener("click", () => releaseTasks(null));
   $("replay-go").addEventListener("click", replay);
   joystick = new Joystick(live);
-  panel = new VehiclePanel($("vehicle"), { joystick, canCommand, applyRole });
+  panel = new VehiclePanel($("vehicle"), { joystick, canCommand, applyRole, dialog });
   for (const b of document.querySelectorAll("[data-draw]")) b.addEventListener("click", () => startDraw(b.dataset.draw));
   $("draw-finish").addEventListener("click", () => fmap.finish());
   $("draw-cancel").addEventListener("click", () => { fmap.cancelDraw(); endDraw(); $("draw-hint").textContent = ""; });
   $("multi-go").addEventListener("click", commandMany);
+  installShortcuts(() => fmap.map.invalidateSize());
   fmap.map.on("mousemove", (e) => {
     if (!getHome()) return;
     const [lat, lon] = [e.latlng.lat, e.latlng.lng];

@@ -1,6 +1,7 @@
 // The map (seed 003 Sec. II "All UAVs and tasks are displayed on a map, which is also
 // used to input new tasks"): Leaflet with L.CRS.Simple in local metres around home, no tiles.
 import { colour, toGeo, toLocal } from "./geo.js";
+import { esc, textEl } from "./text.js";
 
 const L = window.L;
 const TRACK_S = 180;  // the track's length (s)
@@ -45,7 +46,7 @@ export class FleetMap {
       if (!e) {
         const c = colour(v.id);
         const icon = L.divIcon({ className: "", iconSize: [0, 0],
-          html: `<div class="vmarker" data-vehicle="${v.id}">${arrow(c)}<span class="label"></span></div>` });
+          html: `<div class="vmarker" data-vehicle="${esc(v.id)}">${arrow(c)}<span class="label"></span></div>` });
         const marker = L.marker(p, { icon, keyboard: false }).addTo(this.map);
         marker.on("click", () => this.onPick(v.id));
         const track = L.polyline([], { color: c, weight: 2, opacity: 0.6, interactive: false }).addTo(this.map);
@@ -63,12 +64,16 @@ export class FleetMap {
         e.el.classList.toggle("stale", link === "stale");
         e.el.classList.toggle("lost", link === "lost");
         e.el.querySelector(".hdg").setAttribute("transform", `rotate(${v.heading || 0})`);
-        const warn = v.alert ? ` <span class="alert">⚠ ${v.alert}</span>` : "";
         const age = v.age_s != null ? ` ${v.age_s.toFixed(0)} s` : "";
-        const state = link === "live" ? "" : ` <span class="linkstate">${link}${age}</span>`;
-        const text = `${v.name || "vehicle " + v.id}${state}${warn}`;
-        const label = e.el.querySelector(".label");
-        if (label.innerHTML !== text) label.innerHTML = text;
+        const state = link === "live" ? "" : `${link}${age}`;
+        const key = `${v.name}\u0000${v.alert || ""}\u0000${state}`;
+        if (e.labelKey !== key) {  // the name, the link state and the alert as text
+          e.labelKey = key;
+          const label = e.el.querySelector(".label");
+          label.textContent = v.name || `vehicle ${v.id}`;
+          if (state) { const s = textEl(state); s.className = "linkstate"; label.append(" ", s); }
+          if (v.alert) { const w = textEl(` ⚠ ${v.alert}`); w.className = "alert"; label.append(" ", w); }
+        }
       }
       const last = e.pts[e.pts.length - 1];
       if (!last || Math.hypot(last[0] - p[0], last[1] - p[1]) > 0.3 || now - last[2] > 2) e.pts.push([p[0], p[1], now]);
@@ -98,7 +103,7 @@ export class FleetMap {
       if (t.kind === "visit" || pts.length === 1) layer = L.circleMarker(pts[0], { ...style, radius: 7 });
       else if (t.kind === "area_scan" || t.kind === "area") layer = L.polygon(pts, style);
       else layer = L.polyline(pts, { ...style, dashArray: t.kind.includes("border") ? "8 4" : null });
-      layer.bindTooltip(`task ${t.id} ${t.kind} ${t.state}${t.holder ? " → " + t.holder : ""}`);
+      layer.bindTooltip(textEl(`task ${t.id} ${t.kind} ${t.state}${t.holder ? " → " + t.holder : ""}`));
       layer.addTo(this.map);
       this.tasks.set(t.id, { layer, key });
     }
@@ -115,7 +120,7 @@ export class FleetMap {
 
   addDetection(lat, lon, text) {
     L.circleMarker(toLocal(lat, lon), { radius: 6, color: "#d00", fillColor: "#ff0", fillOpacity: 0.9 })
-      .bindTooltip(text).addTo(this.detections);
+      .bindTooltip(textEl(text)).addTo(this.detections);
   }
 
   /** Start entering a task of ``type``; ``done(points)`` gets [[lat, lon], ...]. */

@@ -3,11 +3,10 @@
 // live plot of altitude and speed, processes and in-flight gain tuning (seed 003 Sec. II, Process Monitor).
 import { call } from "./api.js";
 import { colour } from "./geo.js";
+import { esc } from "./text.js";
 
 const VERBS = ["pause", "resume", "enough", "user_confirm", "abort", "land", "take", "release", "start"];
 const PLOT_S = 60;
-
-function esc(s) { return String(s ?? "").replace(/[&<>"]/g, (c) => `&#${c.charCodeAt(0)};`); }
 
 function treeHtml(node) {
   if (!node) return "";
@@ -21,7 +20,7 @@ function treeHtml(node) {
 export class VehiclePanel {
   constructor(el, ui) {
     this.el = el;
-    this.ui = ui;  // {joystick, confirmMany, canCommand, note}
+    this.ui = ui;  // {joystick, canCommand, applyRole, dialog}
     this.vid = null;
     this.series = new Map();  // vid -> [[t, alt, speed]]
     this.breakIn = false;
@@ -45,12 +44,12 @@ export class VehiclePanel {
     this.breakIn = false;
     this.lastState = null;
     this.ui.joystick.engage(null);
-    this.el.innerHTML = `<h3 style="color:${colour(vid)}">vehicle ${vid} <span class="vstate"></span></h3>
+    this.el.innerHTML = `<h3>vehicle ${esc(vid)} <span class="vname"></span> <span class="vstate"></span></h3>
       <div class="buttons">${VERBS.map((v) => `<button type="button" data-cmd data-verb="${v}">${v === "pause" ?
         "pause (break in)" : v === "user_confirm" ? "confirm" : v}</button>`).join("")}</div>
       <div class="result hint"></div>
       <div class="joystick" hidden><b>Break-in joystick</b> — arrows/WASD move, Q/E yaw, R/F up/down, or a gamepad.
-        <div style="display:flex;gap:1em;align-items:center"><div class="pad"><div class="knob"></div></div>
+        <div class="jrow"><div class="pad"><div class="knob"></div></div>
         <label>speed <input class="jspeed" type="range" min="0.5" max="5" step="0.5" value="2"></label>
         <span class="jout"></span></div>
         <div><span class="jlease"></span> <button type="button" class="jtake" data-cmd>take the stick</button>
@@ -58,18 +57,24 @@ export class VehiclePanel {
       <canvas class="plot" width="440" height="90"></canvas>
       <div class="tree"><ul></ul></div>
       <details class="procs"><summary>Processes</summary><div class="plist"></div></details>
-      <details class="params"><summary>Gains (in-flight tuning)</summary>
-        <input class="pname" value="ATC_RAT_RLL_P"> <button type="button" class="pget">read</button>
-        <input class="pval" type="number" step="any"> <button type="button" class="pset" data-cmd>set</button>
-        <span class="pout"></span></details>`;
+      <details class="params"><summary>Parameters (in-flight tuning, guarded)</summary>
+        <input class="pname" value="ATC_RAT_RLL_P" aria-label="parameter name" maxlength="16">
+        <button type="button" class="pget">read</button> <span class="prange hint"></span><br>
+        <input class="pval" type="number" step="any" aria-label="new value" placeholder="new value">
+        <label title="operator only: accept more than a 50 % change while the vehicle flies"><input type="checkbox"
+          class="pforce" data-cmd> force</label>
+        <button type="button" class="pset" data-cmd>set…</button>
+        <div class="pout"></div></details>`;
+    this.el.querySelector("h3").style.color = colour(vid);
     for (const b of this.el.querySelectorAll("[data-verb]")) b.addEventListener("click", () => this.command(b.dataset.verb));
     this.ui.joystick.bindPad(this.el.querySelector(".pad"));
     this.el.querySelector(".jtake").addEventListener("click", () => this.ui.joystick.engage(this.vid));
     this.el.querySelector(".jrelease").addEventListener("click", () => this.ui.joystick.engage(null));
     this.el.querySelector(".jspeed").addEventListener("input", (e) => { this.ui.joystick.speed = Number(e.target.value); });
     this.el.querySelector(".procs").addEventListener("toggle", () => this.processes());
-    this.el.querySelector(".pget").addEventListener("click", () => this.param("GET"));
-    this.el.querySelector(".pset").addEventListener("click", () => this.param("PUT"));
+    this.el.querySelector(".pget").addEventListener("click", () => this.readParam());
+    this.el.querySelector(".pset").addEventListener("click", () => this.setParam());
+    this.el.querySelector(".params").addEventListener("toggle", (e) => { if (e.target.open) this.readParam(); });
     this.ui.applyRole();
     clearInterval(this.treeTimer);
     this.treeTimer = setInterval(() => this.tree(), 1000);
@@ -127,18 +132,61 @@ export class VehiclePanel {
       </li>`).join("")}</ul>` : esc(r.body?.error || r.status);
   }
 
-  async param(method) {
-    const name = this.el.querySelector(".pname").value.trim();
+  /** The parameter's value now and its range (the vehicle's table, as its companion reports it). */
+  async readParam() {
+    const name = this.el.querySelector(".pname").value.trim().toUpperCase();
+    const range = this.el.querySelector(".prange");
+    const r = await call("GET", `/api/vehicles/${this.vid}/params/${encodeURIComponent(name)}`);
+    if (r.status !== 200) { range.textContent = `${name}: ${r.status} ${r.body?.error || ""}`; return null; }
+    const p = r.body;
+    const box = this.el.querySelector(".pval");
+    box.placeholder = `now ${p.value}`;
+    if (p.min != null) { box.min = p.min; box.max = p.max; }
+    range.textContent = `${p.name} = ${p.value}` + (p.min != null
+      ? ` · range [${p.min}, ${p.max}]${p.units ? " " + p.units : ""} · ${p.description || ""} (${p.autopilot})`
+      : " · not in the table of tunable parameters: it cannot be set here");
+    range.dataset.min = p.min ?? "";
+    range.dataset.max = p.max ?? "";
+    return p;
+  }
+
+  /** A guarded write: a number (never an empty box read as 0), inside the range, confirmed in a dialog that
+   *  shows the old and the new value; the answer is the autopilot's read-back. */
+  async setParam() {
+    const name = this.el.querySelector(".pname").value.trim().toUpperCase();
+    const box = this.el.querySelector(".pval");
     const out = this.el.querySelector(".pout");
-    const body = method === "PUT" ? { value: Number(this.el.querySelector(".pval").value) } : undefined;
-    const r = await call(method, `/api/vehicles/${this.vid}/params/${encodeURIComponent(name)}`, body);
-    out.textContent = r.status === 200 ? `${r.body.name} = ${r.body.value}` : `${r.status} ${r.body?.error || ""}`;
+    const force = this.el.querySelector(".pforce").checked;
+    const raw = box.value.trim();
+    const refuse = (why) => { out.textContent = `not sent: ${why}`; out.dataset.last = "refused"; };
+    if (raw === "" || box.validity.badInput) return refuse("enter a number (the value box is empty or not a number)");
+    const value = Number(raw);
+    if (!Number.isFinite(value)) return refuse(`${raw} is not a number`);
+    const vid = this.vid;
+    const p = await this.readParam();
+    if (!p) return refuse("the current value could not be read");
+    if (p.min == null) return refuse(`${name} is not in the table of tunable parameters`);
+    if (value < p.min || value > p.max) return refuse(`${value} is out of range [${p.min}, ${p.max}]`);
+    const units = p.units ? ` ${esc(p.units)}` : "";
+    const ans = await this.ui.dialog(`Set ${name} on vehicle ${vid}?`,
+      `<p class="pconfirm"><b>${esc(name)}</b>: <span class="old">${esc(p.value)}</span> → <span class="new">${esc(value)}</span>${units}</p>
+       <p class="hint">range [${esc(p.min)}, ${esc(p.max)}]${units} · ${esc(p.description || "")}</p>` +
+       (force ? "<p><b>forced</b>: no in-flight bound on the change</p>" : ""),
+      [["set", `Set ${name} = ${value}`], ["", "Cancel"]]);
+    if (ans !== "set" || vid !== this.vid) { out.textContent = "cancelled: nothing sent"; out.dataset.last = "cancelled"; return; }
+    const r = await call("PUT", `/api/vehicles/${vid}/params/${encodeURIComponent(name)}`, { value, force });
+    out.textContent = r.status === 200 ? `${r.body.name}: ${r.body.old} → ${r.body.value} (read back from the autopilot)`
+      : `refused (${r.status}): ${r.body?.error || ""}`;
+    out.dataset.last = r.status === 200 ? "set" : `refused:${r.status}`;
+    if (r.status === 200) { box.value = ""; this.readParam(); }
   }
 
   /** Each snapshot: state line, joystick read-out, plot. */
   update(v) {
     if (!v || v.id !== this.vid) return;
     const m = v.mission || {};
+    const vn = this.el.querySelector(".vname");
+    if (vn.textContent !== (v.name || "")) vn.textContent = v.name || "";
     const st = this.el.querySelector(".vstate");
     const text = `${v.mode || ""} · ${m.state || "no mission"}${m.node ? " · " + m.node : ""}${v.alert ? " · ⚠ " + v.alert : ""}`;
     if (st.textContent !== text) st.textContent = text;
