@@ -200,7 +200,7 @@ def test_openapi_documents_request_and_response_schemas(http: httpx.Client) -> N
     assert set(schemas["RetargetRequest"]["properties"]) == {"north", "east", "altitude", "speed", "heading"}
     assert schemas["FlightCommandModel"]["required"] == ["end"]
     assert schemas["FlightCommandModel"].get("examples")
-    assert set(schemas["ExternalSample"]["properties"]) == {"values", "validity_s", "age_ms", "seq", "source"}
+    assert set(schemas["ExternalSample"]["properties"]) == {"values", "validity_s", "age_ms", "seq", "sender"}
     expected = {("get", "/status"): "StatusResponse", ("get", "/commands"): "CommandListResponse",
                 ("post", "/commands"): "AddedResponse", ("get", "/events"): "EventsResponse",
                 ("get", "/events/wait"): "EventWaitResponse",
