@@ -67,11 +67,11 @@ def test_stale_and_out_of_order_samples_are_dropped_over_http(served: tuple[Quad
 
 def test_stale_sample_means_zero_velocity_after_its_validity() -> None:
     ext = ExternalData()
-    assert ext.offer("ext_vel", (1, 0, 0, 0), 0.3, 10.0 - 0.1, seq=1, source="s", now_s=10.0) is None
+    assert ext.offer("ext_vel", (1, 0, 0, 0), 0.3, 10.0 - 0.1, seq=1, sender="s", now_s=10.0) is None
     assert ext.latest("ext_vel", 10.15) == (1.0, 0.0, 0.0, 0.0)
     assert ext.latest("ext_vel", 10.25) is None  # 0.3 s after it was made, not after it arrived
     # a sequence number from the same source wins over a jittered stamp; another source's older stamp loses
-    assert ext.offer("ext_vel", (2, 0, 0, 0), 0.3, 9.95, seq=2, source="s", now_s=10.0) is None
+    assert ext.offer("ext_vel", (2, 0, 0, 0), 0.3, 9.95, seq=2, sender="s", now_s=10.0) is None
     assert ext.offer("ext_vel", (3, 0, 0, 0), 0.3, 9.9, now_s=10.0) == "older than the stream's newest sample"
     with pytest.raises(ExternalDataError, match="seq"):
         ext.offer("ext_vel", (1, 0, 0, 0), 0.3, 10.0, seq=True)
