@@ -126,7 +126,7 @@ def test_one_operator_holds_the_stick_and_the_other_sees_it(companion: tuple[Qua
 
             def took() -> bool:
                 s = node.queue.external_sample("ext_vel")
-                return s is not None and s != before and s.source == lease["lease_id"]
+                return s is not None and s != before and s.sender == lease["lease_id"]
             wait_for(took, 10, "the holder's samples at the companion")
             s = node.queue.external_sample("ext_vel")
             assert s is not None and s.values == (1.0, 0.0, 0.0, 0.0) and s.validity_s == 0.5

@@ -84,6 +84,8 @@ class ExternalData:
         self.max_validity_s = float(max_validity_s)
         self._latest: dict[str, Sample] = {}
         self._selected: dict[str, str] = {}
+        #: (stream, sender) -> the last sequence number taken (the oldest senders forgotten first)
+        self._seqs: dict[tuple[str, str | None], int] = {}
 
     def select(self, stream: str, source: str | None) -> None:
         """Take ``stream``'s samples from ``source`` only (None: from any source again)."""
@@ -99,8 +101,6 @@ class ExternalData:
     def selected(self, stream: str) -> str | None:
         """The one source ``stream`` is taken from, or None (any)."""
         return self._selected.get(stream)
-        #: (stream, sender) -> the last sequence number taken (the oldest senders forgotten first)
-        self._seqs: dict[tuple[str, str | None], int] = {}
 
     def validate(self, stream: str, values: Sequence[float], validity_s: float, t_s: float) -> Sample:
         """Check a sample without storing it; raise :class:`ExternalDataError` when malformed."""
