@@ -92,6 +92,27 @@ class FlightSession:
     def post(self, path: str, body: Any = None) -> httpx.Response:
         return self.http.post(path, json=body) if body is not None else self.http.post(path)
 
+    # --- the executive layer over the control surface ----------------------------------------------------
+    def activate(self, text: str, requester: str = "mission") -> dict[str, Any]:
+        """``POST /behaviors/activate`` answered 200 (accepted): its answer."""
+        r = self.post("/behaviors/activate", {"text": text, "requester": requester})
+        assert r.status_code == 200, r.text
+        return dict(r.json())
+
+    def ended(self, activation_id: str) -> dict[str, Any] | None:
+        """The end of an activation (``GET /behaviors``' ``ended``), None while it runs."""
+        ends = self.http.get("/behaviors").json()["ended"]
+        return next((e for e in ends if e["activation_id"] == activation_id), None)
+
+    def wait_end(self, activation_id: str, sim_s: float) -> dict[str, Any]:
+        """The end of an activation, waited for ``sim_s`` simulated seconds."""
+        wait_for(lambda: self.ended(activation_id) is not None, self.wall(sim_s),
+                 lambda: f"end of {activation_id} (active: "
+                         f"{[a['behavior'] for a in self.http.get('/behaviors').json()['active']]})")
+        end = self.ended(activation_id)
+        assert end is not None
+        return end
+
     def status(self) -> dict[str, Any]:
         return self.node.queue.status().to_dict()
 

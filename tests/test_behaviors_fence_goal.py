@@ -36,27 +36,16 @@ FLIGHT_SESSION = SessionSpec("fence_goal", SPEEDUP, behaviors=True, localized=Tr
                              safety=SafetyConfig(enabled=False))
 
 
-def activate(f: FlightSession, text: str, requester: str = "mission") -> dict[str, Any]:
-    r = f.post("/behaviors/activate", {"text": text, "requester": requester})
-    assert r.status_code == 200, r.text
-    return r.json()
-
-
-def ended(f: FlightSession, activation_id: str) -> dict[str, Any] | None:
-    ends = f.http.get("/behaviors").json()["ended"]
-    return next((e for e in ends if e["activation_id"] == activation_id), None)
-
-
 def ensure_flying_home(f: FlightSession) -> None:
     """Flying at 5 m over home, the fence off (each test also runs alone)."""
     f.gcs.set_param("FENCE_ENABLE", 0)
     if f.layer is not None and f.layer.beliefs.holds("flight_state(self, flying)"):
-        go = activate(f, "GO_TO_POINT coordinate: (0, 0, 5)")
+        go = f.activate("GO_TO_POINT coordinate: (0, 0, 5)")
     else:
-        go = activate(f, "TAKE_OFF altitude: 5")
+        go = f.activate("TAKE_OFF altitude: 5")
     assert go["accepted"], go
-    wait_for(lambda: ended(f, go["activation_id"]) is not None, f.wall(90), f"{go['behavior']} ended")
-    assert ended(f, go["activation_id"])["cause"] == "goal_achieved"  # type: ignore[index]
+    wait_for(lambda: f.ended(go["activation_id"]) is not None, f.wall(90), f"{go['behavior']} ended")
+    assert f.ended(go["activation_id"])["cause"] == "goal_achieved"  # type: ignore[index]
 
 
 def fly_beyond_the_fence(f: FlightSession, action: int) -> tuple[list[str], dict[str, Any], float]:
@@ -66,7 +55,7 @@ def fly_beyond_the_fence(f: FlightSession, action: int) -> tuple[list[str], dict
     for name, value in (("FENCE_TYPE", 2), ("FENCE_RADIUS", RADIUS_M), ("FENCE_ACTION", action),
                         ("FENCE_ENABLE", 1)):
         f.gcs.set_param(name, value)  # another ground station: the companion is not told
-    go = activate(f, f"GO_TO_POINT coordinate: ({GOAL_N:g}, 0, 5)")
+    go = f.activate(f"GO_TO_POINT coordinate: ({GOAL_N:g}, 0, 5)")
     assert go["accepted"], go
     aid = go["activation_id"]
     samples: list[str] = []  # "active" or the end's cause, per sample
@@ -86,11 +75,11 @@ def fly_beyond_the_fence(f: FlightSession, action: int) -> tuple[list[str], dict
     sampler = threading.Thread(target=sample, daemon=True)
     sampler.start()
     try:
-        wait_for(lambda: ended(f, aid) is not None, f.wall(200), "end of the GO_TO_POINT")
+        wait_for(lambda: f.ended(aid) is not None, f.wall(200), "end of the GO_TO_POINT")
     finally:
         stop.set()
         sampler.join(5)
-    end = ended(f, aid)
+    end = f.ended(aid)
     assert end is not None
     assert samples.count("active") > 10, samples[:20]
     return samples, end, farthest[0]

@@ -30,30 +30,14 @@ ENVELOPE = Envelope.box(-40, 40, -40, 40, altitude_ceiling=30.0)
 FLIGHT_SESSION = SessionSpec("behaviors", SPEEDUP, behaviors=True, envelope=ENVELOPE)
 
 
-def activate(f: FlightSession, text: str, requester: str = "mission") -> dict[str, Any]:
-    r = f.post("/behaviors/activate", {"text": text, "requester": requester})
-    assert r.status_code == 200, r.text
-    return r.json()
-
-
 def active(f: FlightSession) -> dict[str, str]:
     return {a["behavior"]: a["requester"] for a in f.http.get("/behaviors").json()["active"]}
 
 
-def wait_end(f: FlightSession, activation_id: str, sim_s: float) -> dict[str, Any]:
-    def ended() -> dict[str, Any] | None:
-        ended = f.http.get("/behaviors").json()["ended"]
-        return next((e for e in ended if e["activation_id"] == activation_id), None)
-    wait_for(lambda: ended() is not None, f.wall(sim_s), f"end of {activation_id} (active: {active(f)})")
-    result = ended()
-    assert result is not None
-    return result
-
-
 def run_behavior(f: FlightSession, text: str, sim_s: float, requester: str = "mission") -> dict[str, Any]:
-    a = activate(f, text, requester)
+    a = f.activate(text, requester)
     assert a["accepted"], a
-    return wait_end(f, a["activation_id"], sim_s)
+    return f.wait_end(a["activation_id"], sim_s)
 
 
 def ensure_flying(f: FlightSession) -> None:
@@ -99,19 +83,19 @@ def test_flight_by_activation_requests(flight_session: FlightSession, tmp_path: 
 
 def test_emergency_land_preempts_a_mission_go_to_point(flight_session: FlightSession) -> None:
     ensure_flying(flight_session)
-    go = activate(flight_session, "GO_TO_POINT coordinate: (-20, -20, 8)")
+    go = flight_session.activate("GO_TO_POINT coordinate: (-20, -20, 8)")
     assert go["accepted"], go
     wait_for(lambda: flight_session.speed() > 1.0, flight_session.wall(10), "on its way")
     assert flight_session.layer is not None  # emergency is no HTTP caller's: the companion's own, in-process
     land = flight_session.layer.coordinator.activate("LAND", "emergency").to_dict()
     assert land["accepted"] and land["stopped"] == ["GO_TO_POINT"], land
-    assert wait_end(flight_session, go["activation_id"], 1)["cause"] == "interrupted"
+    assert flight_session.wait_end(go["activation_id"], 1)["cause"] == "interrupted"
     r = flight_session.post("/behaviors/activate", {"text": "GO_TO_POINT coordinate: (0, 0, 5)",
                                                     "requester": "mission"})
     again = r.json()
     assert r.status_code == 409 and not again["accepted"] and "LAND" in again["reason"] \
         and "emergency" in again["reason"], again
-    end = wait_end(flight_session, land["activation_id"], 90)
+    end = flight_session.wait_end(land["activation_id"], 90)
     assert end["cause"] == "goal_achieved", end
     wait_for(lambda: not flight_session.armed(), flight_session.wall(30), "disarmed after landing")
     assert flight_session.alt() < 0.5

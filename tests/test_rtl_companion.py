@@ -11,13 +11,11 @@ may claim it) cannot be replaced by the mission or the operator, through ``/beha
 from __future__ import annotations
 
 import math
-from typing import Any
 
 import pytest
 
 from companion.flight import Envelope
 from harness.flight_session import FlightSession, SessionSpec
-from harness.timing import wait_for
 
 pytestmark = pytest.mark.integration
 
@@ -26,32 +24,14 @@ FLIGHT_SESSION = SessionSpec("rtl", SPEEDUP, localized=True, behaviors=True,
                              envelope=Envelope.box(-40, 40, -40, 40, altitude_ceiling=30.0))
 
 
-def activate(f: FlightSession, text: str, requester: str = "mission") -> dict[str, Any]:
-    r = f.post("/behaviors/activate", {"text": text, "requester": requester})
-    assert r.status_code == 200, r.text
-    return r.json()
-
-
-def ended(f: FlightSession, activation_id: str) -> dict[str, Any] | None:
-    return next((e for e in f.http.get("/behaviors").json()["ended"] if e["activation_id"] == activation_id),
-                None)
-
-
-def wait_end(f: FlightSession, activation_id: str, sim_s: float) -> dict[str, Any]:
-    wait_for(lambda: ended(f, activation_id) is not None, f.wall(sim_s), f"end of {activation_id}")
-    end = ended(f, activation_id)
-    assert end is not None
-    return end
-
-
 def fly_out(f: FlightSession, point: tuple[float, float, float]) -> None:
     if not f.armed() or f.alt() < 1.0:
-        take_off = activate(f, "TAKE_OFF altitude: 5")
+        take_off = f.activate("TAKE_OFF altitude: 5")
         assert take_off["accepted"], take_off
-        assert wait_end(f, take_off["activation_id"], 60)["cause"] == "goal_achieved"
-    go = activate(f, f"GO_TO_POINT coordinate: ({point[0]}, {point[1]}, {point[2]})")
+        assert f.wait_end(take_off["activation_id"], 60)["cause"] == "goal_achieved"
+    go = f.activate(f"GO_TO_POINT coordinate: ({point[0]}, {point[1]}, {point[2]})")
     assert go["accepted"], go
-    assert wait_end(f, go["activation_id"], 60)["cause"] == "goal_achieved"
+    assert f.wait_end(go["activation_id"], 60)["cause"] == "goal_achieved"
 
 
 def test_post_rtl_brings_the_vehicle_home_and_it_lands(flight_session: FlightSession) -> None:
@@ -73,7 +53,7 @@ def test_post_rtl_brings_the_vehicle_home_and_it_lands(flight_session: FlightSes
     assert math.hypot(n, e) < 2.0 and -d < 0.5, (n, e, d)
     top = max(alt for _, _, alt in f.heard_since(t0))
     assert top > 7.0, f"climbed to the return altitude first (highest {top:.1f} m)"
-    end = wait_end(f, answer["activation_id"], 10)
+    end = f.wait_end(answer["activation_id"], 10)
     assert end["cause"] == "goal_achieved", end
 
 
@@ -99,4 +79,4 @@ def test_lower_requesters_cannot_replace_an_emergency_land(flight_session: Fligh
     active = {a["behavior"]: a["requester"] for a in f.http.get("/behaviors").json()["active"]}
     assert active.get("LAND") == "emergency", active
     f.gcs.wait_autopilot_disarmed(f.wall(90))
-    assert wait_end(f, str(land.activation_id), 10)["cause"] == "goal_achieved"
+    assert f.wait_end(str(land.activation_id), 10)["cause"] == "goal_achieved"
