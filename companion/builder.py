@@ -139,10 +139,16 @@ class Companion:
     def _on_safety(self, decision: SafetyDecision) -> None:
         """The safety monitor takes the vehicle: the team member gives its task back, the mission is
         aborted with the reason (before the emergency behavior is asked for). A report (the autopilot's own
-        failsafe took the vehicle, the link is lost) aborts the mission; the team member's own tiers already
-        give the task back while the vehicle is overridden, and take it up again once back in GUIDED."""
+        failsafe took the vehicle, the link is lost) takes nothing: the mission's events record it (its
+        behavior ends on its own if the vehicle was taken), and the team member's own tiers give the task
+        back while the vehicle is overridden. A link that looks lost because this process was starved for
+        a few seconds must not end a mission the autopilot is still flying."""
         reason = f"{decision.check}: {decision.reason}"
-        if self.member is not None and decision.action != "report":
+        if decision.action == "report":
+            if self.missions is not None:
+                self.missions.safety_report(reason)
+            return
+        if self.member is not None:
             self.member.safety_stop(reason)
         if self.missions is not None:
             self.missions.safety_stop(reason)

@@ -219,6 +219,10 @@ class MissionService:
         """The mission's events (:class:`~companion.tst.events.EventStream`)."""
         return self.execution.events
 
+    def safety_report(self, reason: str) -> None:
+        """The companion's safety monitor reports what it saw without acting (the mission's log says it)."""
+        self._mark("safety", reason=reason, action="report")
+
     def safety_stop(self, reason: str) -> None:
         """The companion's safety monitor takes the vehicle: a running mission is aborted with the monitor's
         reason (its status and the flight log say why), before the emergency behavior replaces its own."""

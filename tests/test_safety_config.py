@@ -122,7 +122,11 @@ def test_the_builder_wires_the_monitor_to_the_mission_and_the_team() -> None:
                          "acting")
     companion._on_safety(act)
     assert taken == ["battery: the battery cannot bring the vehicle home"]  # the team task given back
+    assert companion.missions is not None
+    aborted: list[str] = []
+    companion.missions.safety_stop = aborted.append  # type: ignore[method-assign]
     companion._on_safety(dataclasses.replace(act, check="link", action="report"))
     assert len(taken) == 1  # a report leaves the team member to its own tiers
+    assert aborted == []  # and the mission flying (the autopilot's own failsafes act)
     direct = build_companion(CompanionConfig("udpout:127.0.0.1:9", control_port=None, behaviors=False))
     assert direct.safety is None
