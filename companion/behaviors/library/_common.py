@@ -18,10 +18,11 @@ from ..controller import BehaviorExecutionController
 Vec3 = tuple[float, float, float]
 
 
-def need_flying(c: BehaviorExecutionController) -> str | None:
-    """The situation of every maneuver but TAKE_OFF: the vehicle flies and the companion has it."""
+def need_flying(c: BehaviorExecutionController, or_taking_off: bool = False) -> str | None:
+    """The situation of every maneuver but TAKE_OFF: the vehicle flies (``or_taking_off``: or takes off,
+    for LAND and RTL, which may cut a take-off short) and the companion has it."""
     state = c.flight_state()
-    if state != "flying":
+    if state != "flying" and not (or_taking_off and state == "taking_off"):
         return f"needs flight_state(self, flying); the vehicle is {state or 'in an unknown state'}"
     if c.ctx.queue.status().queue_system_status.name == "OVERRIDDEN":
         return "the vehicle is controlled elsewhere (a pilot or ground station took it)"

@@ -20,7 +20,7 @@ from companion.flight.setpoint import VehicleState
 
 from ..controller import DEFAULT_TOLERANCE_M, FlightBehavior, register
 from ..services import TrajectoryPlanner
-from ._common import go_to, reference_neu
+from ._common import go_to, need_flying, reference_neu
 
 
 @register
@@ -35,12 +35,7 @@ class Land(FlightBehavior):
     behavior = "LAND"
 
     def situation(self, params: Mapping[str, Any]) -> str | None:
-        state = self.flight_state()
-        if state not in ("flying", "taking_off"):
-            return f"needs flight_state(self, flying); the vehicle is {state or 'in an unknown state'}"
-        if self.ctx.queue.status().queue_system_status.name == "OVERRIDDEN":
-            return "the vehicle is controlled elsewhere (a pilot or ground station took it)"
-        return None
+        return need_flying(self, or_taking_off=True)
 
     def commands(self, params: Mapping[str, Any]) -> list[FlightCommand]:
         land = FlightCommand(HorizontalChannel(HorizontalMode.DNU),

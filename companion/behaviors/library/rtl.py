@@ -28,7 +28,7 @@ from companion.flight.setpoint import VehicleState
 
 from ..controller import FlightBehavior, Termination, TerminationCause, register
 from ..services import TrajectoryPlanner
-from ._common import go_to, reference_neu
+from ._common import go_to, need_flying, reference_neu
 
 #: how far (m, horizontally) from home a landing still counts as "at home" (catalog: performance.home_m)
 DEFAULT_HOME_TOLERANCE_M = 2.0
@@ -53,12 +53,7 @@ class ReturnToLaunch(FlightBehavior):
     return_altitude: float | None
 
     def situation(self, params: Mapping[str, Any]) -> str | None:
-        state = self.flight_state()
-        if state not in ("flying", "taking_off"):
-            return f"needs flight_state(self, flying); the vehicle is {state or 'in an unknown state'}"
-        if self.ctx.queue.status().queue_system_status.name == "OVERRIDDEN":
-            return "the vehicle is controlled elsewhere (a pilot or ground station took it)"
-        return None
+        return need_flying(self, or_taking_off=True)
 
     def commands(self, params: Mapping[str, Any]) -> list[FlightCommand]:
         here = reference_neu(self)
