@@ -290,10 +290,12 @@ def test_two_links_with_one_id_the_second_refuses_the_first_keeps_its_row() -> N
         assert fleet.members[0].refused is None and fleet.members[0].stats.duplicates > 0
         dup = [e for e in fleet.station.log.entries if e["event"] == "duplicate"]
         assert dup and dup[0]["member"] == 1 and "duplicate" in dup[0]["message"]
-        sent = second.stats.packets_sent
-        time.sleep(1.0)
-        assert second.stats.packets_sent == sent  # a refused link stays silent
+        # a refused link sends no row any more: only its empty beacon, so that the duplicate stays visible
+        sent, sent_bytes = second.stats.packets_sent, second.stats.bytes_sent
+        wait_for(lambda: second.stats.packets_sent >= sent + 3, 10, "the refused link's beacons")
         second.close()
+        beacon = len(encode_packets(1, [], None, epoch=second.epoch, stamp=0.0)[0])
+        assert second.stats.bytes_sent - sent_bytes == beacon * (second.stats.packets_sent - sent)
     finally:
         fleet.close()
 

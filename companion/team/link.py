@@ -191,6 +191,7 @@ class TeamLink:
             else:
                 events.extend(self._duplicate_of_self(pkt))
             return
+        self._watch_duplicates(pkt, events)
         if pkt.rows:
             rows = []
             for r in pkt.rows:
@@ -198,7 +199,6 @@ class TeamLink:
                     self._count_future("row", r.member, r.stamp, now)
                 else:
                     rows.append(r)
-            self._watch_duplicates(pkt, events)
             res = self.state.merge(rows, sender=pkt.sender)
             self.stats.rows_replaced += res.replaced
             self.stats.vocs_raised += res.raised
@@ -314,6 +314,8 @@ class TeamLink:
             gone = self.state.tick()
             if self.refused is None:
                 self._broadcast(now)
+            else:
+                self._beacon(now)
         self._notify([LinkEvent("gone", member=m) for m in gone])
         return True
 
@@ -342,6 +344,12 @@ class TeamLink:
         stamp = now  # shown, never ordered on: (epoch, seq) orders rows
         self.state.refresh_own(dataclasses.replace(content, member=self.own_id, stamp=stamp, seq=seq))
 
+    def _beacon(self, now: float) -> None:
+        """A refused link sends no row, only an empty packet in its own epoch each period: whoever holds the
+        first's row hears the duplicate id (a refusal decided before this link ever spoke stays visible)."""
+        self._send(encode_packets(self.own_id, [], None, max_size=self.max_packet, epoch=self.epoch,
+                                  stamp=now, pseq=self._pseq, key=self.key), now)
+
     def _broadcast(self, now: float) -> None:
         rows = sorted(self.state.alive().values(), key=lambda e: e.member != self.own_id)  # own row first
         if not rows:
@@ -358,9 +366,12 @@ class TeamLink:
             log.error("member %d: group state not encodable, not sent: %s", self.own_id, exc)
             self.stats.send_errors += 1
             return
-        self._pseq = (self._pseq + len(packets)) & 0xFFFFFFFF
         if send_board:
             self._board_news = False
+        self._send(packets, now)
+
+    def _send(self, packets: list[bytes], now: float) -> None:
+        self._pseq = (self._pseq + len(packets)) & 0xFFFFFFFF
         self.stats.broadcasts += 1
         if self.stats.first_send is None:
             self.stats.first_send = now
