@@ -21,7 +21,8 @@ Identity and authentication (:mod:`.auth`, :mod:`.groupstate`). Each packet name
 boot epoch: a packet with this member's id and epoch is its own echo (multicast loopback); with this
 member's id and *another* epoch it comes from another process using the same id. Of two such members
 the one whose row has been published longer (the higher (seq, epoch) of its own row) keeps the id; the
-other *refuses to join*: it stops broadcasting, publishes no claims (:class:`~.member.TeamMember`), says
+other *refuses to join*: it stops publishing its row (it sends only an empty beacon in its epoch, so that
+the duplicate stays visible to all), publishes no claims (:class:`~.member.TeamMember`), says
 so in its log, its status (``refused``) and a "refused" event, and never comes back by itself (restart it
 with another id). The others keep the first one's row (the identity rule) and report the duplicate
 ("duplicate" event). With a key every packet must be signed; unsigned, forged, replayed packets and
