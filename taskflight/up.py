@@ -2,7 +2,7 @@
 
     taskflight up --vehicles N [--speedup K] [--ground-port P] [--tokens FILE] [--team-loss F]
                   [--team URL] [--team-key FILE] [--first-sysid K] [--state-dir DIR] [--base-instance I]
-                  [--no-ground]
+                  [--no-ground] [--control-host HOST]
 
 starts, each as a child process in a process group of its own (:mod:`taskflight.children`):
 
