@@ -144,7 +144,8 @@ class HostsRig:
                     continue
                 self.samples.append((time.monotonic(), {
                     v["id"]: {"team_state": v["team_state"],
-                              "claims": [c["task"] for c in v["claims"] if c["state"] != "done"]}
+                              "claims": [c["task"] for c in v["claims"] if c["state"] != "done"],
+                              "raw": [(c["task"], c["version"], c["state"]) for c in v["claims"]]}
                     for v in vs}))
         finally:
             client.close()
