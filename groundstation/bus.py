@@ -6,9 +6,11 @@ second (its ``GET /status`` and ``GET /mission`` answers, its name and its contr
 ``.../events`` (detections). :class:`FleetBus` subscribes to both on the station's own Zenoh session and
 feeds the :class:`~groundstation.fleet.Fleet`: a vehicle on another host appears with nothing but the
 team URL in common, and its control URL, found on the bus, is where the operator's commands go (HTTP). A
-control URL on loopback published from another host is not taken (it would reach this host's own
-loopback). A vehicle silent on the bus for :data:`~groundstation.fleet.LOST_S` is unreachable (a
-``link_lost`` event), and ``link_restored`` when heard again.
+control URL on loopback published from another host (another loopback id,
+:func:`~companion.team.presence.loopback_id`: a host of the same name or another network namespace too)
+is not taken (it would reach this host's own loopback). A vehicle silent on the bus for
+:data:`~groundstation.fleet.LOST_S` is unreachable (a ``link_lost`` event), and ``link_restored`` when
+heard again.
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ import time
 from typing import Any
 from urllib.parse import urlsplit
 
+from companion.team.presence import loopback_id
 from companion.team.zenoh_transport import ZenohBus, zenoh_bus_of
 
 from .fleet import KEEP, LOST_S, Fleet
@@ -48,6 +51,7 @@ class FleetBus:
         self._heard: dict[int, float] = {}  # vehicle -> monotonic time of its last status
         self._elsewhere: set[int] = set()    # vehicles whose control URL is another host's loopback
         self.hostname = socket.gethostname()
+        self.loopback = loopback_id()
         self._lock = threading.Lock()
         self._stop = threading.Event()
         self._subs = [bus.subscribe(bus.key("vehicle", "*", "status"), self._on_status),
@@ -89,11 +93,14 @@ class FleetBus:
         url = msg.get("control_url")
         if url is not None and not (isinstance(url, str) and url.startswith(("http://", "https://"))):
             url = None
-        if url is not None and _is_loopback_url(url) and msg.get("host") != self.hostname:
+        theirs = msg.get("loopback")  # a companion of before the loopback id: its host name alone
+        ours = theirs == self.loopback if isinstance(theirs, str) else msg.get("host") == self.hostname
+        if url is not None and _is_loopback_url(url) and not ours:
             if vid not in self._elsewhere:  # another host's loopback would be ours: never called
                 self._elsewhere.add(vid)
-                log.warning("fleet bus: vehicle %d serves its control surface on %s of host %s only: "
-                            "commands to it are refused (serve it with --control-host 0.0.0.0 and a token)",
+                log.warning("fleet bus: vehicle %d serves its control surface on %s of host %s only "
+                            "(not this host's loopback): commands to it are refused (serve it with "
+                            "--control-host 0.0.0.0 and a token)",
                             vid, url, msg.get("host"))
             url = None
         with self._lock:

@@ -2,7 +2,7 @@
 
     taskflight up --vehicles N [--speedup K] [--ground-port P] [--tokens FILE] [--team-loss F]
                   [--team URL] [--team-key FILE] [--first-sysid K] [--state-dir DIR] [--base-instance I]
-                  [--no-ground]
+                  [--no-ground] [--control-host HOST]
 
 starts, each as a child process in a process group of its own (:mod:`taskflight.children`):
 
@@ -16,7 +16,9 @@ starts, each as a child process in a process group of its own (:mod:`taskflight.
 * N companions (``taskflight companion``), each on its vehicle's UDP port, all joined to one team link
   (a free multicast port of 239.255.70.1 unless ``--team``; ``--team-loss F`` appends ``?loss=F`` to the
   members' URL: that fraction of team packets is dropped at each member), each serving its control surface
-  on a free loopback port with a generated control token (given in the environment, not the command line);
+  on a free port of loopback (``--control-host HOST`` for a ground service on another host) with the
+  control token ``$TASKFLIGHT_CONTROL_TOKEN`` or a generated one (given in the environment, not the
+  command line);
   every team-link packet is signed with the team key (``--team-key FILE``, else ``$TASKFLIGHT_TEAM_KEY``,
   else one generated for the fleet in ``<state-dir>/team.key``, mode 0600), passed to the companions and
   the ground service as ``TASKFLIGHT_TEAM_KEY=<path>`` in their environment (never on a command line);
@@ -127,6 +129,7 @@ class UpOptions:
     ground_port: int = DEFAULT_GROUND_PORT
     host: str = "127.0.0.1"
     mavlink_host: str = "127.0.0.1"
+    control_host: str = "127.0.0.1"
     tokens_file: Path | None = None
     team: str | None = None
     team_loss: float = 0.0
@@ -250,7 +253,9 @@ class Up:
             if o.ground:
                 write_tokens(self.tokens_path, self.tokens)
         self.team_key_path = self._team_key()
-        self.control_token = new_token()
+        # one token for every host of a team: the one in the environment when given (the ground service on
+        # another host needs it to command these companions), else a new one
+        self.control_token = os.environ.get(TOKEN_ENV) or new_token()
         self.team_url = o.team or free_team_url()
         self.member_url = self.team_url + (f"{'&' if '?' in self.team_url else '?'}loss={o.team_loss}"
                                            if o.team_loss else "")
@@ -338,7 +343,7 @@ class Up:
             port = v.control_url.rsplit(":", 1)[1]
             nice = ["nice", "-n", str(o.companion_nice)] if o.companion_nice else []
             argv = [*nice, *self._exe(), "companion", "--autopilot", f"udpout:127.0.0.1:{v.udp}",
-                    "--team", self.member_url, "--control-port", port, "--control-host", "127.0.0.1",
+                    "--team", self.member_url, "--control-port", port, "--control-host", o.control_host,
                     "--platform", str(o.platform),
                     "--flight-log", str(o.state_dir / "logs" / f"flight{v.sysid}.jsonl"),
                     *(["--scenario", str(o.scenario)] if o.scenario is not None else [])]
@@ -488,6 +493,10 @@ def add_up_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--host", default="127.0.0.1", help="the ground service's bind address (default loopback)")
     p.add_argument("--mavlink-host", default="127.0.0.1",
                    help="bind address of the models' MAVLink ports (default loopback; 0.0.0.0 for a LAN)")
+    p.add_argument("--control-host", default="127.0.0.1", metavar="HOST",
+                   help="bind address of the companions' control surfaces (default loopback; 0.0.0.0 for a "
+                        "ground service on another host: on a zenoh: team it finds them through the bus; "
+                        "the control token is $TASKFLIGHT_CONTROL_TOKEN when set, else a new one)")
     p.add_argument("--tokens", default=None, metavar="FILE",
                    help="YAML {operator: [..], observer: [..]} (default: generate one of each, written to "
                         "<state-dir>/tokens.yaml, mode 0600)")
@@ -528,6 +537,7 @@ def options_from_args(args: argparse.Namespace) -> UpOptions:
     return UpOptions(vehicles=args.vehicles, state_dir=state, speedup=args.speedup,
                      base_instance=args.base_instance, ground=not args.no_ground,
                      ground_port=args.ground_port, host=args.host, mavlink_host=args.mavlink_host,
+                     control_host=args.control_host,
                      tokens_file=Path(args.tokens) if args.tokens else None, team=args.team,
                      team_loss=args.team_loss, ready_timeout_s=args.ready_timeout,
                      team_key=Path(args.team_key) if args.team_key else None, first_sysid=args.first_sysid,

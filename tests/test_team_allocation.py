@@ -132,6 +132,25 @@ def test_greedy_hysteresis_no_flapping_on_small_differences() -> None:
     assert decide(GreedyPolicy(), 2, e4, board)[0].task == b
 
 
+def test_greedy_two_active_claims_settle_on_one_holder_from_each_ones_view() -> None:
+    """Both flew a task (apart during a partition), each sees the other's cost a moment old: within the
+    margin the lower id keeps it, from both views (each finding itself cheaper kept both on it for ever)."""
+    led, (a,) = visits((100, 0))
+    board = led.board()
+    v = board.get(a).version
+
+    def active(cost: float) -> tuple[Claim, ...]:
+        return (Claim(a, v, cost, ClaimState.ACTIVE),)
+    view1 = {1: row(1, (100, 0), active(0.30)), 2: row(2, (100, 1), active(0.40))}
+    view2 = {1: row(1, (100, 0), active(0.50)), 2: row(2, (100, 1), active(0.35))}
+    assert [c.task for c in decide(GreedyPolicy(), 1, view1, board)] == [a]
+    assert [c.task for c in decide(GreedyPolicy(), 2, view2, board)] == []
+    # the clearly cheaper keeps it, whatever the ids
+    far = {1: row(1, (0, 0), active(30.0)), 2: row(2, (100, 1), active(0.4))}
+    assert [c.task for c in decide(GreedyPolicy(), 1, far, board)] == []
+    assert [c.task for c in decide(GreedyPolicy(), 2, far, board)] == [a]
+
+
 def test_unavailable_members_do_not_compete() -> None:
     led, (a,) = visits((100, 0))
     board = led.board()

@@ -306,7 +306,7 @@ def test_presence_reaches_the_fleet_as_status_mission_and_detections() -> None:
     """A companion's presence (its status, its mission left out while unchanged, its camera's detections)
     reaches the ground's fleet over a zenoh: bus: the record shows the mode, the mission's state holds
     between the messages that leave it out, a new object becomes one detection event."""
-    from companion.team.presence import MISSION_EVERY, Presence
+    from companion.team.presence import MISSION_EVERY, Presence, loopback_id
     from companion.team.station import TeamControlStation
     from companion.team.zenoh_transport import ZenohBus
     from groundstation.fleet import KEEP, Fleet
@@ -339,12 +339,17 @@ def test_presence_reaches_the_fleet_as_status_mission_and_detections() -> None:
         wait_for(lambda: any(k == "detection" for k, _ in events), 10, lambda: f"a detection event: {events}")
         assert [m for k, m in events if k == "detection"] == ["vehicle 5 sees person 7"]
         assert fleet.http_polls == 0
-        # a loopback control URL is taken from this host only (another host's would reach ours)
-        for host, vid in (("another-host", 6), (socket.gethostname(), 7)):
+        # a loopback control URL is taken from this host only (another host's would reach ours), told by
+        # the loopback id (a host of the same name, another network namespace) or, without one, the name
+        me = socket.gethostname()
+        for host, lo, vid in (("another-host", None, 6), (me, None, 7), (me, "other-boot/4026531840", 8),
+                              ("another-name", loopback_id(), 9)):
             fleet.bus._on_status(f"taskflight/x/vehicle/{vid}/status", json.dumps(
-                {"host": host, "control_url": "http://127.0.0.1:8765", "status": {"queue": {}}}).encode())
+                {"host": host, "control_url": "http://127.0.0.1:8765", "status": {"queue": {}},
+                 **({"loopback": lo} if lo else {})}).encode())
         urls = {r["id"]: r["control_url"] for r in fleet.snapshot(max_age_s=0.0)}
-        assert (urls[6], urls[7]) == (None, "http://127.0.0.1:8765")
+        assert (urls[6], urls[7], urls[8], urls[9]) == (None, "http://127.0.0.1:8765", None,
+                                                        "http://127.0.0.1:8765")
     finally:
         presence.close()
         fleet.close()

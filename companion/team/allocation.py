@@ -7,7 +7,8 @@ function and its current claims it returns its new claims, which the caller publ
 
 Only live tasks (on the board, not done or cancelled, claims of the board's version) and only members
 whose status is available count. A claim that is ACTIVE (being flown) or DONE cannot be outbid, except
-that of two ACTIVE claims (flown by both after a partition) the higher (cost, id) yields.
+that of two ACTIVE claims (flown by both after a partition) the clearly costlier yields, and within the
+hysteresis margin the higher id.
 
 :class:`GreedyPolicy` is seed 003's rule: "each UAV selects the task that it could complete at the lowest
 cost to itself (a greedy algorithm), and then broadcasts its selection. In the event that two UAVs select
@@ -172,7 +173,7 @@ class GreedyPolicy(AllocationPolicy):
     def _loses(self, me: int, c: Claim, rs: list[Rival]) -> bool:
         for r in rs:
             if c.state is ClaimState.ACTIVE:
-                if r.firm and (r.cost, r.member) < (c.cost, me):
+                if r.firm and self._active_loses(me, c, r):
                     return True
             elif r.firm or (r.cost, r.member) < (c.cost, me):
                 return True
@@ -180,6 +181,17 @@ class GreedyPolicy(AllocationPolicy):
 
     def _winnable(self, me: int, c: float, rs: list[Rival]) -> bool:
         return all(not r.firm and c < r.cost - self._margin(r.cost) for r in rs)
+
+    def _active_loses(self, me: int, c: Claim, r: Rival) -> bool:
+        """Two ACTIVE claims (both flew the task, e.g. apart during a partition): the clearly cheaper keeps
+        it; within the hysteresis margin the lower id does. Each compares its own cost with the other's
+        reported one, a moment older: without the margin two vehicles both on a patrol line (costs near 0,
+        changing as they fly) could each find itself the cheaper and both fly it for ever."""
+        if r.cost < c.cost - self._margin(c.cost):
+            return True
+        if c.cost < r.cost - self._margin(r.cost):
+            return False
+        return r.member < me
 
 
 class CbbaPolicy(AllocationPolicy):

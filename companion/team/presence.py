@@ -5,10 +5,12 @@ companion in turn; on the Zenoh bus (:mod:`companion.team.zenoh_transport`) each
 instead, so a vehicle on another host appears in the ground service with nothing but the team URL in common:
 
 * ``taskflight/<team>/vehicle/<id>/status``, every ``period_s`` (0.5 s: 2 Hz): JSON ``{"id", "name", "t",
-  "host", "control_url", "status", "mission"}``: ``status`` is what ``GET /status`` answers, ``mission``
-  what ``GET /mission`` answers (sent when it changed and every :data:`MISSION_EVERY`-th message, left
-  out otherwise: the receiver keeps the last one), ``control_url`` the companion's control surface (None
-  when it serves none; commands go there over HTTP; a loopback URL is of use only on the same ``host``).
+  "host", "loopback", "control_url", "status", "mission"}``: ``status`` is what ``GET /status`` answers,
+  ``mission`` what ``GET /mission`` answers (sent when it changed and every :data:`MISSION_EVERY`-th
+  message, left out otherwise: the receiver keeps the last one), ``control_url`` the companion's control
+  surface (None when it serves none; commands go there over HTTP; a loopback URL is of use only where
+  ``loopback``, :func:`loopback_id`, is the receiver's own: two hosts of one name, or two network
+  namespaces, differ).
   A message with the mission measured 2.2 kB (two idle vehicles of ``taskflight up``);
 * ``taskflight/<team>/vehicle/<id>/events``: JSON ``{"kind": "detection", "object", "object_kind", "ned",
   "t"}`` for each object its camera sees for the first time (the camera's beliefs, seed 000 Sec. VII).
@@ -21,6 +23,7 @@ from __future__ import annotations
 
 import json
 import logging
+import os
 import socket
 import threading
 import time
@@ -40,6 +43,17 @@ DETECTION_EVERY = 4
 OWN_KINDS = frozenset({"aerial_robot"})
 
 
+def loopback_id() -> str:
+    """Who shares this process's loopback: the machine's boot id and the inode of its network namespace
+    (two hosts of one name, e.g. every Raspberry Pi's ``raspberrypi``, or two namespaces of one machine,
+    differ); the host name where ``/proc`` does not say."""
+    try:
+        boot = open("/proc/sys/kernel/random/boot_id", encoding="ascii").read().strip()  # noqa: SIM115
+        return f"{boot}/{os.stat('/proc/self/ns/net').st_ino}"
+    except OSError:
+        return socket.gethostname()
+
+
 class Presence:
     """Publishes one vehicle's status and events on ``bus`` (module doc) from a daemon thread."""
 
@@ -54,6 +68,7 @@ class Presence:
         self.bus, self.vehicle, self.name, self.period_s = bus, vehicle, name, period_s
         self._status, self._mission, self._url, self._detections = status, mission, control_url, detections
         self._owns_bus = owns_bus
+        self._loopback = loopback_id()
         self._status_pub = bus.publisher(bus.key("vehicle", vehicle, "status"))
         self._events_pub = bus.publisher(bus.key("vehicle", vehicle, "events"))
         self._seen: set[str] = set()
@@ -65,6 +80,7 @@ class Presence:
 
     def message(self) -> dict[str, Any]:
         msg = {"id": self.vehicle, "name": self.name, "t": time.time(), "host": socket.gethostname(),
+               "loopback": self._loopback,
                "control_url": self._url() if self._url is not None else None, "status": self._status()}
         mission = self._mission() if self._mission is not None else None
         text = json.dumps(mission, default=str, sort_keys=True)
