@@ -24,3 +24,21 @@ class ParamAnswer(BaseModel):
     name: str
     value: float
     type: int
+
+
+class FenceSet(BaseModel):
+    """``POST /fence``: the autopilot's inclusion polygon, ``[[lat, lon], ...]``, and whether to enable it."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    points: list[list[float]] = Field(..., min_length=3, max_length=100,
+                                      description="the polygon's vertices [[lat, lon], ...] in order")
+    enable: bool = Field(True, description="set FENCE_TYPE's polygon bit and FENCE_ENABLE 1")
+
+
+class FenceAnswer(BaseModel):
+    """What the autopilot holds after the upload (FENCE_TYPE's read-back when enabled)."""
+
+    vertices: int
+    enabled: bool
+    fence_type: int | None = None

@@ -24,7 +24,7 @@ from pathlib import Path
 from typing import Any
 
 from fastapi import FastAPI, Request
-from fastapi.responses import FileResponse, JSONResponse
+from fastapi.responses import FileResponse, JSONResponse, Response
 from fastapi.staticfiles import StaticFiles
 
 from taskflight_common.httpapi import (
@@ -35,9 +35,10 @@ from taskflight_common.httpapi import (
     install_error_handlers,
 )
 
-from .api import commands, events, tasks, vehicles, ws
+from .api import commands, events, fleet_verbs, missions, tasks, vehicles, ws
 from .schemas import ErrorAnswer
 from .service import GroundService
+from .tiles import TileSource
 
 log = logging.getLogger(__name__)
 
@@ -65,8 +66,10 @@ class Access(BearerAuth):
         return error_response(403, message)
 
 
-def create_app(service: GroundService, snapshot_period_s: float = 0.1) -> FastAPI:
-    """The application serving ``service`` (started and closed with the application's lifespan)."""
+def create_app(service: GroundService, snapshot_period_s: float = 0.1,
+               tiles: TileSource | None = None) -> FastAPI:
+    """The application serving ``service`` (started and closed with the application's lifespan);
+    ``tiles``: the map's raster tiles (:mod:`groundstation.tiles`; without them the map draws a grid)."""
 
     @contextlib.asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
@@ -94,10 +97,26 @@ def create_app(service: GroundService, snapshot_period_s: float = 0.1) -> FastAP
         log.exception("ground service: %s %s failed", request.method, request.url.path)
         return error_response(500, f"internal error: {type(exc).__name__}")
 
-    for module in (vehicles, tasks, commands, events):
+    for module in (vehicles, tasks, commands, events, fleet_verbs, missions):
         app.include_router(module.router, prefix="/api")
     app.include_router(ws.router, prefix="/api")
     app.mount("/static", StaticFiles(directory=STATIC), name="static")
+
+    @app.get("/api/map", tags=["map"])
+    def map_config() -> dict[str, Any]:
+        """The map's base layer: ``{"tiles": {url, minzoom, maxzoom, bounds, attribution}}`` or
+        ``{"tiles": null}`` (the page then draws a scale grid)."""
+        return {"tiles": tiles.info() if tiles is not None else None}
+
+    @app.get("/tiles/{z}/{x}/{y}.png", include_in_schema=False)
+    def tile(z: int, x: int, y: int) -> Response:
+        """A raster tile of the ``--tiles`` MBTiles file (no token: an <img> sends none; 404 where the file
+        has no tile)."""
+        data = tiles.mbtiles.tile(z, x, y) if tiles is not None and tiles.mbtiles is not None else None
+        if data is None:
+            return Response(status_code=404)
+        return Response(data, media_type=tiles.mbtiles.mime if tiles and tiles.mbtiles else "image/png",
+                        headers={"Cache-Control": "max-age=3600"})
 
     @app.get("/", include_in_schema=False)
     def index() -> FileResponse:

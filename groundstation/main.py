@@ -1,10 +1,11 @@
 """``taskflight ground``: the ground service.
 
 ``taskflight ground [--team URL] [--db FILE] [--host H --port P] [--tokens FILE] [--companion ID=URL ...]
-[--companion-token T]``. Without ``--tokens`` an operator and an observer token are generated and
-printed. The companion token (``--companion-token`` or ``$TASKFLIGHT_CONTROL_TOKEN``) is the bearer token
-the service sends to the companions' control surfaces. Imports its layers only when run (the parser is
-light).
+[--companion-token T] [--tiles FILE.mbtiles|URL]``. Without ``--tokens`` an operator and an observer
+token are generated and printed. The companion token (``--companion-token`` or
+``$TASKFLIGHT_CONTROL_TOKEN``) is the bearer token the service sends to the companions' control surfaces.
+``--tiles``: the map's raster tiles (:mod:`groundstation.tiles`). Imports its layers only when run (the
+parser is light).
 """
 
 from __future__ import annotations
@@ -38,6 +39,11 @@ def add_ground_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--fence", default=None, metavar="YAML",
                         help="the operational fence, 'fence: [[lat, lon], ...]': tasks outside it are "
                              "refused and the map draws it")
+    parser.add_argument("--tiles", default=None, metavar="FILE|URL",
+                        help="the map's raster tiles: an MBTiles file served at /tiles/{z}/{x}/{y}.png "
+                             "(offline), or a tile URL template such as "
+                             "https://tile.example/{z}/{x}/{y}.png; "
+                             "without it the map draws a scale grid")
     parser.add_argument("--snapshot-period", type=float, default=0.1, metavar="S",
                         help="WebSocket fleet snapshot period (default 0.1 s)")
 
@@ -61,6 +67,7 @@ def run_ground(args: argparse.Namespace) -> int:
     from .app import create_app
     from .auth import Tokens
     from .service import GroundService, load_fence
+    from .tiles import TileSource
 
     try:
         companions = parse_companions(args.companion)
@@ -68,6 +75,7 @@ def run_ground(args: argparse.Namespace) -> int:
         if not 0.02 <= args.snapshot_period <= 1.0:
             raise ValueError("--snapshot-period: between 0.02 and 1 s")
         fence = load_fence(args.fence) if args.fence else None
+        tiles = TileSource(args.tiles) if getattr(args, "tiles", None) else None
         service = GroundService(args.db, tokens, team_url=args.team, companions=companions,
                                 companion_token=args.companion_token or os.environ.get(TOKEN_ENV),
                                 fence=fence)
@@ -81,7 +89,7 @@ def run_ground(args: argparse.Namespace) -> int:
           f"database {args.db}", flush=True)
     service.start()
     try:
-        app = create_app(service, args.snapshot_period)
+        app = create_app(service, args.snapshot_period, tiles)
         freeze_startup_heap("ground")
         uvicorn.run(app, host=args.host, port=args.port,
                     log_level="warning", ws="websockets-sansio")
