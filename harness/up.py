@@ -174,7 +174,11 @@ class UpRig(GroundRig):
                              "--no-persist", *(["--scenario", str(scenario)] if scenario else []), *extra],
                             tmp / "state")
         try:
-            summary = self.up.wait_ready(180.0)
+            extra = list(extra)
+            ready_s = 180.0  # or up's own --ready-timeout and a little
+            if "--ready-timeout" in extra:
+                ready_s = float(extra[extra.index("--ready-timeout") + 1]) + 10
+            summary = self.up.wait_ready(ready_s)
             assert summary.ground, self.up.output
             self.ground = _UpGround(summary.ground)
             self._observe()

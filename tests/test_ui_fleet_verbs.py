@@ -48,7 +48,7 @@ SCREENSHOTS = os.environ.get("TASKFLIGHT_SCREENSHOTS")
 def up_extra_args(tmp: Path) -> list[str]:
     """``taskflight up``'s map tiles: an MBTiles file drawn here around the fleet's home."""
     make_mbtiles(tmp / TILES, (HOME[0], HOME[1]), radius_m=150.0, zooms=range(17, 20))
-    return ["--tiles", str(tmp / TILES)]
+    return ["--tiles", str(tmp / TILES), "--ready-timeout", "400"]  # a busy machine starts slowly
 
 
 def ne(lat: float, lon: float) -> tuple[float, float]:

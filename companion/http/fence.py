@@ -23,6 +23,8 @@ def router(fence: AutopilotFence) -> APIRouter:
 
     @app.post("/fence", response_model=FenceAnswer)
     def post_fence(body: FenceSet) -> FenceAnswer:
+        """Replace the autopilot's fence with the polygon (the mission protocol, type FENCE), then enable it
+        (FENCE_TYPE's polygon bit, FENCE_ENABLE 1) when ``enable``; the answer is the autopilot's."""
         try:
             up = fence.upload(body.points, body.enable)
         except ValueError as exc:

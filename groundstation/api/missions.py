@@ -73,6 +73,7 @@ def list_missions() -> Any:
 
 @router.get("/mission_files/{name}", response_model=MissionFile)
 def get_mission_file(name: str = PathParam(..., description="e.g. scan_and_search_outdoor.yaml")) -> Any:
+    """One bundled mission (``taskflight mission list`` names them) as the mission upload's JSON."""
     if not NAME_RE.match(name):
         raise ApiError(400, f"name: {name!r} is not a bundled mission's file name")
     path = _folder() / name
