@@ -29,17 +29,17 @@ from harness.ui import Shots, browser, foreign, login, missing, requested_urls
 if missing():
     pytest.skip(missing() or "", allow_module_level=True)
 
-from pymavlink.dialects.v20 import ardupilotmega as mavlink
 from selenium.webdriver.common.action_chains import ActionChains
 from selenium.webdriver.common.by import By
 from selenium.webdriver.support.ui import WebDriverWait
 
+from harness.fence import VERTEX_INCLUSION, param, read_fence
 from harness.ground import OPERATOR, GroundRig
 from harness.team import HOME
 from harness.timing import wait_for
 from taskflight.demo_tiles import make_mbtiles, tile_of
 
-pytestmark = pytest.mark.integration
+pytestmark = [pytest.mark.integration, pytest.mark.timeout(900)]  # the fleet starts slowly on a busy machine
 
 TILES = "test.mbtiles"
 SCREENSHOTS = os.environ.get("TASKFLIGHT_SCREENSHOTS")
@@ -150,22 +150,6 @@ def test_cancelling_one_piece_asks_whether_the_group_goes(up_rig: GroundRig, pag
             c.delete(f"/api/tasks/{group}")
 
 
-def read_fence(g: Any, target: int) -> list[tuple[int, float, float, float]]:
-    """The autopilot's FENCE plan, downloaded by the test's own pymavlink ground station."""
-    with g._lock:
-        g.mission.clear()
-    g.conn.mav.mission_request_list_send(target, 1, mavlink.MAV_MISSION_TYPE_FENCE)
-    count = g.next_mission(("MISSION_COUNT",), 10).count
-    items = []
-    for i in range(count):
-        g.conn.mav.mission_request_int_send(target, 1, i, mavlink.MAV_MISSION_TYPE_FENCE)
-        it = g.next_mission(("MISSION_ITEM_INT",), 10)
-        assert it.seq == i and it.mission_type == mavlink.MAV_MISSION_TYPE_FENCE
-        items.append((it.command, it.param1, it.x * 1e-7, it.y * 1e-7))
-    g.conn.mav.mission_ack_send(target, 1, mavlink.MAV_MISSION_ACCEPTED, mavlink.MAV_MISSION_TYPE_FENCE)
-    return items
-
-
 def test_a_fence_drawn_on_the_map_is_in_every_autopilots_fence(up_rig: GroundRig, page: Any) -> None:
     d = page
     for i, g in enumerate(up_rig.gcs):  # nothing of ours there before
@@ -185,14 +169,12 @@ def test_a_fence_drawn_on_the_map_is_in_every_autopilots_fence(up_rig: GroundRig
         assert math.dist(ne(*p), (n, e)) < 2.0
     for i, g in enumerate(up_rig.gcs):
         items = read_fence(g, i + 1)
-        assert [it[0] for it in items] == [mavlink.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION] * 4
+        assert [it[0] for it in items] == [VERTEX_INCLUSION] * 4
         assert all(it[1] == 4 for it in items), "param1: the polygon's vertex count"
         for it, p in zip(items, sent, strict=True):
             assert abs(it[2] - p[0]) < 2e-7 and abs(it[3] - p[1]) < 2e-7
-        g.conn.mav.param_request_read_send(i + 1, 1, b"FENCE_ENABLE", -1)
-        g.wait(lambda g=g: g.params.get("FENCE_ENABLE", (0,))[0] == 1.0, 10, "FENCE_ENABLE 1")
-        g.conn.mav.param_request_read_send(i + 1, 1, b"FENCE_TYPE", -1)
-        g.wait(lambda g=g: int(g.params.get("FENCE_TYPE", (0,))[0]) & 4, 10, "FENCE_TYPE with polygons")
+        assert param(g, "FENCE_ENABLE", i + 1) == 1.0
+        assert int(param(g, "FENCE_TYPE", i + 1)) & 4, "FENCE_TYPE with polygons"
 
 
 def test_return_all_home_brings_every_vehicle_home_disarmed(up_rig: GroundRig, page: Any) -> None:
