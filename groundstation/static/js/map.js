@@ -39,7 +39,9 @@ export class FleetMap {
   /** The base layer: raster tiles from ``info.url`` ({z}/{x}/{y}), drawn beyond their deepest zoom. */
   setTiles(info) {
     if (this.tiles) this.tiles.remove();
-    const opts = { minZoom: 3, maxZoom: 23, maxNativeZoom: info.maxzoom ?? 19, minNativeZoom: info.minzoom ?? 0,
+    // not drawn below the file's shallowest zoom: a minNativeZoom far below the view's zoom would make Leaflet
+    // walk every tile of the world at that zoom
+    const opts = { minZoom: info.minzoom ?? 0, maxZoom: 23, maxNativeZoom: info.maxzoom ?? 19,
       className: "basemap", attribution: info.attribution || "" };
     if (Array.isArray(info.bounds) && info.bounds.length === 4) {
       const b = info.bounds;  // MBTiles: west, south, east, north
