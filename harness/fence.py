@@ -12,7 +12,7 @@ FENCE = mavlink.MAV_MISSION_TYPE_FENCE
 VERTEX_INCLUSION = mavlink.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION
 
 
-def read_fence(g: Any, target: int = 1, timeout_s: float = 10.0) -> list[tuple[int, float, float, float]]:
+def read_fence(g: Any, target: int = 1, timeout_s: float = 30.0) -> list[tuple[int, float, float, float]]:
     """``g``'s (a :class:`harness.observer.Gcs`) download of the vehicle's fence plan: (command, param1,
     lat, lon) per item."""
     with g._lock:
@@ -29,7 +29,7 @@ def read_fence(g: Any, target: int = 1, timeout_s: float = 10.0) -> list[tuple[i
     return items
 
 
-def param(g: Any, name: str, target: int = 1, timeout_s: float = 10.0) -> float:
+def param(g: Any, name: str, target: int = 1, timeout_s: float = 30.0) -> float:
     """The autopilot's value of ``name``, asked now."""
     with g._lock:
         g.params.pop(name, None)
