@@ -54,3 +54,22 @@ def test_bad_points_are_refused_and_change_nothing(flight_session: FlightSession
     r = s.post("/fence", {"points": [[10.0, 20.0], [10.0, 21.0]]})
     assert r.status_code == 400 and "points" in r.json()["error"], r.text
     assert read_fence(s.gcs) == before
+
+
+def test_a_fence_sent_in_flight_is_enabled(flight_session: FlightSession) -> None:
+    """A fleet is often in the air when the operator sends a fence: FENCE_ENABLE 0 -> 1 is not a gain's
+    bounded change (the guarded parameter writes' 50 % rule in flight), the operator's confirmation
+    suffices."""
+    s = flight_session
+    g = s.gcs
+    s.gcs.set_param("FENCE_ENABLE", 0.0)
+    assert param(g, "FENCE_ENABLE") == 0.0
+    s.ensure_airborne()
+    assert s.armed()
+    points = square(g.home(), 120.0)  # around the vehicle: it stays inside
+    r = s.post("/fence", {"points": points, "enable": True})
+    assert r.status_code == 200, r.text
+    assert r.json()["enabled"] is True
+    assert param(g, "FENCE_ENABLE") == 1.0
+    assert len(read_fence(g)) == 4
+    s.ensure_on_ground()

@@ -161,7 +161,8 @@ def test_a_fence_drawn_on_the_map_is_in_every_autopilots_fence(up_rig: GroundRig
     d.find_element(By.ID, "draw-finish").click()
     text = answer(d, "yes")
     assert "3" in text
-    WebDriverWait(d, 30).until(lambda d: verb_result(d, "fence").count("enabled") == 3, "the answers")
+    wait_for(lambda: verb_result(d, "fence").count("enabled") == 3, up_rig.wall(60),
+             lambda: f"every autopilot's answer: {verb_result(d, 'fence')!r}; {up_rig.report()}", poll_s=0.2)
     with up_rig.ground.http() as c:
         sent = c.get("/api/fence").json()["points"]
     assert len(sent) == 4

@@ -297,6 +297,12 @@ class MavlinkLink:
             self._conn.mav.param_request_read_send(ts, tc, name.encode("ascii"), -1)
         self.stats["tx_param"] += 1
 
+    def addressed_to_us(self, msg: Any) -> bool:
+        """Whether ``msg`` (a targeted message) is for this companion: our system id and our component, or
+        a broadcast (0)."""
+        ts, tc = getattr(msg, "target_system", 0), getattr(msg, "target_component", 0)
+        return ts in (0, self._conn.mav.srcSystem) and tc in (0, self._source_component)
+
     def send_mission_count(self, count: int, mission_type: int) -> None:
         """MISSION_COUNT: an upload of ``count`` items of ``mission_type`` begins (:mod:`.fence` answers the
         autopilot's requests)."""

@@ -25,6 +25,9 @@ from groundstation.service import fence_of
 from . import principal_of, service_of
 
 router = APIRouter(tags=["commands"])
+#: a companion's answer to ``POST /fence`` may take its whole upload and three parameter round trips, each
+#: with its own retries (:mod:`companion.link.fence`): more than a verb's 5 s on a loaded machine
+FENCE_CALL_S = 45.0
 
 
 class FleetVerb(BaseModel):
@@ -123,7 +126,8 @@ def post_fence(request: Request, body: FenceRequest) -> Any:
     svc.station.ledger.fence = fence
 
     def one(vid: int) -> dict[str, Any]:
-        status, answer = svc.call(vid, "POST", "/fence", {"points": points, "enable": body.enable})
+        status, answer = svc.call(vid, "POST", "/fence", {"points": points, "enable": body.enable},
+                                  timeout_s=FENCE_CALL_S)
         ok = status == 200
         error = None if ok else answer.get("error") if isinstance(answer, dict) else str(answer)
         return {"vehicle": vid, "command": "fence", "ok": ok, "status": status, "answer": answer,
