@@ -8,7 +8,8 @@ task asks whether the whole group goes, and "only this piece" leaves the other; 
 is in every autopilot's fence (read back over MAVLink by the test's own ground stations with
 MISSION_REQUEST_LIST, mission type FENCE, and FENCE_ENABLE 1); "Return all home" (button and
 confirmation) brings every flying vehicle home and disarmed (its autopilot's HEARTBEAT and position); a
-mission file chosen in the page and refused by the vehicle's delegation is shown node by node.
+mission file chosen in the page and refused by the vehicle's delegation is shown node by node; the H key
+(and a confirmation naming every vehicle) holds a patrolling fleet where it is.
 With ``TASKFLIGHT_SCREENSHOTS=docs/img`` the map with tiles and the refusal are saved there.
 """
 
@@ -17,6 +18,7 @@ from __future__ import annotations
 import math
 import os
 import sqlite3
+import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -181,11 +183,23 @@ def test_a_fence_drawn_on_the_map_is_in_every_autopilots_fence(up_rig: GroundRig
 def test_return_all_home_brings_every_vehicle_home_disarmed(up_rig: GroundRig, page: Any) -> None:
     d = page
     homes = [g.home() for g in up_rig.gcs]
+    visits = []
     with up_rig.ground.http() as c:  # every vehicle flies away from home first
         for h in homes:
             r = c.post("/api/tasks", json={"type": "visit", "point": [h[0] + 15 / 111_320.0, h[1], 6.0],
                                            "altitude": 6.0})
             assert r.status_code == 201, r.text
+            visits += r.json()["ids"]
+    try:
+        rtl_all_and_check(up_rig, d, homes)
+    finally:
+        with up_rig.ground.http() as c:  # no visit left for the next test's vehicles
+            for tid in visits:
+                c.delete(f"/api/tasks/{tid}")
+
+
+def rtl_all_and_check(up_rig: GroundRig, d: Any, homes: list[Any]) -> None:
+    """Once every vehicle flies away from home: "Return all home", confirmed, and each home, disarmed."""
 
     def away(i: int) -> bool:
         p = up_rig.position(i)
@@ -244,3 +258,49 @@ def test_a_mission_refused_is_shown_node_by_node(up_rig: GroundRig, page: Any, t
         node = out.find_element(By.CSS_SELECTOR, f"li.node[data-node='{ok}']")
         assert "refused" not in (node.get_attribute("class") or "")
     keep(d, "mission_refused.png")
+
+
+def test_hold_all_on_the_h_key_stops_every_vehicle_where_it_is(up_rig: GroundRig, page: Any) -> None:
+    """The H key asks (every vehicle named), then every vehicle's mission is paused with the hover routine:
+    each patrolling vehicle comes to rest and stays where it stopped, its mission ``paused``."""
+    d = page
+    a, b = (HOME[0] - 50 / 111_320.0, HOME[1] - 0.0004), (HOME[0] + 50 / 111_320.0, HOME[1] + 0.0004)
+    with up_rig.ground.http() as c:  # a border patrolled back and forth by all three (inside the fence)
+        r = c.post("/api/tasks", json={"type": "border_patrol", "points": [[*a, 6.0], [*b, 6.0]],
+                                       "altitude": 6.0, "vehicles": up_rig.n, "force": True})
+        assert r.status_code == 201, r.text
+        group = r.json()["group"]
+
+    def speed(i: int) -> float:
+        v = up_rig.velocity(i)
+        return math.hypot(v[0], v[1]) if v is not None else 0.0
+
+    def patrolling(vid: int, v: dict[str, Any]) -> bool:
+        p = up_rig.position(vid - 1)
+        return (v.get("mission") or {}).get("state") == "executing" and p is not None and p[2] > 2.0
+
+    try:
+        wait_for(lambda: all(patrolling(vid, v) for vid, v in up_rig.vehicles().items())
+                 and any(speed(i) > 0.5 for i in range(up_rig.n)), up_rig.wall(240),
+                 lambda: f"every vehicle patrolling: {up_rig.report()}")
+        d.find_element(By.TAG_NAME, "header").click()  # the key goes to the page, not to a text box
+        ActionChains(d).send_keys("h").perform()
+        text = answer(d, "yes")
+        assert "Hold all" in text and all(f"({i + 1})" in text for i in range(up_rig.n)), text
+        result = WebDriverWait(d, 30).until(lambda d: verb_result(d, "hold_all"), "every vehicle's answer")
+        assert result.count(": ok") == up_rig.n, result
+        wait_for(lambda: all(speed(i) < 0.3 for i in range(up_rig.n)), up_rig.wall(20),
+                 lambda: f"every vehicle at rest: {[speed(i) for i in range(up_rig.n)]}")
+        stopped = [up_rig.position(i) for i in range(up_rig.n)]
+        deadline = time.monotonic() + up_rig.wall(10)  # it stays there: sampled over 10 s of its time
+        while time.monotonic() < deadline:
+            for i, p0 in enumerate(stopped):
+                p = up_rig.position(i)
+                assert p is not None and p0 is not None
+                assert math.dist(ne(p[0], p[1]), ne(p0[0], p0[1])) < 1.0, f"vehicle {i + 1} moved on"
+            time.sleep(0.2)
+        states = {vid: (v.get("mission") or {}).get("state") for vid, v in up_rig.vehicles().items()}
+        assert set(states.values()) == {"paused"}, states
+    finally:
+        with up_rig.ground.http() as c:
+            c.delete(f"/api/tasks/{group}")
