@@ -258,6 +258,9 @@ def test_a_mission_refused_is_shown_node_by_node(up_rig: GroundRig, page: Any, t
         node = out.find_element(By.CSS_SELECTOR, f"li.node[data-node='{ok}']")
         assert "refused" not in (node.get_attribute("class") or "")
     keep(d, "mission_refused.png")
+    with up_rig.ground.http() as c:  # the companion took it out of the team before delegation answered
+        if up_rig.vehicles()[1].get("team_state") == "taken":
+            assert c.post("/api/vehicles/1/release").status_code == 200
 
 
 def test_hold_all_on_the_h_key_stops_every_vehicle_where_it_is(up_rig: GroundRig, page: Any) -> None:
@@ -277,7 +280,9 @@ def test_hold_all_on_the_h_key_stops_every_vehicle_where_it_is(up_rig: GroundRig
 
     def patrolling(vid: int, v: dict[str, Any]) -> bool:
         p = up_rig.position(vid - 1)
-        return (v.get("mission") or {}).get("state") == "executing" and p is not None and p[2] > 2.0
+        m = v.get("mission") or {}  # on the patrol's legs (a take-off node cannot be paused)
+        return m.get("state") == "executing" and "waypoint" in str(m.get("progress")) and p is not None \
+            and p[2] > 2.0
 
     try:
         wait_for(lambda: all(patrolling(vid, v) for vid, v in up_rig.vehicles().items())
