@@ -10,6 +10,7 @@ points are refused with a 400 naming the field and change nothing.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import pytest
 
@@ -21,7 +22,13 @@ pytestmark = pytest.mark.integration
 FLIGHT_SESSION = SessionSpec("fence_upload", 5.0)
 
 
-def square(home: tuple[float, float, float], half_m: float) -> list[list[float]]:
+def here(g: Any) -> tuple[float, float]:
+    """The vehicle's latitude and longitude (GLOBAL_POSITION_INT: ArduCopter does not stream HOME_POSITION)."""
+    m = g.fresh("GLOBAL_POSITION_INT", 30)
+    return m.lat * 1e-7, m.lon * 1e-7
+
+
+def square(home: tuple[float, ...], half_m: float) -> list[list[float]]:
     dlat = half_m / 111_320.0
     dlon = half_m / (111_320.0 * math.cos(math.radians(home[0])))
     return [[home[0] + dlat, home[1] - dlon], [home[0] + dlat, home[1] + dlon],
@@ -31,7 +38,7 @@ def square(home: tuple[float, float, float], half_m: float) -> list[list[float]]
 def test_the_fence_posted_is_the_autopilots(flight_session: FlightSession) -> None:
     s = flight_session
     g = s.gcs
-    points = square(g.home(), 80.0)
+    points = square(here(g), 80.0)
     r = s.post("/fence", {"points": points, "enable": True})
     assert r.status_code == 200, r.text
     body = r.json()
@@ -66,7 +73,7 @@ def test_a_fence_sent_in_flight_is_enabled(flight_session: FlightSession) -> Non
     assert param(g, "FENCE_ENABLE") == 0.0
     s.ensure_airborne()
     assert s.armed()
-    points = square(g.home(), 120.0)  # around the vehicle: it stays inside
+    points = square(here(g), 120.0)  # around the vehicle: it stays inside
     r = s.post("/fence", {"points": points, "enable": True})
     assert r.status_code == 200, r.text
     assert r.json()["enabled"] is True
