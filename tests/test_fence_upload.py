@@ -23,7 +23,7 @@ FLIGHT_SESSION = SessionSpec("fence_upload", 5.0)
 
 
 def here(g: Any) -> tuple[float, float]:
-    """The vehicle's latitude and longitude (GLOBAL_POSITION_INT: ArduCopter does not stream HOME_POSITION)."""
+    """The vehicle's latitude and longitude (GLOBAL_POSITION_INT: ArduCopter streams no HOME_POSITION)."""
     m = g.fresh("GLOBAL_POSITION_INT", 30)
     return m.lat * 1e-7, m.lon * 1e-7
 
