@@ -172,8 +172,8 @@ def test_a_border_for_more_vehicles_than_are_free_takes_the_offered_smaller_n(up
     assert len({t["group"] for t in pieces.values()}) == 1
     d.find_element(By.CSS_SELECTOR, f"#tasks tr[data-task='{min(pieces)}'] button.cancel").click()
     if len(pieces) > 1:  # one piece of a divided task: the page asks whether the whole group goes
-        WebDriverWait(d, 20).until(lambda d: d.find_element(By.ID, "dialog").get_attribute("open") is not None,
-                                   "the dialog asking about the group")
+        WebDriverWait(d, 20).until(
+            lambda d: d.find_element(By.ID, "dialog").get_attribute("open") is not None, "the group asked")
         d.find_element(By.CSS_SELECTOR, "#dialog-buttons button[data-answer='group']").click()  # all
     WebDriverWait(d, 20).until(lambda d: all(task_state(d, t) == "cancelled" for t in pieces),
                                "the border cancelled")
