@@ -26,6 +26,7 @@ if missing():
     pytest.skip(missing() or "", allow_module_level=True)
 
 from selenium.webdriver.common.action_chains import ActionChains
+from selenium.common.exceptions import StaleElementReferenceException
 from selenium.webdriver.common.by import By
 from selenium.webdriver.support.ui import WebDriverWait
 
@@ -222,8 +223,9 @@ def test_break_in_with_the_keyboard_joystick_resume_and_enough_ends_the_scan(up_
     d.find_element(By.CSS_SELECTOR, "[data-verb='enough']").click()
     wait_for(lambda: mission()["node"] in ("fly-to", "land") or mission()["state"] == "succeeded",
              up_rig.wall(60), "the mission goes on after enough")
-    WebDriverWait(d, 20).until(lambda d: d.find_element(
-        By.CSS_SELECTOR, ".tree li[data-node='scan'] > span.state").text == "succeeded", "the scan ended")
+    WebDriverWait(d, 20, ignored_exceptions=(StaleElementReferenceException,)).until(  # the tree redrawn
+        lambda d: d.find_element(By.CSS_SELECTOR, ".tree li[data-node='scan'] > span.state").text == "succeeded",
+        "the scan ended")
     shots(d, "9_enough")
 
 
