@@ -25,8 +25,8 @@ from harness.ui import Shots, browser, foreign, login, missing, requested_urls
 if missing():
     pytest.skip(missing() or "", allow_module_level=True)
 
-from selenium.webdriver.common.action_chains import ActionChains
 from selenium.common.exceptions import StaleElementReferenceException
+from selenium.webdriver.common.action_chains import ActionChains
 from selenium.webdriver.common.by import By
 from selenium.webdriver.support.ui import WebDriverWait
 
