@@ -224,7 +224,8 @@ def test_break_in_with_the_keyboard_joystick_resume_and_enough_ends_the_scan(up_
     wait_for(lambda: mission()["node"] in ("fly-to", "land") or mission()["state"] == "succeeded",
              up_rig.wall(60), "the mission goes on after enough")
     WebDriverWait(d, 20, ignored_exceptions=(StaleElementReferenceException,)).until(  # the tree redrawn
-        lambda d: d.find_element(By.CSS_SELECTOR, ".tree li[data-node='scan'] > span.state").text == "succeeded",
+        lambda d: d.find_element(By.CSS_SELECTOR,
+                                 ".tree li[data-node='scan'] > span.state").text == "succeeded",
         "the scan ended")
     shots(d, "9_enough")
 
