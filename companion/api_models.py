@@ -45,3 +45,21 @@ class ParamAnswer(BaseModel):
     description: str | None = None
     autopilot: str | None = Field(default=None, description="the table the range is from: arducopter or "
                                   "model; null: not a parameter written through this station")
+
+
+class FenceSet(BaseModel):
+    """``POST /fence``: the autopilot's inclusion polygon, ``[[lat, lon], ...]``, and whether to enable it."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    points: list[list[float]] = Field(..., min_length=3, max_length=100,
+                                      description="the polygon's vertices [[lat, lon], ...] in order")
+    enable: bool = Field(True, description="set FENCE_TYPE's polygon bit and FENCE_ENABLE 1")
+
+
+class FenceAnswer(BaseModel):
+    """What the autopilot holds after the upload (FENCE_TYPE's read-back when enabled)."""
+
+    vertices: int
+    enabled: bool
+    fence_type: int | None = None

@@ -43,6 +43,8 @@ from companion.flight import (
 )
 from companion.flight.external import DEFAULT_MAX_VALIDITY_S
 from companion.link import AutopilotClock, GuidedSupervisor, MavlinkLink, Phase
+from companion.link.fence import FenceClient as AutopilotFence
+from companion.link.fence import FenceError as FenceError  # re-exported, as ParamError
 from companion.link.mirror import LAND, M, MirrorState
 from companion.link.params import ParamClient as AutopilotParams
 from companion.link.params import ParamError as ParamError  # re-exported: upper layers read no link module
@@ -323,6 +325,10 @@ class QuadNode:
     def param_client(self) -> AutopilotParams:
         """A new client of the autopilot's parameters over this node's link (read; set with read-back)."""
         return AutopilotParams(self.link)
+
+    def fence_client(self) -> AutopilotFence:
+        """A new client of the autopilot's polygon fence over this node's link (upload, enable)."""
+        return AutopilotFence(self.link)
 
     def status(self) -> dict[str, Any]:
         """QAPI status plus what the node, the link and the vehicle are doing."""

@@ -28,7 +28,7 @@ from pathlib import Path
 from typing import Any
 
 from fastapi import FastAPI, Request
-from fastapi.responses import FileResponse, JSONResponse
+from fastapi.responses import FileResponse, JSONResponse, Response
 from fastapi.staticfiles import StaticFiles
 
 from taskflight_common.httpapi import (
@@ -39,9 +39,10 @@ from taskflight_common.httpapi import (
     install_error_handlers,
 )
 
-from .api import commands, events, tasks, vehicles, ws
+from .api import commands, events, fleet_verbs, missions, tasks, vehicles, ws
 from .schemas import ErrorAnswer
 from .service import GroundService
+from .tiles import TileSource
 
 log = logging.getLogger(__name__)
 
@@ -76,10 +77,12 @@ class Access(BearerAuth):
 
 
 class SecurityHeaders:
-    """ASGI middleware: :data:`SECURITY_HEADERS` on every HTTP answer (the page, its assets, the API)."""
+    """ASGI middleware: ``headers`` (default :data:`SECURITY_HEADERS`) on every HTTP answer (the page, its
+    assets, the API)."""
 
-    def __init__(self, app: Any) -> None:
+    def __init__(self, app: Any, headers: list[tuple[bytes, bytes]] | None = None) -> None:
         self.app = app
+        self.headers = headers if headers is not None else SECURITY_HEADERS
 
     async def __call__(self, scope: Scope, receive: Any, send: Any) -> None:
         if scope["type"] != "http":
@@ -90,14 +93,26 @@ class SecurityHeaders:
             if message["type"] == "http.response.start":
                 names = {k.lower() for k, _ in message.get("headers", [])}
                 message["headers"] = list(message.get("headers", [])) + [
-                    (k, v) for k, v in SECURITY_HEADERS if k not in names]
+                    (k, v) for k, v in self.headers if k not in names]
             await send(message)
 
         await self.app(scope, receive, with_headers)
 
 
-def create_app(service: GroundService, snapshot_period_s: float = 0.1) -> FastAPI:
-    """The application serving ``service`` (started and closed with the application's lifespan)."""
+def security_headers(tiles: TileSource | None) -> list[tuple[bytes, bytes]]:
+    """:data:`SECURITY_HEADERS`, the CSP's ``img-src`` widened to a ``--tiles`` URL template's origin (its
+    images only: scripts stay the service's own)."""
+    origin = tiles.origin() if tiles is not None else None
+    if origin is None:
+        return SECURITY_HEADERS
+    csp = CSP.replace("img-src 'self' data:", f"img-src 'self' data: {origin}")
+    return [(b"content-security-policy", csp.encode("ascii")), *SECURITY_HEADERS[1:]]
+
+
+def create_app(service: GroundService, snapshot_period_s: float = 0.1,
+               tiles: TileSource | None = None) -> FastAPI:
+    """The application serving ``service`` (started and closed with the application's lifespan);
+    ``tiles``: the map's raster tiles (:mod:`groundstation.tiles`; without them the map draws a grid)."""
 
     @contextlib.asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
@@ -116,7 +131,7 @@ def create_app(service: GroundService, snapshot_period_s: float = 0.1) -> FastAP
     app.state.service = service
     app.state.sockets = set()
     app.add_middleware(Access, service=service)
-    app.add_middleware(SecurityHeaders)
+    app.add_middleware(SecurityHeaders, headers=security_headers(tiles))
 
     advertise_bearer(app)
     install_error_handlers(app)
@@ -126,10 +141,26 @@ def create_app(service: GroundService, snapshot_period_s: float = 0.1) -> FastAP
         log.exception("ground service: %s %s failed", request.method, request.url.path)
         return error_response(500, f"internal error: {type(exc).__name__}")
 
-    for module in (vehicles, tasks, commands, events):
+    for module in (vehicles, tasks, commands, events, fleet_verbs, missions):
         app.include_router(module.router, prefix="/api")
     app.include_router(ws.router, prefix="/api")
     app.mount("/static", StaticFiles(directory=STATIC), name="static")
+
+    @app.get("/api/map", tags=["map"])
+    def map_config() -> dict[str, Any]:
+        """The map's base layer: ``{"tiles": {url, minzoom, maxzoom, bounds, attribution}}`` or
+        ``{"tiles": null}`` (the page then draws a scale grid)."""
+        return {"tiles": tiles.info() if tiles is not None else None}
+
+    @app.get("/tiles/{z}/{x}/{y}.png", include_in_schema=False)
+    def tile(z: int, x: int, y: int) -> Response:
+        """A raster tile of the ``--tiles`` MBTiles file (no token: an <img> sends none; 404 where the file
+        has no tile)."""
+        data = tiles.mbtiles.tile(z, x, y) if tiles is not None and tiles.mbtiles is not None else None
+        if data is None:
+            return Response(status_code=404)
+        return Response(data, media_type=tiles.mbtiles.mime if tiles and tiles.mbtiles else "image/png",
+                        headers={"Cache-Control": "max-age=3600"})
 
     @app.get("/", include_in_schema=False)
     def index() -> FileResponse:

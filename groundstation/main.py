@@ -1,14 +1,16 @@
 """``taskflight ground``: the ground service.
 
 ``taskflight ground [--team URL] [--db FILE] [--host H --port P] [--tokens FILE] [--companion ID=URL ...]
-[--companion-token-file FILE] [--resume-tasks] [--events-keep-days D] [--telemetry-keep S]``. Without
+[--companion-token-file FILE] [--resume-tasks] [--events-keep-days D] [--telemetry-keep S]
+[--tiles FILE.mbtiles|URL]``. Without
 ``--tokens`` an operator and an observer token are generated and printed. The companion token (the
 bearer token the service sends to the companions' control surfaces) comes from
 ``$TASKFLIGHT_CONTROL_TOKEN`` or ``--companion-token-file`` (its first line): never from the command line,
 which every user of the machine reads in ``ps`` (``--companion-token`` is still taken, with a warning).
 Restarted on a database an earlier run left, the open tasks come back held (not given to the team)
 until the operator releases them, except those live vehicles are found flying; ``--resume-tasks``
-releases them at start. Imports its layers only when run (the parser is light).
+releases them at start. ``--tiles FILE.mbtiles|URL``: the map's raster tiles (:mod:`groundstation.tiles`).
+Imports its layers only when run (the parser is light).
 """
 
 from __future__ import annotations
@@ -60,6 +62,11 @@ def add_ground_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--fence", default=None, metavar="YAML",
                         help="the operational fence, 'fence: [[lat, lon], ...]': tasks outside it are "
                              "refused and the map draws it")
+    parser.add_argument("--tiles", default=None, metavar="FILE|URL",
+                        help="the map's raster tiles: an MBTiles file served at /tiles/{z}/{x}/{y}.png "
+                             "(offline), or a tile URL template such as "
+                             "https://tile.example/{z}/{x}/{y}.png; "
+                             "without it the map draws a scale grid")
     parser.add_argument("--snapshot-period", type=float, default=0.1, metavar="S",
                         help="WebSocket fleet snapshot period (default 0.1 s)")
 
@@ -98,6 +105,7 @@ def run_ground(args: argparse.Namespace) -> int:
     from .app import create_app
     from .auth import Tokens
     from .service import GroundService, Retention, load_fence
+    from .tiles import TileSource
 
     try:
         companions = parse_companions(args.companion)
@@ -109,6 +117,7 @@ def run_ground(args: argparse.Namespace) -> int:
 
         retention = Retention(events_keep_s=args.events_keep_days * 86400.0,
                               telemetry_keep_s=args.telemetry_keep)
+        tiles = TileSource(args.tiles) if getattr(args, "tiles", None) else None
         service = GroundService(args.db, tokens, team_url=args.team, companions=companions,
                                 companion_token=companion_token(args), fence=fence,
                                 resume_tasks=args.resume_tasks, retention=retention,
@@ -123,7 +132,7 @@ def run_ground(args: argparse.Namespace) -> int:
           f"database {args.db}", flush=True)
     service.start()
     try:
-        app = create_app(service, args.snapshot_period)
+        app = create_app(service, args.snapshot_period, tiles)
         freeze_startup_heap("ground")
         uvicorn.run(app, host=args.host, port=args.port,
                     log_level="warning", ws="websockets-sansio")

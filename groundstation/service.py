@@ -364,8 +364,9 @@ class GroundService:
         self.db.put_vehicle(vid, name, control_url)
         self.fleet.register(vid, name, control_url)
 
-    def call(self, vid: int, method: str, path: str, body: Any = None) -> tuple[int, Any]:
-        return self.client.call(vid, self.fleet.url_of(vid), method, path, body)
+    def call(self, vid: int, method: str, path: str, body: Any = None,
+             timeout_s: float | None = None) -> tuple[int, Any]:
+        return self.client.call(vid, self.fleet.url_of(vid), method, path, body, timeout_s)
 
     def command(self, vid: int, verb: str, body: Any = None) -> dict[str, Any]:
         """One operator verb to one vehicle -> a CommandAnswer record (ApiError for 404/409/502/504)."""

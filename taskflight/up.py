@@ -141,6 +141,8 @@ class UpOptions:
     companion_nice: int = 0
     resume_tasks: bool = False
     scenario: Path | None = None
+    tiles: str | None = None
+    """the ground's map tiles (``taskflight ground --tiles``); None: the demo's own, drawn at the first run"""
 
     def check(self) -> None:
         if not 1 <= self.vehicles <= 200:
@@ -359,6 +361,7 @@ class Up:
         fence = write_fence(o.platform, o.state_dir / "fence.yaml")
         if fence is not None:
             argv += ["--fence", str(fence)]
+        argv += ["--tiles", o.tiles or str(demo_tiles(o.platform, o.state_dir / "tiles.mbtiles"))]
         self.children.append(Child("ground", argv, o.state_dir / "logs" / "ground.log",
                                    env={**self._pythonpath(), **self._key_env(),
                                         TOKEN_ENV: self.control_token},
@@ -467,6 +470,15 @@ def write_fence(platform: Path, path: Path) -> Path | None:
     return path
 
 
+def demo_tiles(platform: Path, path: Path) -> Path:
+    """The offline map tiles around the platform's home (:mod:`taskflight.demo_tiles`; drawn once, kept in the
+    state folder)."""
+    from companion.tst.platform import load_platform
+    from taskflight.demo_tiles import ensure_mbtiles
+
+    return ensure_mbtiles(path, load_platform(platform).home)
+
+
 def ground_arguments(team_url: str, db: Path, host: str, port: int, tokens: Path,
                      vehicles: list[VehicleInfo], resume_tasks: bool = False) -> list[str]:
     """``taskflight ground ...``'s arguments for this fleet (each vehicle's companion by system id). The
@@ -519,6 +531,10 @@ def add_up_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--scenario", default=None, metavar="YAML",
                    help="objects for every vehicle's simulated downward camera (north, east of its own home; "
                         "companion.sensing.scenario): detections reach the ground service as events")
+    p.add_argument("--tiles", default=None, metavar="FILE|URL",
+                   help="the map's tiles for the ground service (an MBTiles file or a URL template; "
+                        "default: an offline tile set of the platform's home area, drawn into "
+                        "<state-dir>/tiles.mbtiles)")
     p.add_argument("--no-ground", action="store_true", help="everything but the ground service")
     p.add_argument("--no-persist", action="store_true", help="the models neither load nor save parameters")
     p.add_argument("--companion-nice", type=int, default=0, metavar="K",
@@ -544,7 +560,7 @@ def options_from_args(args: argparse.Namespace) -> UpOptions:
                      persist=not args.no_persist, platform=Path(args.platform),
                      companion_nice=args.companion_nice,
                      scenario=Path(args.scenario) if args.scenario else None,
-                     resume_tasks=args.resume_tasks)
+                     resume_tasks=args.resume_tasks, tiles=args.tiles)
 
 
 def run_up(args: argparse.Namespace) -> int:

@@ -139,7 +139,8 @@ def up_rig(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFact
     if text is not None:
         scenario = tmp / "scenario.yaml"
         scenario.write_text(text)
-    r = UpRig(tmp, n=3, speedup=3.0, scenario=scenario)
+    extra = getattr(request.module, "up_extra_args", None)  # a module's own `taskflight up` options
+    r = UpRig(tmp, n=3, speedup=3.0, scenario=scenario, extra=extra(tmp) if extra is not None else ())
     yield r
     r.close()
 

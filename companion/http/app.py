@@ -41,6 +41,8 @@ process-unique command ids (:mod:`companion.flight.events`).
 ``/team``, ``/team/...``, ``/processes``,  the process monitor (seed 003 Fig. 1): the team member when
 ``/params/{name}``                         served (:mod:`companion.http.team`), the processes and
                                            in-flight parameter tuning (:mod:`companion.http.params`)
+``POST /fence``                            the autopilot's polygon fence, uploaded and enabled
+                                           (:mod:`companion.http.fence`)
 =========================================  ===========================================================
 
 Errors
@@ -79,7 +81,7 @@ from fastapi import FastAPI
 
 from companion.behaviors.system import ExecutiveLayer
 from companion.http import behaviors as behaviors_api
-from companion.http import events, mission, params, pause_routines, queue, status, team
+from companion.http import events, fence, mission, params, pause_routines, queue, status, team
 from companion.http import safety as safety_api
 from companion.http.auth import OPEN_PATHS, ControlTokens, RoleAuth
 from companion.http.models import UNION_TAGS
@@ -129,4 +131,5 @@ def create_app(node: QuadNode, token: str | None = None, behaviors: ExecutiveLay
         app.include_router(team.router(team_member))
     app.include_router(params.router(node.param_client(),
                                      behaviors.processes if behaviors is not None else None))
+    app.include_router(fence.router(node.fence_client()))
     return app

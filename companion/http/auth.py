@@ -35,8 +35,8 @@ from taskflight_common.tokens import COMPANION_ROLES
 OPEN_PATHS = frozenset({"/openapi.json", "/docs", "/docs/oauth2-redirect", "/redoc"})
 #: POSTs that change nothing (an observer may call them)
 READ_ONLY_POSTS = frozenset({"/behaviors/check"})
-#: writes only the operator may make: the break-in of a mission, the autopilot's parameters
-OPERATOR_ONLY = ("/mission/pause", "/mission/continue", "/params/")
+#: writes only the operator may make: the break-in of a mission, the autopilot's parameters and fence
+OPERATOR_ONLY = ("/mission/pause", "/mission/continue", "/params/", "/fence")
 #: the role of every caller of a surface without tokens (on loopback only)
 OPEN_ROLE = "operator"
 _READ_METHODS = frozenset({"GET", "HEAD", "OPTIONS"})

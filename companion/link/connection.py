@@ -297,6 +297,30 @@ class MavlinkLink:
             self._conn.mav.param_request_read_send(ts, tc, name.encode("ascii"), -1)
         self.stats["tx_param"] += 1
 
+    def addressed_to_us(self, msg: Any) -> bool:
+        """Whether ``msg`` (a targeted message) is for this companion: our system id and our component, or
+        a broadcast (0)."""
+        ts, tc = getattr(msg, "target_system", 0), getattr(msg, "target_component", 0)
+        return ts in (0, self._conn.mav.srcSystem) and tc in (0, self._source_component)
+
+    def send_mission_count(self, count: int, mission_type: int) -> None:
+        """MISSION_COUNT: an upload of ``count`` items of ``mission_type`` begins (:mod:`.fence` answers the
+        autopilot's requests)."""
+        ts, tc = self._target()
+        with self._send_lock:
+            self._conn.mav.mission_count_send(ts, tc, count, mission_type)
+        self.stats["tx_mission"] += 1
+
+    def send_mission_item_int(self, seq: int, frame: int, command: int,
+                              params: tuple[float, float, float, float], lat: float, lon: float, alt: float,
+                              mission_type: int) -> None:
+        """MISSION_ITEM_INT ``seq`` (latitude and longitude in degrees, sent as degrees * 1e7)."""
+        ts, tc = self._target()
+        with self._send_lock:
+            self._conn.mav.mission_item_int_send(ts, tc, seq, frame, command, 0, 0, *params,
+                                                 round(lat * 1e7), round(lon * 1e7), alt, mission_type)
+        self.stats["tx_mission"] += 1
+
     # --- vehicle commands ---------------------------------------------------------------------------
     def set_mode(self, custom_mode: int, now_s: float) -> CommandRequest:
         """MAV_CMD_DO_SET_MODE with an ArduCopter custom mode (GUIDED 4, LAND 9 ...)."""

@@ -2,13 +2,16 @@
 // the map, the lists, the vehicle panel and the dialogs. Snapshots arrive at 10 Hz; the latest is drawn
 // in the next animation frame (stats in window.taskflight.stats for the bench and the tests).
 import { call, Live, setToken, token } from "./api.js";
-import { getHome, setHome, toGeo } from "./geo.js";
+import { fenceDraw } from "./fence_draw.js";
+import { getHome, setHome, toLocal } from "./geo.js";
 import { Joystick } from "./joystick.js";
 import { Alerts, FleetList, linkOf, TaskList } from "./lists.js";
 import { FleetMap } from "./map.js";
+import { setupMissionUpload } from "./mission_upload.js";
 import { installShortcuts } from "./shortcuts.js";
 import { esc } from "./text.js";
 import { VehiclePanel } from "./vehicle.js";
+import { cancelTaskAsking, setupVerbs } from "./verbs.js";
 
 const $ = (id) => document.getElementById(id);
 const stats = { snapshots: 0, renders: 0, renderTimes: [], frameTimes: [], intervals: [], lastRender: 0, lastFrame: 0, seq: 0 };
@@ -129,9 +132,8 @@ function headerState() {
   el.dataset.state = state;
 }
 
-async function cancelTask(t) {
-  const r = await call("DELETE", `/api/tasks/${t.group || t.id}`);
-  $("draw-hint").textContent = r.status === 200 ? `cancelled ${r.body.cancelled.join(", ")}` : `refused: ${r.body?.error}`;
+function cancelTask(t) {  // a piece of a divided task asks whether the whole group goes (verbs.js)
+  return cancelTaskAsking(t, tasksById, dialog, (text) => { $("draw-hint").textContent = text; });
 }
 
 async function commandMany() {
@@ -263,11 +265,16 @@ async function start() {
   $("draw-cancel").addEventListener("click", () => { fmap.cancelDraw(); endDraw(); $("draw-hint").textContent = ""; });
   $("multi-go").addEventListener("click", commandMany);
   installShortcuts(() => fmap.map.invalidateSize());
+  const verbUi = { dialog, hint: (text) => { $("draw-hint").textContent = text; }, vehicles: () => vehiclesById,
+    selected: () => panel.vid ?? null, canCommand, map: fmap };
+  setupVerbs(verbUi);
+  setupMissionUpload(verbUi);
+  fenceDraw(verbUi);
   fmap.map.on("mousemove", (e) => {
     if (!getHome()) return;
     const [lat, lon] = [e.latlng.lat, e.latlng.lng];
-    const q = toGeo(lat, lon);
-    $("readout").textContent = `N ${lat.toFixed(1)} m  E ${lon.toFixed(1)} m   lat ${q[0].toFixed(7)}  lon ${q[1].toFixed(7)}`;
+    const q = toLocal(lat, lon);
+    $("readout").textContent = `N ${q[0].toFixed(1)} m  E ${q[1].toFixed(1)} m   lat ${lat.toFixed(7)}  lon ${lon.toFixed(7)}`;
   });
   const fence = await call("GET", "/api/fence");
   fencePoints = fence.status === 200 && fence.body.points ? fence.body.points : null;
