@@ -130,13 +130,18 @@ class MissionService:
                 self.submitted = mission
             return result
 
-    def _delegate(self, mission: Mission) -> Delegation:
+    def check(self, mission: Mission) -> Delegation:
+        """Delegation's answer for ``mission`` on this platform now, loading nothing (seed 000 Sec. IV:
+        the answer a directed mission gets before the vehicle is taken from its team task)."""
         behavior = POLICY_BEHAVIORS.get(mission.on_failure)
         if behavior is not None and behavior not in self.layer.catalog:
             reason = (f"on_failure: {mission.on_failure} needs the {behavior} behavior, which this "
                       "companion's behavior catalog does not have")
             return Delegation(False, [reason], mission, {}, None, 0.0, platform=self.base_platform.name)
-        result = delegate(mission, self.platform(), catalog=self.layer.catalog)
+        return delegate(mission, self.platform(), catalog=self.layer.catalog)
+
+    def _delegate(self, mission: Mission) -> Delegation:
+        result = self.check(mission)
         if result.accepted:
             self.execution.load(result.mission, result.plans)
             self.delegation = result

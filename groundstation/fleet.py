@@ -50,6 +50,8 @@ STALE_S, LOST_S = 2.0, 5.0
 BATTERY_LOW, BATTERY_CRITICAL = 30.0, 15.0
 #: autopilot modes a failsafe (or a ground station) switches to
 FAILSAFE_MODES = frozenset({"RTL", "LAND", "BRAKE", "SMART_RTL"})
+#: seconds an operator's RTL or land explains the vehicle's switches to those modes (until it disarms)
+COMMANDED_S = 600.0
 
 Emit = Callable[..., None]
 
@@ -109,6 +111,8 @@ class Fleet:
     bus: Any = None
     _pool: ThreadPoolExecutor | None = None
     _inflight: set[int] = field(default_factory=set)
+    #: vehicle -> (monotonic time, verb) of the operator's last RTL or land through this service
+    _commanded: dict[int, tuple[float, str]] = field(default_factory=dict)
 
     # --- lifecycle -------------------------------------------------------------------------------------
     def start(self) -> Fleet:
@@ -283,8 +287,27 @@ class Fleet:
         mode = cur.get("vehicle", {}).get("mode")
         was_mode = (prev or {}).get("vehicle", {}).get("mode")
         if prev is not None and mode != was_mode and mode in FAILSAFE_MODES:
-            self.emit("failsafe", f"vehicle {vid} switched to {mode} (from {was_mode})", severity="warning",
-                      vehicle=vid, data={"mode": mode, "from": was_mode})
+            why = self._commanded_by_operator(vid)
+            if why is not None:  # the operator's own verb: history, not a failsafe alert
+                self.emit("mode", f"vehicle {vid} switched to {mode} (from {was_mode}): the operator's {why}",
+                          vehicle=vid, data={"mode": mode, "from": was_mode, "commanded": why})
+            else:
+                self.emit("failsafe", f"vehicle {vid} switched to {mode} (from {was_mode})",
+                          severity="warning", vehicle=vid, data={"mode": mode, "from": was_mode})
+        if cur.get("vehicle", {}).get("armed") is False:
+            with self._lock:
+                self._commanded.pop(vid, None)
+
+    def commanded(self, vid: int, verb: str) -> None:
+        """The operator's ``verb`` (rtl, land) was accepted by vehicle ``vid``'s companion: its coming
+        switches to RTL/LAND are that verb, not a failsafe (until it disarms, at most :data:`COMMANDED_S`)."""
+        with self._lock:
+            self._commanded[vid] = (time.monotonic(), verb)
+
+    def _commanded_by_operator(self, vid: int) -> str | None:
+        with self._lock:
+            t, verb = self._commanded.get(vid, (-math.inf, ""))
+        return verb if time.monotonic() - t < COMMANDED_S else None
 
     def duplicates(self) -> dict[int, Any]:
         """Vehicle -> what its companion's status says of a duplicate id (its team member refused to join:

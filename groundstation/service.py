@@ -377,6 +377,8 @@ class GroundService:
             ok, status = False, 409
         error = None if ok else (answer.get("error") or answer.get("reason")) if isinstance(answer, dict) \
             else str(answer)
+        if ok and verb in ("rtl", "land"):
+            self.fleet.commanded(vid, verb)
         return {"vehicle": vid, "command": verb, "ok": ok, "status": status, "answer": answer, "error": error}
 
     def give_mission(self, vid: int, req: Any) -> dict[str, Any]:

@@ -208,6 +208,8 @@ def rtl_all_and_check(up_rig: GroundRig, d: Any, homes: list[Any]) -> None:
     wait_for(lambda: all(away(i) for i in range(up_rig.n)), up_rig.wall(240),
              lambda: f"every vehicle away from home: {up_rig.report()}")
     assert all(g.armed() for g in up_rig.gcs)
+    with up_rig.ground.http() as c:
+        since = c.get("/api/events").json()["last_id"]
     d.find_element(By.CSS_SELECTOR, "[data-verb='rtl_all']").click()
     text = answer(d, "yes")
     assert all(f"({i + 1})" in text for i in range(up_rig.n)), text  # every target named
@@ -221,6 +223,9 @@ def rtl_all_and_check(up_rig: GroundRig, d: Any, homes: list[Any]) -> None:
 
     wait_for(lambda: all(home_and_disarmed(i) for i in range(up_rig.n)), up_rig.wall(300),
              lambda: f"every vehicle home and disarmed (MAVLink): {up_rig.report()}")
+    with up_rig.ground.http() as c:  # the operator's own return is history, never a failsafe alert
+        kinds = [(e["kind"], e["message"]) for e in c.get(f"/api/events?since={since}").json()["events"]]
+    assert not [k for k in kinds if k[0] == "failsafe"], kinds
 
 
 MISSION = """mission: too-far
@@ -237,6 +242,7 @@ tree:
 
 def test_a_mission_refused_is_shown_node_by_node(up_rig: GroundRig, page: Any, tmp_path: Path) -> None:
     d = page
+    assert up_rig.vehicles()[1].get("team_state") != "taken"
     path = tmp_path / "too_far.yaml"
     path.write_text(MISSION % (HOME[0] + 3000 / 111_320.0, HOME[1]))
     WebDriverWait(d, 10).until(lambda d: d.find_elements(By.CSS_SELECTOR, "#mu-vehicle option[value='1']"))
@@ -258,9 +264,12 @@ def test_a_mission_refused_is_shown_node_by_node(up_rig: GroundRig, page: Any, t
         node = out.find_element(By.CSS_SELECTOR, f"li.node[data-node='{ok}']")
         assert "refused" not in (node.get_attribute("class") or "")
     keep(d, "mission_refused.png")
-    with up_rig.ground.http() as c:  # the companion took it out of the team before delegation answered
-        if up_rig.vehicles()[1].get("team_state") == "taken":
-            assert c.post("/api/vehicles/1/release").status_code == 200
+    # the refused mission left the vehicle on its team task: it is never "taken" (sampled for 2 s, the
+    # ground's snapshots come at 5 Hz)
+    end = time.monotonic() + 2.0
+    while time.monotonic() < end:
+        assert up_rig.vehicles()[1].get("team_state") != "taken"
+        time.sleep(0.1)
 
 
 def test_hold_all_on_the_h_key_stops_every_vehicle_where_it_is(up_rig: GroundRig, page: Any) -> None:

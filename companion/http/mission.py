@@ -143,6 +143,10 @@ def router(service: MissionService, team: TeamMember | None = None) -> APIRouter
         why = service.readiness()
         if why is not None:  # before the team lets the vehicle go
             raise ApiError(503, f"mission refused: {why}")
+        if team is not None:  # a refused mission leaves the vehicle on its team task
+            checked = service.check(mission)
+            if not checked.accepted:
+                return answer(checked)
         directed()
         try:
             result = service.submit(mission)
