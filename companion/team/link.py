@@ -9,7 +9,10 @@ along with its knowledge of its own state" (controlled flooding). :class:`TeamLi
   (garbage and foreign versions counted, never raised; its own echoes dropped by sender id); once a
   period has passed since the last broadcast it refreshes the own row (the content from ``own()``,
   stamped ``now`` with the next sequence number: the owner's (stamp, seq) always advances), ticks the
-  votes of confidence (one sample interval per period) and broadcasts every alive row it knows.
+  votes of confidence (one sample interval per period) and broadcasts its own row, the rows others need
+  and a digest of what it knows (:mod:`companion.team.gossip`: a packet's rows and digest entries are
+  bounded whatever the team's size); ``selection="full"`` sends every alive row it knows instead (seed
+  003's plain flooding, O(N^2) on the channel, kept for comparison in the bench).
 * The task board floods too: the station (member 0) sends it with every broadcast, members relay it
   with every ``relay_board_every``-th broadcast and with the first one after they learned a newer
   board, so it spreads in about one period per hop while the bandwidth stays low.
@@ -33,6 +36,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
+from companion.team.gossip import Gossip
 from companion.team.groupstate import GroupState
 from companion.team.transport import Transport
 from companion.team.types import STATION_ID, MemberEntry, TaskBoard
@@ -42,6 +46,7 @@ from companion.team.wire import (
     ForeignVersionError,
     WireError,
     decode_packet,
+    encode_digest,
     encode_packets,
 )
 
@@ -67,6 +72,9 @@ class LinkStats:
     send_errors: int = 0
     broadcasts: int = 0
     announcements: int = 0        #: broadcasts between periods (a member announcing new claims)
+    rows_relayed: int = 0         #: rows of others sent (asked for in a digest, new or changed)
+    digests: int = 0              #: DIGEST packets received
+    digests_sent: int = 0         #: DIGEST packets sent
     first_send: float | None = None
     last_send: float | None = None
     max_packet: int = 0
@@ -89,7 +97,8 @@ class TeamLink:
 
     def __init__(self, state: GroupState, transport: Transport, *, period_s: float = DEFAULT_PERIOD_S,
                  clock: Callable[[], float] = time.time, own: Callable[[], MemberEntry | None] | None = None,
-                 relay_board_every: int = 4, max_packet: int = MAX_PACKET) -> None:
+                 relay_board_every: int = 4, max_packet: int = MAX_PACKET, selection: str = "digest",
+                 gossip: Gossip | None = None) -> None:
         if not period_s > 0:
             raise ValueError(f"TeamLink: period_s {period_s!r} must be positive")
         if relay_board_every < 1:
@@ -97,6 +106,10 @@ class TeamLink:
         self.state, self.transport = state, transport
         self.period_s, self.clock, self._own_fn = period_s, clock, own
         self.relay_board_every, self.max_packet = relay_board_every, max_packet
+        if selection not in ("digest", "full"):
+            raise ValueError(f"TeamLink: selection {selection!r} is not 'digest' or 'full'")
+        self.selection = selection
+        self.gossip = gossip or Gossip(state.own_id, period_s)
         self.stats = LinkStats()
         self.listeners: list[Callable[[LinkEvent], None]] = []
         self._assembler = BoardAssembler()
@@ -130,8 +143,18 @@ class TeamLink:
                 self.stats.own_echoes += 1
                 return
             events: list[LinkEvent] = []
+            if pkt.digest:
+                self.stats.digests += 1
+                self.gossip.heard_digest(pkt.digest, pkt.sender, self.state)
             if pkt.rows:
+                self.gossip.heard_rows(pkt.rows, pkt.sender)
+                before = {r.member: self.state.get(r.member) for r in pkt.rows}
                 res = self.state.merge(pkt.rows, sender=pkt.sender)
+                now = self.clock()
+                for m, old in before.items():
+                    row = self.state.get(m)
+                    if row is not None and row is not old and (old is None or row.newer_than(old)):
+                        self.gossip.taken(old, row, now, pkt.sender)
                 self.stats.rows_replaced += res.replaced
                 self.stats.vocs_raised += res.raised
                 events += [LinkEvent("joined", member=m) for m in res.joined]
@@ -175,7 +198,7 @@ class TeamLink:
             self._last_send = now
             self._refresh_own(now)
             gone = self.state.tick()
-            self._broadcast(now)
+            self._broadcast(now, periodic=True)
         self._notify([LinkEvent("gone", member=m) for m in gone])
         return True
 
@@ -202,8 +225,21 @@ class TeamLink:
         stamp = max(now, cur.stamp) if cur is not None else now
         self.state.refresh_own(dataclasses.replace(content, member=self.own_id, stamp=stamp, seq=seq))
 
-    def _broadcast(self, now: float) -> None:
-        rows = sorted(self.state.alive().values(), key=lambda e: e.member != self.own_id)  # own row first
+    def _select(self, periodic: bool) -> list[MemberEntry]:
+        """The rows this broadcast carries, own row first: every alive one (``full``), or the own row and
+        the relays the gossip picks (an announcement between periods: the own row only)."""
+        if self.selection == "full":
+            return sorted(self.state.alive().values(), key=lambda e: e.member != self.own_id)
+        own = self.state.own()
+        rows = [own] if own is not None else []
+        if periodic:
+            relays = self.gossip.relays(self.state)
+            self.stats.rows_relayed += len(relays)
+            rows += relays
+        return rows
+
+    def _broadcast(self, now: float, periodic: bool = False) -> None:
+        rows = self._select(periodic)
         if not rows:
             return
         board = self.state.board
@@ -219,6 +255,11 @@ class TeamLink:
             return
         if send_board:
             self._board_news = False
+        if periodic and self.selection == "digest":
+            digest = self.gossip.digest(self.state, now)
+            if digest:
+                packets.append(encode_digest(self.own_id, digest))
+                self.stats.digests_sent += 1
         self.stats.broadcasts += 1
         if self.stats.first_send is None:
             self.stats.first_send = now

@@ -10,6 +10,7 @@ Layout (all integers big-endian, ``struct``)::
     header   magic b"TF" | version u8 (=1) | kind u8 | sender u8
     body     kind STATE (1): n_rows u8, n_rows x row, has_board u8, [board part]
              kind BOARD (2): board part
+             kind DIGEST (3): n u8, n x (member u8 | stamp f64 | seq u32 | want u8)
     trailer  crc32 u32 of everything before it
 
     row      member u8 | stamp f64 | seq u32 | lat i32 (1e-7 deg) | lon i32 (1e-7 deg) | alt i32 (cm)
@@ -66,6 +67,8 @@ MAGIC = b"TF"
 VERSION = 1
 KIND_STATE = 1
 KIND_BOARD = 2
+#: what a member knows of the rows, a slice of it per packet (:mod:`companion.team.gossip`)
+KIND_DIGEST = 3
 #: largest packet :func:`encode_packets` makes by default (bytes of UDP payload)
 MAX_PACKET = 1400
 NAME_MAX = 16
@@ -79,6 +82,7 @@ _CLAIM = struct.Struct("!IHdB")
 _PART = struct.Struct("!dIIBBH")
 _TASK = struct.Struct("!IHBBIHdd")
 _POINT = struct.Struct("!iii")
+_DIGEST = struct.Struct("!BdIB")
 _NO_TST = 0xFFFFFFFF
 
 _KIND_CODES: dict[TaskKind, int] = kinds.wire_codes()  #: each kind names its own code
@@ -117,13 +121,26 @@ class BoardPart:
 
 
 @dataclass(frozen=True)
+class DigestEntry:
+    """One line of a digest: the (stamp, seq) of the row the sender holds for ``member`` ((0, 0): none);
+    ``want``: the sender asks for a newer one (its row went stale, or it never had one)."""
+
+    member: int
+    stamp: float
+    seq: int
+    want: bool = False
+
+
+@dataclass(frozen=True)
 class Packet:
-    """A decoded packet: who sent it, the group-state rows it carries and maybe a board part."""
+    """A decoded packet: who sent it, the group-state rows it carries and maybe a board part, or a
+    digest (kind DIGEST)."""
 
     sender: int
     kind: int
     rows: tuple[MemberEntry, ...] = ()
     board_part: BoardPart | None = None
+    digest: tuple[DigestEntry, ...] = ()
 
     @property
     def board(self) -> TaskBoard | None:
@@ -276,6 +293,21 @@ def _encode_packets(sender: int, entries: list[MemberEntry] | tuple[MemberEntry,
     return out + board_packets
 
 
+def encode_digest(sender: int, entries: list[DigestEntry] | tuple[DigestEntry, ...]) -> bytes:
+    """One DIGEST packet (at most 255 entries, 14 bytes each); :class:`WireError` if not encodable."""
+    try:
+        _u(sender, 8, "sender id")
+        if len(entries) > 255:
+            raise WireError(f"{len(entries)} digest entries, at most 255")
+        body = b"".join(_DIGEST.pack(_u(e.member, 8, "digest member"), _finite(e.stamp, "digest stamp"),
+                                     _u(e.seq, 32, "digest seq"), 1 if e.want else 0) for e in entries)
+        return _frame(KIND_DIGEST, sender, bytes([len(entries)]) + body)
+    except WireError:
+        raise
+    except (ValueError, TypeError, struct.error, OverflowError) as exc:
+        raise WireError(f"digest not encodable ({type(exc).__name__}: {exc})") from exc
+
+
 def encode_packet(sender: int, entries: list[MemberEntry] | tuple[MemberEntry, ...],
                   board: TaskBoard | None = None, *, max_size: int = MAX_PACKET) -> bytes:
     """One packet carrying all of ``entries`` (and ``board``); :class:`WireError` if they need more
@@ -394,11 +426,23 @@ def _decode(data: bytes) -> Packet:
         part = _read_part(r) if has_board else None
     elif code == KIND_BOARD:
         rows, part = (), _read_part(r)
+    elif code == KIND_DIGEST:
+        digest = tuple(_read_digest(r) for _ in range(r.u8("digest count")))
+        if r.pos != r.end:
+            raise WireError(f"{r.end - r.pos} trailing bytes")
+        return Packet(sender=sender, kind=code, digest=digest)
     else:
         raise WireError(f"unknown packet kind {code}")
     if r.pos != r.end:
         raise WireError(f"{r.end - r.pos} trailing bytes")
     return Packet(sender=sender, kind=code, rows=rows, board_part=part)
+
+
+def _read_digest(r: _Reader) -> DigestEntry:
+    member, stamp, seq, want = _DIGEST.unpack(r.take(_DIGEST.size, "digest entry"))
+    if want not in (0, 1):
+        raise WireError(f"digest want flag {want}")
+    return DigestEntry(member, _finite_in(stamp, "digest stamp"), seq, bool(want))
 
 
 def decode_board_body(body: bytes, stamp: float, seq: int, body_crc: int) -> TaskBoard:
