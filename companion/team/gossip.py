@@ -12,8 +12,11 @@ broadcast carries the broadcaster's knowledge as a *digest* and only the rows so
   out of reach), then a round-robin slice of the rows it holds (so that every row is named within
   N / digest_size periods: a member learns of rows it does not know);
 * a member relays a row it holds when another's digest shows it is behind (a want, or a (stamp, seq)
-  older by ``stale_periods`` periods), and once when the row is new here or its content changed (status,
-  task, claims, name: what the allocation reads), so a change floods over relays at once;
+  older by ``stale_periods`` periods); when the same member asks for that row again within
+  ``interest_periods`` periods (a neighbour out of the owner's reach, not one that missed a packet), it
+  relays each new version of the row it takes for ``interest_periods`` periods after the last ask (so the
+  far member keeps getting it without asking each time), and once when the row is new here or its content changed (status, task,
+  claims, name: what the allocation reads), so a change floods over relays at once;
 * a relay queued is dropped when another member relays that row (as new) first: on a full mesh most
   requests are answered once (members broadcast at random phases of the period).
 
@@ -32,13 +35,15 @@ from .types import MemberEntry
 from .wire import DigestEntry
 
 #: digest entries a member sends per period
-DIGEST_SIZE = 12
+DIGEST_SIZE = 10
 #: rows of other members a packet carries at most
-MAX_RELAYS = 4
+MAX_RELAYS = 16
 #: a row not refreshed for this many periods is asked for (a want in the digest) ...
-STALE_PERIODS = 2.5
+STALE_PERIODS = 3.0
 #: ... and a row that came over a relay (its owner out of reach) for this many
 FAR_STALE_PERIODS = 1.0
+#: a row asked for is relayed at each new version for this many periods after the last ask
+INTEREST_PERIODS = 4.0
 
 
 def _content(e: MemberEntry) -> tuple[object, ...]:
@@ -56,7 +61,8 @@ class Gossip:
 
     def __init__(self, own_id: int, period_s: float, *, digest_size: int = DIGEST_SIZE,
                  max_relays: int = MAX_RELAYS, stale_periods: float = STALE_PERIODS,
-                 far_stale_periods: float = FAR_STALE_PERIODS) -> None:
+                 far_stale_periods: float = FAR_STALE_PERIODS,
+                 interest_periods: float = INTEREST_PERIODS) -> None:
         if digest_size < 1 or digest_size > 255:
             raise ValueError(f"digest_size: must be in 1..255, got {digest_size}")
         if max_relays < 0:
@@ -67,6 +73,10 @@ class Gossip:
         self.stale_s = stale_periods * period_s
         self.far_stale_s = far_stale_periods * period_s
         self._far: set[int] = set()                    # members whose row last came over a relay
+        self.interest_s = interest_periods * period_s
+        self._interest: dict[int, float] = {}          # member -> until when a neighbour wants its rows
+        self._asked: dict[tuple[int, int], float] = {}  # (member, asker) -> when it last asked
+        self._now = 0.0
         self._updated: dict[int, float] = {}           # member -> local time its row last advanced here
         self._relay: dict[int, MemberEntry] = {}       # member -> the version queued (insertion order)
         self._unknown: set[int] = set()                # members another's digest names, unknown here
@@ -89,6 +99,9 @@ class Gossip:
         new or changed."""
         m = row.member
         self._updated[m] = now
+        self._now = now
+        if self._interest.get(m, -1.0) >= now:
+            self._relay.setdefault(m, row)
         if sender == m:
             self._far.discard(m)
         else:
@@ -108,6 +121,11 @@ class Gossip:
                 if (d.stamp or d.seq) and (cur is None or _stub(d).newer_than(cur)):
                     self._unknown.add(m)
                 continue
+            if d.want:
+                last = self._asked.get((m, sender))
+                self._asked[(m, sender)] = self._now
+                if last is not None and self._now - last <= self.interest_s:
+                    self._interest[m] = self._now + self.interest_s
             if cur.newer_than(_stub(d)) and (d.want or cur.stamp - d.stamp >= self.stale_s):
                 self._relay.setdefault(m, cur)
 
@@ -128,6 +146,9 @@ class Gossip:
     def digest(self, state: GroupState, now: float) -> list[DigestEntry]:
         """This period's digest: wants first (never heard, then the stalest rows), then the next slice of
         the rows held, round robin."""
+        self._now = now
+        if len(self._asked) > 4 * len(self._updated) + 64:  # forget old asks (bounded memory)
+            self._asked = {k: t for k, t in self._asked.items() if now - t <= self.interest_s}
         alive = state.alive()
         out: list[DigestEntry] = [DigestEntry(m, 0.0, 0, True)
                                   for m in sorted(self._unknown)[:self.digest_size]]
