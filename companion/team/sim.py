@@ -81,6 +81,8 @@ class SimVehicle:
         self.decision = DecisionStep(member, self.policy, sim.model.cost, clock=lambda: sim.now)
         self.work: Work | None = None
         self.alive = True
+        self.flown_m = 0.0      #: horizontal metres flown (toward tasks later lost too)
+        self.moving_s = 0.0     #: simulated seconds spent moving
 
     @property
     def claims(self) -> tuple[Claim, ...]:
@@ -132,7 +134,7 @@ class SimVehicle:
             return
         w = self.work
         if w is None:
-            self.body.fly_toward(self.body.p, dt)  # loiter where it is
+            self._count(self.body.fly_toward(self.body.p, dt), dt)  # loiter where it is (braking first)
             return
         target = w.waypoints[0] if w.waypoints else None
         if target is None and w.loop:
@@ -140,6 +142,7 @@ class SimVehicle:
         if target is None:
             return
         moved = self.body.fly_toward(target, dt)
+        self._count(moved, dt)
         if w.scan_left > 0 and not w.waypoints:
             w.scan_left -= moved
             if w.scan_left <= 0:
@@ -160,6 +163,11 @@ class SimVehicle:
                 w.loop.append(pt)       # the scan goes round its part
             elif not w.loop:
                 w.loop = self._reverse(w.task, pt)  # a patrol turns back at its end
+
+    def _count(self, moved: float, dt: float) -> None:
+        self.flown_m += moved
+        if moved > 1e-6:
+            self.moving_s += dt
 
     def _reverse(self, t: TeamTask, last: Vec3) -> list[Vec3]:
         pts = [self._local(with_altitude(t, p)) for p in t.points]
