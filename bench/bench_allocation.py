@@ -93,8 +93,8 @@ def optimum_bundles(starts, tasks: list[TeamTask]) -> tuple[float, float]:
         d = {0: (0.0, 0.0)}
         for mask in range(1, full + 1):
             idx = [j for j in range(m) if mask >> j & 1]
-            d[mask] = min((MODEL.path_time(at, [tasks[j] for j in perm]), path_m(at, [tasks[j] for j in perm]))
-                          for perm in itertools.permutations(idx))
+            paths = ([tasks[j] for j in perm] for perm in itertools.permutations(idx))
+            d[mask] = min((MODEL.path_time(at, p), path_m(at, p)) for p in paths)
         best_sub.append(d)
     f: dict[int, tuple[float, float]] = {0: (0.0, 0.0)}
     for d in best_sub:

@@ -17,7 +17,7 @@ Figures, after a 10 s warm-up, sampled every 0.5 s:
   packet; merge cost: the mean CPU time (the thread's, so other processes' load does not count) of
   :meth:`TeamLink.handle` (decode and merge) per received packet;
 * airtime: 802.11 broadcast at the basic rate (``--rate``, 6 Mbit/s; no acknowledgement, no retry): each
-  packet takes a 20 us OFDM preamble plus (payload + 28 bytes of IP/UDP + 34 bytes of 802.11 MAC header,
+  packet takes a 20 us OFDM preamble plus (payload + 28 bytes of IP/UDP + 36 bytes of 802.11 MAC header,
   LLC/SNAP and FCS) * 8 / rate; the channel occupancy is the sum over the team of those times per second
   (100 % is a saturated channel; contention and backoff come on top);
 * gone events: a live vehicle whose voc ran out at some member.
@@ -39,7 +39,6 @@ from dataclasses import dataclass
 from bench.common import machine, pct, table
 from companion.team.groupstate import GroupState
 from companion.team.link import DEFAULT_PERIOD_S, LinkEvent, TeamLink
-from companion.team.wire import encode_packets
 from companion.team.transport import LossyTransport, MemoryBus
 from companion.team.types import (
     STATION_ID,
@@ -50,6 +49,7 @@ from companion.team.types import (
     TaskKind,
     TeamTask,
 )
+from companion.team.wire import encode_packets
 
 DT = 0.05
 WARMUP_S = 10.0
@@ -59,7 +59,7 @@ ORIGIN = (58.39, 15.57)
 M_PER_DEG = 111_320.0
 HALF_SIDE_M = 1000.0  #: the vehicles fly in a 2 x 2 km square
 PREAMBLE_S = 20e-6  #: 802.11a/g OFDM preamble and PLCP header
-MAC_BYTES = 34  #: 802.11 data frame overhead: MAC header 24, LLC/SNAP 8 (rounded: 34 with the 4-byte FCS minus QoS)
+MAC_BYTES = 36  #: 802.11 data frame overhead: MAC header 24, LLC/SNAP 8, FCS 4
 
 
 @dataclass
@@ -203,7 +203,8 @@ def full_encoder(members: int, period: float, rate: float, seed: int) -> tuple[f
     plain = encode_packets(1, rows)
     with_board = encode_packets(1, rows, board(1.0))
     per_period = (3 * sum(map(len, plain)) + sum(map(len, with_board))) / 4
-    air = (3 * sum(airtime_s(len(p), rate) for p in plain) + sum(airtime_s(len(p), rate) for p in with_board)) / 4
+    air = (3 * sum(airtime_s(len(p), rate) for p in plain)
+           + sum(airtime_s(len(p), rate) for p in with_board)) / 4
     return per_period / period, 100.0 * air * (members + 1) / period, max(map(len, with_board))
 
 

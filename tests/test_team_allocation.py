@@ -9,10 +9,14 @@ import random
 import pytest
 
 from companion.team.allocation import AllocationPolicy, CbbaPolicy, GreedyPolicy
-from companion.team.cost import CostModel
+from companion.team.cost import CostModel, entry_point
 from companion.team.geometry import LocalFrame
+from companion.team.task_tst import mission_for
 from companion.team.tasks import TaskDef, TaskLedger
 from companion.team.types import Claim, ClaimState, MemberEntry, MemberStatus, TaskBoard
+from companion.tst.delegation import delegate
+from companion.tst.platform import load_platform
+from harness.team import PLATFORM
 
 FRAME = LocalFrame(-35.363261, 149.165230)
 MODEL = CostModel(speed=5.0, accel=2.5, climb_speed=2.5)
@@ -177,7 +181,7 @@ def test_active_claim_does_not_flap_within_the_hysteresis(policy: str) -> None:
 
 
 def test_cbba_active_claim_yields_to_a_clearly_cheaper_one() -> None:
-    led, (a, b) = visits((400, 0), (-300, 0))
+    led, (a, _b) = visits((400, 0), (-300, 0))
     board = led.board()
     v = board.get(a).version
     p1, p2 = CbbaPolicy(MODEL, 3), CbbaPolicy(MODEL, 3)
@@ -288,3 +292,26 @@ def test_cbba_patrol_only_last_and_active_first() -> None:
     v = board.get(a).version
     active = (Claim(a, v, 50.0, ClaimState.ACTIVE),)
     assert pol.order(1, e, board, costfn(e[1]), (*active, Claim(p, v, 60.0)))[0] == a
+
+
+@pytest.mark.parametrize("kind", ["patrol_line", "border_patrol", "area_scan"])
+def test_a_task_speed_and_altitude_are_flown_and_bid_with(kind: str) -> None:
+    """What the API accepts is flown: the tree a vehicle flies for the task has the task's speed (and an
+    area's altitude), and its bid is the flight time at that speed (faster than the standard one too)."""
+    platform = load_platform(PLATFORM)
+    speed = platform.speeds["standard"] * 1.5  # between standard and fast: no speed name says it
+    pts = ((geo(0, 0, 12), geo(0, 40, 12), geo(30, 40, 12)) if kind != "area_scan"
+           else (geo(0, 0), geo(0, 40), geo(40, 40), geo(40, 0)))
+    led = TaskLedger()
+    led.add(TaskDef(kind, pts, n=1, speed=speed, altitude=14.0 if kind == "area_scan" else 0.0))
+    (task,) = led.board().tasks
+    result = delegate(mission_for(task, False, 10.0), platform)
+    assert result.accepted, result.reasons
+    plans = list(result.plans.values())
+    assert plans and all(p.speed_m_s == pytest.approx(speed) for p in plans)
+    if kind == "area_scan":
+        assert all(p.altitude_m == pytest.approx(14.0) for p in plans)
+    model = CostModel(speed=platform.speeds["standard"])
+    at = geo(-200, 0)
+    assert model.cost(at, task) < model.cost(at, dataclasses.replace(task, speed=0.0))  # faster: cheaper
+    assert model.cost(at, task) == pytest.approx(model.travel_time(at, entry_point(task, at), speed))

@@ -24,7 +24,8 @@ def ground(tmp_path_factory: pytest.TempPathFactory) -> Iterator[InProcessGround
 
 def test_redivide_route(ground: InProcessGround) -> None:
     with ground.http() as c:
-        r = c.post("/api/tasks", json={"type": "border_patrol", "points": BORDER, "vehicles": 3, "force": True})
+        r = c.post("/api/tasks", json={"type": "border_patrol", "points": BORDER, "vehicles": 3,
+                                       "force": True})
         assert r.status_code == 201, r.text
         group, old = r.json()["group"], r.json()["ids"]
         r = c.post(f"/api/tasks/{group}/redivide", json={"vehicles": 2})

@@ -15,8 +15,9 @@ broadcast carries the broadcaster's knowledge as a *digest* and only the rows so
   older by ``stale_periods`` periods); when the same member asks for that row again within
   ``interest_periods`` periods (a neighbour out of the owner's reach, not one that missed a packet), it
   relays each new version of the row it takes for ``interest_periods`` periods after the last ask (so the
-  far member keeps getting it without asking each time), and once when the row is new here or its content changed (status, task,
-  claims, name: what the allocation reads), so a change floods over relays at once;
+  far member keeps getting it without asking each time), and once when the row is new here or its
+  content changed (status, task, claims, name: what the allocation reads), so a change floods over
+  relays at once;
 * a relay queued is dropped when another member relays that row (as new) first: on a full mesh most
   requests are answered once (members broadcast at random phases of the period).
 

@@ -8,7 +8,6 @@ from fastapi import APIRouter, Path, Request
 from pydantic import BaseModel, Field
 
 from groundstation.schemas import ErrorAnswer, TaskAdded, TaskCancelled, TaskList, TaskRequest
-
 from taskflight_common.httpapi import ApiError
 
 from . import audited, service_of
