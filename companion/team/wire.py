@@ -12,6 +12,7 @@ Layout (all integers big-endian, ``struct``)::
              sender's packet number in its epoch)
     body     kind STATE (1): n_rows u8, n_rows x row, has_board u8, [board part]
              kind BOARD (2): board part
+             kind DIGEST (3): n u8, n x (member u32 | epoch u64 | seq u32 | want u8)
     trailer  unsigned: crc32 u32 of everything before it
              signed: the first 16 bytes of HMAC-SHA256(key, everything before it) (:mod:`.auth`)
 
@@ -82,6 +83,8 @@ MAGIC = b"TF"
 VERSION = 2
 KIND_STATE = 1
 KIND_BOARD = 2
+#: what a member knows of the rows, a slice of it per packet (:mod:`companion.team.gossip`)
+KIND_DIGEST = 3
 #: largest packet :func:`encode_packets` makes by default (bytes of UDP payload)
 MAX_PACKET = 1400
 NAME_MAX = 16
@@ -100,6 +103,7 @@ _CLAIM = struct.Struct("!IHdB")
 _PART = struct.Struct("!QdIIBBH")
 _TASK = struct.Struct("!IHBBIHdd")
 _POINT = struct.Struct("!iii")
+_DIGEST = struct.Struct("!IQIB")
 _NO_TST = 0xFFFFFFFF
 
 _KIND_CODES: dict[TaskKind, int] = kinds.wire_codes()  #: each kind names its own code
@@ -151,9 +155,21 @@ class BoardPart:
 
 
 @dataclass(frozen=True)
+class DigestEntry:
+    """One line of a digest: the (epoch, seq) of the row the sender holds for ``member`` ((0, 0): none);
+    ``want``: the sender asks for a newer one (its row went stale, or it never had one)."""
+
+    member: int
+    epoch: int
+    seq: int
+    want: bool = False
+
+
+@dataclass(frozen=True)
 class Packet:
     """A decoded packet: who sent it (member id, boot epoch, its clock's stamp, its packet number in the
-    epoch, signed or not), the group-state rows it carries and maybe a board part."""
+    epoch, signed or not), the group-state rows it carries and maybe a board part, or a digest (kind
+    DIGEST)."""
 
     sender: int
     kind: int
@@ -163,6 +179,7 @@ class Packet:
     stamp: float = 0.0
     pseq: int = 0
     signed: bool = False
+    digest: tuple[DigestEntry, ...] = ()
 
     @property
     def board(self) -> TaskBoard | None:
@@ -345,6 +362,26 @@ def _encode_packets(origin: _Origin, entries: list[MemberEntry] | tuple[MemberEn
     return out + [origin.frame(KIND_BOARD, b) for b in board_bodies]
 
 
+def encode_digest(sender: int, entries: list[DigestEntry] | tuple[DigestEntry, ...], *, epoch: int = 0,
+                  stamp: float = 0.0, pseq: int = 0, key: bytes | None = None) -> bytes:
+    """One DIGEST packet from ``sender`` in its boot ``epoch`` (at most 255 entries, 17 bytes each), framed
+    and signed as :func:`encode_packets` does; :class:`WireError` if not encodable."""
+    try:
+        _u(sender, 32, "sender id")
+        _u(epoch, 64, "epoch")
+        _u(pseq, 32, "packet number")
+        if len(entries) > 255:
+            raise WireError(f"{len(entries)} digest entries, at most 255")
+        body = b"".join(_DIGEST.pack(_u(e.member, 32, "digest member"), _u(e.epoch, 64, "digest epoch"),
+                                     _u(e.seq, 32, "digest seq"), 1 if e.want else 0) for e in entries)
+        origin = _Origin(sender, epoch, _finite(stamp, "packet stamp"), pseq, key)
+        return origin.frame(KIND_DIGEST, bytes([len(entries)]) + body)
+    except WireError:
+        raise
+    except (ValueError, TypeError, struct.error, OverflowError) as exc:
+        raise WireError(f"digest not encodable ({type(exc).__name__}: {exc})") from exc
+
+
 def encode_packet(sender: int, entries: list[MemberEntry] | tuple[MemberEntry, ...],
                   board: TaskBoard | None = None, *, max_size: int = MAX_PACKET, epoch: int = 0,
                   stamp: float = 0.0, pseq: int = 0, key: bytes | None = None) -> bytes:
@@ -475,6 +512,7 @@ def _decode(data: bytes, key: bytes | None) -> Packet:
             raise WireError("bad CRC (corrupt or truncated packet)")
         end = len(data) - _CRC.size
     r = _Reader(data, _HEADER.size, end)
+    digest: tuple[DigestEntry, ...] = ()
     if code == KIND_STATE:
         rows = tuple(_read_row(r) for _ in range(r.u8("row count")))
         has_board = r.u8("board flag")
@@ -483,12 +521,23 @@ def _decode(data: bytes, key: bytes | None) -> Packet:
         part = _read_part(r) if has_board else None
     elif code == KIND_BOARD:
         rows, part = (), _read_part(r)
+    elif code == KIND_DIGEST:
+        rows, part = (), None
+        digest = tuple(_read_digest(r) for _ in range(r.u8("digest count")))
     else:
         raise WireError(f"unknown packet kind {code}")
     if r.pos != r.end:
         raise WireError(f"{r.end - r.pos} trailing bytes")
     return Packet(sender=sender, kind=code, rows=rows, board_part=part, epoch=epoch,
-                  stamp=_finite_in(stamp, "packet stamp"), pseq=pseq, signed=signed)
+                  stamp=_finite_in(stamp, "packet stamp"), pseq=pseq, signed=signed,
+                  digest=digest)
+
+
+def _read_digest(r: _Reader) -> DigestEntry:
+    member, epoch, seq, want = _DIGEST.unpack(r.take(_DIGEST.size, "digest entry"))
+    if want not in (0, 1):
+        raise WireError(f"digest want flag {want}")
+    return DigestEntry(member, epoch, seq, bool(want))
 
 
 def decode_board_body(body: bytes, stamp: float, seq: int, body_crc: int, epoch: int = 0) -> TaskBoard:
