@@ -193,6 +193,33 @@ def test_cbba_active_claim_yields_to_a_clearly_cheaper_one() -> None:
     assert a not in [c.task for c in c1] and p1.conflicts == 1
 
 
+@pytest.mark.parametrize("policy", ["greedy", "cbba"])
+def test_two_vehicles_flying_one_task_side_by_side_one_lets_go(policy: str) -> None:
+    """Two vehicles that started flying one visit at once, side by side (costs 0.6 s apart), each deciding
+    on the other's row of a period before: both approach, so each one's fresh cost is below the other's
+    published one. Exactly one lets go at the first decision (the published costs are compared; within the
+    tie band the lower id keeps it), not both flying it to the end (the bench's 33 s held twice)."""
+    led, (a,) = visits((200, 0))
+    board = led.board()
+    v = board.get(a).version
+
+    def make() -> AllocationPolicy:
+        return GreedyPolicy() if policy == "greedy" else CbbaPolicy(MODEL, 3)
+
+    p1, p2 = make(), make()
+    c1 = (Claim(a, v, MODEL.leg_time(100.0) + 0.6, ClaimState.ACTIVE),)  # published a period ago
+    c2 = (Claim(a, v, MODEL.leg_time(100.0), ClaimState.ACTIVE),)
+    e = {1: row(1, (200 - 97.0, 3), c1), 2: row(2, (200 - 97.0, -3), c2)}  # both 3 m nearer now
+    k1, k2 = decide(p1, 1, e, board), decide(p2, 2, e, board)
+    holders = [m for m, k in ((1, k1), (2, k2)) if a in [c.task for c in k]]
+    assert holders == [1], (k1, k2)
+    # vehicle 2, clearly nearer, takes it from vehicle 1 (and 1 lets go)
+    e = {1: row(1, (0, 0), (Claim(a, v, MODEL.leg_time(200.0), ClaimState.ACTIVE),)),
+         2: row(2, (150, 0), (Claim(a, v, MODEL.leg_time(50.0), ClaimState.ACTIVE),))}
+    k1, k2 = decide(make(), 1, e, board), decide(make(), 2, e, board)
+    assert a not in [c.task for c in k1] and a in [c.task for c in k2]
+
+
 def test_an_active_holder_that_reached_its_task_is_not_outbid() -> None:
     """A patrol being flown: its holder is on it (its cost fell below REACHED, then 0 for good), so a
     vehicle loitering at the line's end does not take it over even though its way to the end is shorter."""

@@ -11,10 +11,13 @@ only to a clearly cheaper one (seed 003 Sec. III-B: "when one UAV sees that the 
 task at a lower cost, it gives up the task"): a claim cheaper by the *active* hysteresis margin
 (:data:`ACTIVE_MARGIN_REL` of the holder's cost, at least :data:`ACTIVE_MARGIN_ABS`), wider than the margin
 between merely claimed tasks, so that a task being flown does not flap between two vehicles whose costs
-differ a little; of two ACTIVE claims (flown by both after a partition) the higher (cost, id) yields. The
-holder's cost of an ACTIVE task is refreshed every decision (it falls as it approaches) and is 0 once it
-has reached the task (:data:`REACHED`): a vehicle working on its task is never out-bid by one that would
-first have to fly there.
+differ a little. Of two ACTIVE claims (flown by both: after a partition, or two vehicles that started
+flying at once) the one clearly dearer (by :data:`ACTIVE_TIE`) yields, and within that band the higher id
+yields: each member compares the cost it *published* with the rival's published one (never its fresh
+cost with the rival's a period older: both approach the task, so each would read itself cheaper and both
+would fly it to the end). The holder's cost of an ACTIVE task is refreshed every decision (it falls as it
+approaches) and is 0 once it has reached the task (:data:`REACHED`): a vehicle working on its task is
+never out-bid by one that would first have to fly there.
 
 :class:`GreedyPolicy` is seed 003's rule: "each UAV selects the task that it could complete at the lowest
 cost to itself (a greedy algorithm), and then broadcasts its selection. In the event that two UAVs select
@@ -51,6 +54,9 @@ ACTIVE_MARGIN_REL = 0.25
 ACTIVE_MARGIN_ABS = 5.0
 #: an ACTIVE claim whose cost fell below this has reached its task: its cost is 0 from then on
 REACHED = 2.0
+#: of two ACTIVE claims on one task, costs closer than this are a tie (the lower id keeps the task): wider
+#: than the drift of two approaching vehicles' costs between their rows (a period each)
+ACTIVE_TIE = 5.0
 
 
 @dataclass(frozen=True)
@@ -81,14 +87,24 @@ def active_cost(previous: float, now: float) -> float:
 
 
 def active_loses(me: int, c: Claim, rs: Sequence[Rival]) -> bool:
-    """My ACTIVE claim ``c`` yields: to a DONE report, to an ACTIVE rival with a lower (cost, id), or to a
-    claim clearly cheaper (the active margin)."""
+    """My ACTIVE claim ``c`` (its cost as I published it) yields: to a DONE report, to an ACTIVE rival that
+    beats it (:func:`_active_beats`), or to a claim clearly cheaper (the active margin)."""
     for r in rs:
-        if r.firm and (r.done or (r.cost, r.member) < (c.cost, me)):
+        if r.done:
+            return True
+        if r.firm and _active_beats(r.cost, r.member, c.cost, me):
             return True
         if not r.firm and clearly_cheaper(r.cost, c.cost):
             return True
     return False
+
+
+def _active_beats(cost: float, member: int, mine: float, me: int) -> bool:
+    """Does an ACTIVE claim at ``cost`` by ``member`` beat mine? One that reached the task (0) beats one that
+    did not; else cheaper by :data:`ACTIVE_TIE`, or within it with the lower id."""
+    if (cost <= 0.0) != (mine <= 0.0):
+        return cost <= 0.0
+    return cost < mine - ACTIVE_TIE or (abs(cost - mine) <= ACTIVE_TIE and member < me)
 
 
 def rivals(me: int, entries: Mapping[int, MemberEntry], board: TaskBoard) -> dict[int, list[Rival]]:
@@ -329,12 +345,11 @@ class CbbaPolicy(AllocationPolicy):
         lost = False
         for c in held:
             if c.state is ClaimState.ACTIVE:
-                c = replace(c, cost=active_cost(c.cost, cost(live[c.task])))
-                if active_loses(me, c, riv.get(c.task, [])):
+                if active_loses(me, c, riv.get(c.task, [])):  # the cost I published against theirs
                     self.conflicts += 1
                     lost = True
                     continue
-                bundle.append(c)
+                bundle.append(replace(c, cost=active_cost(c.cost, cost(live[c.task]))))
                 continue
             if lost:
                 continue
