@@ -30,6 +30,7 @@ from companion.flightlog import log_violations, read_flight_log
 from companion.team.station import TeamControlStation
 from companion.team.tasks import TaskDef
 from companion.team.transport import open_transport
+from companion.tst.platform import load_platform
 from harness import ROOT
 from harness.fleet import ports, start_fleet
 from harness.observer import Gcs
@@ -83,7 +84,8 @@ class TeamRig:
         except BaseException:
             self.close()
             raise
-        self.limits = Limits()  # the companions' queue limits (no --flight-config)
+        # the companions' queue limits: their platform's (a patrol flown at its own 6 m/s is within them)
+        self.limits: Limits = load_platform(PLATFORM).flight_limits()
 
     # --- processes -----------------------------------------------------------------------------------
     def start_companion(self, i: int) -> None:
