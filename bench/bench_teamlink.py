@@ -22,6 +22,10 @@ Figures, after a 10 s warm-up, sampled every 0.5 s:
   (100 % is a saturated channel; contention and backoff come on top);
 * gone events: a live vehicle whose voc ran out at some member.
 
+Packets are format 2 and signed with a team key (HMAC-SHA256, 16-byte trailer; the receiver checks the
+signature and the replay window, in the merge cost), as ``taskflight up`` runs a fleet; ``--unsigned``
+measures the CRC trailer and no check.
+
 Full flooding at 50 and 100 vehicles is not simulated (every member decodes every row of every packet: too
 slow here); its bytes are the encoder's for a broadcast of every row, the figure that matters on air.
 Target (issue): at 100 members <= 1 kB/s per vehicle on average on the bus.
@@ -30,6 +34,7 @@ Target (issue): at 100 members <= 1 kB/s per vehicle on average on the bus.
 from __future__ import annotations
 
 import argparse
+import hashlib
 import math
 import random
 import sys
@@ -52,6 +57,8 @@ from companion.team.types import (
 from companion.team.wire import encode_packets
 
 DT = 0.05
+#: the bench team's key: packets signed as ``taskflight up`` runs a fleet (``--unsigned``: none)
+KEY = hashlib.sha256(b"bench_teamlink").digest()
 WARMUP_S = 10.0
 SAMPLE_S = 0.5
 UDP_IP_HEADERS = 28
@@ -125,7 +132,8 @@ def board(stamp: float) -> TaskBoard:
 
 
 def run(members: int, loss: float, period: float, seconds: float, seed: int,
-        range_m: float | None = None, selection: str = "digest", rate: float = 6e6) -> Result:
+        range_m: float | None = None, selection: str = "digest", rate: float = 6e6,
+        key: bytes | None = KEY) -> Result:
     rng = random.Random(seed)
     bus = MemoryBus()
     t = 0.0
@@ -147,7 +155,8 @@ def run(members: int, loss: float, period: float, seconds: float, seed: int,
         own = (vehicles[m].entry if m in vehicles else
                (lambda: MemberEntry(member=STATION_ID, stamp=0.0, seq=0, position=(*ORIGIN, 0.0),
                                     status=MemberStatus.STATION, name="station")))
-        links[m] = TeamLink(GroupState(m), tr, period_s=period, clock=lambda: t, own=own, selection=selection)
+        links[m] = TeamLink(GroupState(m), tr, period_s=period, clock=lambda: t, own=own, selection=selection,
+                            key=key)
         links[m].listeners.append(on_event)
     merge = [0.0, 0]
     airtime = [0.0]
@@ -194,14 +203,15 @@ def run(members: int, loss: float, period: float, seconds: float, seed: int,
                   merge_us=1e6 * merge[0] / max(merge[1], 1), occupancy=100.0 * airtime[0] / seconds)
 
 
-def full_encoder(members: int, period: float, rate: float, seed: int) -> tuple[float, float, int]:
+def full_encoder(members: int, period: float, rate: float, seed: int,
+                 key: bytes | None = KEY) -> tuple[float, float, int]:
     """Plain flooding without simulating it: (bytes/s per vehicle, channel occupancy %, packet bytes) of
     every vehicle broadcasting every row once a period (the board every 4th period)."""
     rng = random.Random(seed)
     rows = [Vehicle(m, rng).entry() for m in range(1, members + 1)]
     rows = [MemberEntry(**{**r.__dict__, "stamp": 1.0, "seq": 1, "voc": 10}) for r in rows]
-    plain = encode_packets(1, rows)
-    with_board = encode_packets(1, rows, board(1.0))
+    plain = encode_packets(1, rows, epoch=1, key=key)
+    with_board = encode_packets(1, rows, board(1.0), epoch=1, key=key)
     per_period = (3 * sum(map(len, plain)) + sum(map(len, with_board))) / 4
     air = (3 * sum(airtime_s(len(p), rate) for p in plain)
            + sum(airtime_s(len(p), rate) for p in with_board)) / 4
@@ -228,31 +238,34 @@ def main() -> int:
     ap.add_argument("--rate", type=float, default=6e6, help="802.11 basic rate, bit/s (default 6e6)")
     ap.add_argument("--range", type=float, default=700.0, help="radio range (m) of the multi-hop table")
     ap.add_argument("--multihop", default="20,50", help="team sizes of the multi-hop table ('' for none)")
+    ap.add_argument("--unsigned", action="store_true",
+                    help="no team key (CRC trailer, no signature check, no replay guard)")
     args = ap.parse_args()
+    key = None if args.unsigned else KEY
     sizes = [int(x) for x in args.members.split(",") if x.strip()]
     losses = [float(x) for x in args.losses.split(",") if x.strip()]
     print(f"# bench_teamlink ({machine()})\n")
     print(f"Full mesh, {args.seconds:g} s simulated, period {DEFAULT_PERIOD_S} s, airtime at "
-          f"{args.rate / 1e6:g} Mbit/s:\n")
+          f"{args.rate / 1e6:g} Mbit/s, packets {'unsigned' if key is None else 'signed (team key)'}:\n")
     results = []
     for n in sizes:
         for loss in losses:
-            results.append(run(n, loss, DEFAULT_PERIOD_S, args.seconds, args.seed, rate=args.rate))
+            results.append(run(n, loss, DEFAULT_PERIOD_S, args.seconds, args.seed, rate=args.rate, key=key))
             print(f"  {n} members {loss:.0%} done", file=sys.stderr, flush=True)
     if sizes and min(sizes) <= 20:
         results.append(run(min(sizes), 0.2, DEFAULT_PERIOD_S, args.seconds, args.seed, selection="full",
-                           rate=args.rate))
+                           rate=args.rate, key=key))
     print(table(HEADERS, rows(results)))
     print("\nPlain flooding (every row in every broadcast), the encoder's bytes:\n")
     full = [[n, f"{b:.0f}", size, f"{occ:.1f}"]
-            for n in sizes for b, occ, size in [full_encoder(n, DEFAULT_PERIOD_S, args.rate, args.seed)]]
+            for n in sizes for b, occ, size in [full_encoder(n, DEFAULT_PERIOD_S, args.rate, args.seed, key)]]
     print(table(["members", "B/s per vehicle", "largest broadcast B", "channel %"], full))
     hops = [int(x) for x in args.multihop.split(",") if x.strip()]
     if hops:
         print(f"\nMulti-hop: radio range {args.range:g} m over the 2 x 2 km area (vehicles beyond it hear "
               f"each other only through relays), 20 % loss:\n")
         print(table(HEADERS, rows([run(n, 0.2, DEFAULT_PERIOD_S, args.seconds, args.seed, args.range,
-                                       rate=args.rate) for n in hops])))
+                                       rate=args.rate, key=key) for n in hops])))
     return 0
 
 
