@@ -4,8 +4,10 @@ member still holds a fresh row of every other, on a full mesh and over relays.""
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import random
+import zlib
 from collections.abc import Callable
 
 import pytest
@@ -24,6 +26,7 @@ from companion.team.wire import (
     WireError,
     decode_packet,
     encode_digest,
+    encode_packets,
 )
 
 KEY = hashlib.sha256(b"a team key of the gossip test").digest()
@@ -80,7 +83,7 @@ def run_team(n: int, loss: float, seconds: float, range_m: float | None = None
 def test_rows_per_packet_do_not_grow_with_the_team(n: int) -> None:
     links, heard, now = run_team(n, 0.2, 12.0)
     rows = [len(p.rows) for p in map(decode_packet, heard) if p.kind == KIND_STATE]
-    digest = [len(p.digest) for p in map(decode_packet, heard) if p.kind == KIND_DIGEST]
+    digest = [len(p.digest) for p in map(decode_packet, heard) if p.digest]
     assert max(rows) <= 1 + MAX_RELAYS and max(digest) <= DIGEST_SIZE
     for m, link in links.items():  # and every member knows every other, fresh
         assert set(link.state.alive()) == set(links), m
@@ -111,12 +114,29 @@ def test_digest_carries_wide_ids_and_epochs_and_is_signed_like_every_packet() ->
         decode_packet(encode_digest(70001, entries, epoch=3), key=KEY)
     with pytest.raises(WireError, match="digest member"):
         encode_digest(1, [DigestEntry(2**32, 1, 1)], epoch=1)
+    bad = bytearray(encode_digest(1, entries[:1], epoch=1))
+    bad[-5] = 7  # the want byte, then the CRC
+    bad[-4:] = zlib.crc32(bytes(bad[:-4])).to_bytes(4, "big")
     with pytest.raises(WireError, match="digest want"):
-        bad = bytearray(encode_digest(1, entries[:1], epoch=1))
-        bad[-5] = 7  # the want byte, then the CRC
-        import zlib
-        bad[-4:] = zlib.crc32(bytes(bad[:-4])).to_bytes(4, "big")
         decode_packet(bytes(bad))
+
+
+def test_the_digest_rides_in_the_state_packet_when_it_fits() -> None:
+    """One packet a period (own row and digest) instead of two: a header and a signature saved; a digest
+    that does not fit after the rows goes in a DIGEST packet of its own."""
+    own = MemberEntry(member=5, epoch=3, stamp=1.0, seq=2, position=(58.39, 15.57, 30.0), name="v5")
+    entries = [DigestEntry(m, 9, 40 + m, m % 3 == 0) for m in range(1, 11)]
+    (one,) = encode_packets(5, [own], epoch=3, stamp=1.0, key=KEY, digest=entries)
+    pkt = decode_packet(one, key=KEY)
+    assert pkt.kind == KIND_STATE and pkt.rows == (own,) and pkt.digest == tuple(entries)
+    many = [dataclasses.replace(own, member=m, name=f"member {m}") for m in range(5, 45)]
+    packets = encode_packets(5, many, epoch=3, key=KEY, digest=[*entries] * 7)  # 1191 bytes: alone
+    decoded = [decode_packet(p, key=KEY) for p in packets]
+    assert decoded[-1].kind == KIND_DIGEST and decoded[-1].digest == tuple(entries * 7)
+    assert [r.member for p in decoded for r in p.rows] == [r.member for r in many]
+    assert all(len(p) <= 1400 for p in packets)
+    with pytest.raises(WireError, match="digest of 1361 bytes"):
+        encode_packets(5, [own], epoch=3, key=KEY, digest=[*entries] * 8)
 
 
 def test_a_keyed_team_with_32_bit_ids_gossips_and_drops_a_replayed_or_forged_digest() -> None:
@@ -125,7 +145,7 @@ def test_a_keyed_team_with_32_bit_ids_gossips_and_drops_a_replayed_or_forged_dig
     for m, link in team.links.items():
         assert set(link.state.alive()) == set(team.ids), m
         assert max(link.state.staleness(now).values()) <= 3.0
-    digests = [d for d in team.heard if decode_packet(d, key=KEY).kind == KIND_DIGEST]
+    digests = [d for d in team.heard if decode_packet(d, key=KEY).digest]
     assert digests and all(decode_packet(d, key=KEY).signed for d in digests)
     victim = team.links[team.ids[0]]
     before = victim.stats.replayed

@@ -6,7 +6,8 @@ bytes a period, O(N^2) on the shared channel (100 vehicles: 6 kB a broadcast, 9.
 broadcast carries the broadcaster's knowledge as a *digest* and only the rows someone needs:
 
 * every period a member sends its own row, at most :attr:`Gossip.max_relays` rows of others (below) and
-  a DIGEST packet of :attr:`Gossip.digest_size` entries ``(member, epoch, seq, want)``: first the rows it
+  a digest of :attr:`Gossip.digest_size` entries ``(member, epoch, seq, want)`` (in the STATE packet
+  when it fits there, else a DIGEST packet of its own): first the rows it
   *wants* (members it never heard of that another's digest names; rows not refreshed here for
   ``stale_periods`` periods, or for ``far_stale_periods`` when the row last came over a relay, its owner
   out of reach), then a round-robin slice of the rows it holds (so that every row is named within
@@ -38,6 +39,8 @@ from .wire import DigestEntry
 
 #: digest entries a member sends per period
 DIGEST_SIZE = 10
+#: the most digest entries one packet of :data:`~.wire.MAX_PACKET` bytes holds (17 bytes each)
+MAX_DIGEST = 79
 #: rows of other members a packet carries at most
 MAX_RELAYS = 16
 #: a row not refreshed for this many periods is asked for (a want in the digest) ...
@@ -65,8 +68,8 @@ class Gossip:
                  max_relays: int = MAX_RELAYS, stale_periods: float = STALE_PERIODS,
                  far_stale_periods: float = FAR_STALE_PERIODS,
                  interest_periods: float = INTEREST_PERIODS) -> None:
-        if digest_size < 1 or digest_size > 255:
-            raise ValueError(f"digest_size: must be in 1..255, got {digest_size}")
+        if digest_size < 1 or digest_size > MAX_DIGEST:
+            raise ValueError(f"digest_size: must be in 1..{MAX_DIGEST}, got {digest_size}")
         if max_relays < 0:
             raise ValueError(f"max_relays: must be >= 0, got {max_relays}")
         self.own_id = own_id

@@ -65,7 +65,6 @@ from companion.team.wire import (
     UnverifiableError,
     WireError,
     decode_packet,
-    encode_digest,
     encode_packets,
 )
 
@@ -99,8 +98,8 @@ class LinkStats:
     broadcasts: int = 0
     announcements: int = 0        #: broadcasts between periods (a member announcing new claims)
     rows_relayed: int = 0         #: rows of others sent (asked for in a digest, new or changed)
-    digests: int = 0              #: DIGEST packets received
-    digests_sent: int = 0         #: DIGEST packets sent
+    digests: int = 0              #: digests received (in a STATE packet or a DIGEST one)
+    digests_sent: int = 0         #: digests sent
     first_send: float | None = None
     last_send: float | None = None
     max_packet: int = 0
@@ -394,26 +393,19 @@ class TeamLink:
         send_board = bool(board.tasks) or board.seq > 0 or board.stamp > 0 or board.epoch != 0
         if send_board and self.own_id != STATION_ID:
             send_board = self._board_news or self.stats.broadcasts % self.relay_board_every == 0
+        digest = self.gossip.digest(self.state, now) if periodic and self.selection == "digest" else []
         try:
             packets = encode_packets(self.own_id, rows, board if send_board else None,
                                      max_size=self.max_packet, epoch=self.epoch, stamp=now,
-                                     pseq=self._pseq, key=self.key)
+                                     pseq=self._pseq, key=self.key, digest=digest)
         except WireError as exc:
             log.error("member %d: group state not encodable, not sent: %s", self.own_id, exc)
             self.stats.send_errors += 1
             return
         if send_board:
             self._board_news = False
-        if periodic and self.selection == "digest":
-            digest = self.gossip.digest(self.state, now)
-            if digest:
-                try:
-                    packets.append(encode_digest(self.own_id, digest, epoch=self.epoch, stamp=now,
-                                                 pseq=(self._pseq + len(packets)) & 0xFFFFFFFF, key=self.key))
-                    self.stats.digests_sent += 1
-                except WireError as exc:
-                    log.error("member %d: digest not encodable, not sent: %s", self.own_id, exc)
-                    self.stats.send_errors += 1
+        if digest:
+            self.stats.digests_sent += 1
         self._send(packets, now)
 
     def _send(self, packets: list[bytes], now: float) -> None:
