@@ -220,6 +220,33 @@ def test_two_vehicles_flying_one_task_side_by_side_one_lets_go(policy: str) -> N
     assert a not in [c.task for c in k1] and a in [c.task for c in k2]
 
 
+@pytest.mark.parametrize("policy", ["greedy", "cbba"])
+def test_a_challenger_reading_an_older_row_of_the_holder_does_not_claim_what_the_holder_keeps(
+        policy: str) -> None:
+    """The holder flies its task (its cost falls half a second a period); a challenger reads the holder's
+    row a period old (42.3) and bids 31.7, just clearly cheaper than that, not than the holder's own 41.8.
+    Without the drift allowance the challenger claimed it while the holder kept it (and dropped and
+    re-claimed it every decision: bench_allocation's seed 20 held one visit twice for 4.5 s)."""
+    led, (a,) = visits((200, 0))
+    board = led.board()
+    v = board.get(a).version
+
+    def make() -> AllocationPolicy:
+        return GreedyPolicy() if policy == "greedy" else CbbaPolicy(MODEL, 3)
+
+    seen = {2: row(2, (0, 0), (Claim(a, v, 42.3, ClaimState.ACTIVE),)), 3: row(3, (50, 0))}
+    challenger = make().decide(3, seen, board, lambda t: 31.7, ())
+    now = {2: row(2, (0, 0), (Claim(a, v, 41.8, ClaimState.ACTIVE),)), 3: row(3, (50, 0), challenger)}
+    holder = make().decide(2, now, board, lambda t: 41.3, now[2].claims)
+    holders = [m for m, k in ((2, holder), (3, challenger)) if a in [c.task for c in k]]
+    assert holders == [2], (holder, challenger)
+    # clearly cheaper than the holder's cost less the allowance: taken, and the holder lets go
+    challenger = make().decide(3, seen, board, lambda t: 25.0, ())
+    now[3] = dataclasses.replace(now[3], claims=challenger)
+    holder = make().decide(2, now, board, lambda t: 41.3, now[2].claims)
+    assert a in [c.task for c in challenger] and a not in [c.task for c in holder]
+
+
 def test_an_active_holder_that_reached_its_task_is_not_outbid() -> None:
     """A patrol being flown: its holder is on it (its cost fell below REACHED, then 0 for good), so a
     vehicle loitering at the line's end does not take it over even though its way to the end is shorter."""

@@ -57,6 +57,10 @@ REACHED = 2.0
 #: of two ACTIVE claims on one task, costs closer than this are a tie (the lower id keeps the task): wider
 #: than the drift of two approaching vehicles' costs between their rows (a period each)
 ACTIVE_TIE = 5.0
+#: a challenger judges an ACTIVE holder's cost as this much lower than the row says: the holder's cost falls
+#: as it approaches (up to 1 s a second) and the challenger reads a row up to a period or two old, so without
+#: it the challenger would claim a task the holder (checking its fresher cost) keeps: both would hold it
+ACTIVE_DRIFT = 2.0
 
 
 @dataclass(frozen=True)
@@ -247,11 +251,12 @@ def _claimed_loses(me: int, c: Claim, r: Rival) -> bool:
 
 def _beats(bid: float, r: Rival, margin: float) -> bool:
     """Can a new claim at ``bid`` take a task ``r`` holds? Never a DONE one; an ACTIVE one when clearly
-    cheaper; a CLAIMED one when lower by ``margin`` (hysteresis)."""
+    cheaper than its cost less :data:`ACTIVE_DRIFT` (the holder judges with a fresher cost); a CLAIMED one
+    when lower by ``margin`` (hysteresis)."""
     if r.done:
         return False
     if r.active:
-        return clearly_cheaper(bid, r.cost)
+        return clearly_cheaper(bid, r.cost - ACTIVE_DRIFT)
     return bid < r.cost - margin
 
 
@@ -343,11 +348,13 @@ class CbbaPolicy(AllocationPolicy):
         # 1. release: outbid on a task -> drop it and everything added after it (ACTIVE ones stay)
         bundle: list[Claim] = []
         lost = False
+        outbid: set[int] = set()  # not bid for again in this decision (a drop and re-bid would hold it on)
         for c in held:
             if c.state is ClaimState.ACTIVE:
                 if active_loses(me, c, riv.get(c.task, [])):  # the cost I published against theirs
                     self.conflicts += 1
                     lost = True
+                    outbid.add(c.task)
                     continue
                 bundle.append(replace(c, cost=active_cost(c.cost, cost(live[c.task]))))
                 continue
@@ -356,9 +363,10 @@ class CbbaPolicy(AllocationPolicy):
             if any(_claimed_loses(me, c, r) for r in riv.get(c.task, [])):
                 self.conflicts += 1
                 lost = True
+                outbid.add(c.task)
                 continue
             bundle.append(c)
-        excluded = {c.task for c in parked} | {c.task for c in bundle}
+        excluded = {c.task for c in parked} | {c.task for c in bundle} | outbid
         # 2. bundle building
         path = self._path(at, bundle, live, cost)
         first_fixed = any(c.state is ClaimState.ACTIVE for c in bundle)
