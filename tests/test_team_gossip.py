@@ -12,7 +12,7 @@ from collections.abc import Callable
 
 import pytest
 
-from companion.team.gossip import DIGEST_SIZE, MAX_RELAYS
+from companion.team.gossip import DIGEST_SIZE, MAX_RELAYS, epoch_tag
 from companion.team.groupstate import GroupState
 from companion.team.link import TeamLink
 from companion.team.transport import LossyTransport, MemoryBus
@@ -101,7 +101,8 @@ def test_rows_reach_members_over_relays() -> None:
 # --------------------------------------------------------------------------------------- format 2 digests
 
 def test_digest_carries_wide_ids_and_epochs_and_is_signed_like_every_packet() -> None:
-    entries = [DigestEntry(70000, 2**63 + 5, 41, False), DigestEntry(2**32 - 1, 0, 0, True)]
+    entries = [DigestEntry(70000, epoch_tag(2**63 + 5), 41, False), DigestEntry(2**32 - 1, 0, 0, True)]
+    assert entries[0].epoch == 5 and epoch_tag(2**40) == 1  # the low 32 bits, never 0
     data = encode_digest(70001, entries, epoch=2**64 - 1, stamp=5.5, pseq=9, key=KEY)
     pkt = decode_packet(data, key=KEY)
     assert (pkt.kind, pkt.sender, pkt.epoch, pkt.pseq, pkt.signed) == (KIND_DIGEST, 70001, 2**64 - 1, 9, True)
@@ -114,6 +115,8 @@ def test_digest_carries_wide_ids_and_epochs_and_is_signed_like_every_packet() ->
         decode_packet(encode_digest(70001, entries, epoch=3), key=KEY)
     with pytest.raises(WireError, match="digest member"):
         encode_digest(1, [DigestEntry(2**32, 1, 1)], epoch=1)
+    with pytest.raises(WireError, match="digest epoch tag"):
+        encode_digest(1, [DigestEntry(1, 2**32, 1)], epoch=1)
     bad = bytearray(encode_digest(1, entries[:1], epoch=1))
     bad[-5] = 7  # the want byte, then the CRC
     bad[-4:] = zlib.crc32(bytes(bad[:-4])).to_bytes(4, "big")
@@ -130,13 +133,13 @@ def test_the_digest_rides_in_the_state_packet_when_it_fits() -> None:
     pkt = decode_packet(one, key=KEY)
     assert pkt.kind == KIND_STATE and pkt.rows == (own,) and pkt.digest == tuple(entries)
     many = [dataclasses.replace(own, member=m, name=f"member {m}") for m in range(5, 45)]
-    packets = encode_packets(5, many, epoch=3, key=KEY, digest=[*entries] * 7)  # 1191 bytes: alone
+    packets = encode_packets(5, many, epoch=3, key=KEY, digest=[*entries] * 7)  # 911 bytes: alone
     decoded = [decode_packet(p, key=KEY) for p in packets]
     assert decoded[-1].kind == KIND_DIGEST and decoded[-1].digest == tuple(entries * 7)
     assert [r.member for p in decoded for r in p.rows] == [r.member for r in many]
     assert all(len(p) <= 1400 for p in packets)
-    with pytest.raises(WireError, match="digest of 1361 bytes"):
-        encode_packets(5, [own], epoch=3, key=KEY, digest=[*entries] * 8)
+    with pytest.raises(WireError, match="digest of 1431 bytes"):
+        encode_packets(5, [own], epoch=3, key=KEY, digest=[*entries] * 11)
 
 
 def test_a_keyed_team_with_32_bit_ids_gossips_and_drops_a_replayed_or_forged_digest() -> None:

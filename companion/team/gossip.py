@@ -6,7 +6,7 @@ bytes a period, O(N^2) on the shared channel (100 vehicles: 6 kB a broadcast, 9.
 broadcast carries the broadcaster's knowledge as a *digest* and only the rows someone needs:
 
 * every period a member sends its own row, at most :attr:`Gossip.max_relays` rows of others (below) and
-  a digest of :attr:`Gossip.digest_size` entries ``(member, epoch, seq, want)`` (in the STATE packet
+  a digest of :attr:`Gossip.digest_size` entries ``(member, epoch tag, seq, want)`` (in the STATE packet
   when it fits there, else a DIGEST packet of its own): first the rows it
   *wants* (members it never heard of that another's digest names; rows not refreshed here for
   ``stale_periods`` periods, or for ``far_stale_periods`` when the row last came over a relay, its owner
@@ -39,8 +39,8 @@ from .wire import DigestEntry
 
 #: digest entries a member sends per period
 DIGEST_SIZE = 10
-#: the most digest entries one packet of :data:`~.wire.MAX_PACKET` bytes holds (17 bytes each)
-MAX_DIGEST = 79
+#: the most digest entries one packet of :data:`~.wire.MAX_PACKET` bytes holds (13 bytes each)
+MAX_DIGEST = 104
 #: rows of other members a packet carries at most
 MAX_RELAYS = 16
 #: a row not refreshed for this many periods is asked for (a want in the digest) ...
@@ -56,8 +56,11 @@ def _content(e: MemberEntry) -> tuple[object, ...]:
     return (e.status, e.task, e.claims, e.name)
 
 
-def _stub(d: DigestEntry) -> MemberEntry:
-    return MemberEntry(member=d.member, epoch=d.epoch, stamp=0.0, seq=d.seq)
+def epoch_tag(epoch: int) -> int:
+    """The 32 bits of a boot epoch a digest carries (never 0: 0 is "no row"); two epochs of one member share
+    a tag with probability 2^-32, and then only a relay is missed or sent for nothing (rows carry the whole
+    epoch: the merge never sees a tag)."""
+    return (epoch & 0xFFFFFFFF) or 1
 
 
 class Gossip:
@@ -124,7 +127,7 @@ class Gossip:
                 continue
             cur = state.get(m)
             if cur is None or cur.voc == 0:
-                if d.epoch and (cur is None or cur.epoch != d.epoch or _stub(d).newer_than(cur)):
+                if d.epoch and (cur is None or epoch_tag(cur.epoch) != d.epoch or d.seq > cur.seq):
                     self._unknown.add(m)
                 continue
             if d.want:
@@ -132,12 +135,12 @@ class Gossip:
                 self._asked[(m, sender)] = self._now
                 if last is not None and self._now - last <= self.interest_s:
                     self._interest[m] = self._now + self.interest_s
-            if d.epoch != cur.epoch:
+            if d.epoch != epoch_tag(cur.epoch):
                 # another epoch (a reboot one of us has not seen yet): the asker decides by the identity
                 # rule once it has the row
                 if d.want:
                     self._relay.setdefault(m, cur)
-            elif cur.newer_than(_stub(d)) and (d.want or cur.seq - d.seq >= self.stale_seqs):
+            elif cur.seq > d.seq and (d.want or cur.seq - d.seq >= self.stale_seqs):
                 self._relay.setdefault(m, cur)
 
     # --- sending --------------------------------------------------------------------------------------
@@ -170,13 +173,13 @@ class Gossip:
             if len(out) >= self.digest_size:
                 return out
             e = alive[m]
-            out.append(DigestEntry(m, e.epoch, e.seq, True))
+            out.append(DigestEntry(m, epoch_tag(e.epoch), e.seq, True))
         named = {d.member for d in out}
         others = sorted(m for m in alive if m != self.own_id and m not in named)
         k = min(self.digest_size - len(out), len(others))
         for i in range(k):
             e = alive[others[(self._cursor + i) % len(others)]]
-            out.append(DigestEntry(e.member, e.epoch, e.seq, False))
+            out.append(DigestEntry(e.member, epoch_tag(e.epoch), e.seq, False))
         if others:
             self._cursor = (self._cursor + k) % len(others)
         return out

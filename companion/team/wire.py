@@ -14,7 +14,7 @@ Layout (all integers big-endian, ``struct``)::
              digest), [board part], [digest]
              kind BOARD (2): board part
              kind DIGEST (3): digest
-    digest   n u8, n x (member u32 | epoch u64 | seq u32 | want u8)
+    digest   n u8, n x (member u32 | epoch tag u32 (the epoch's low 32 bits) | seq u32 | want u8)
     trailer  unsigned: crc32 u32 of everything before it
              signed: the first 16 bytes of HMAC-SHA256(key, everything before it) (:mod:`.auth`)
 
@@ -48,8 +48,9 @@ which packet number, and with a team key (:mod:`.auth`) the packet is signed as 
 (HMAC-SHA256 over the whole packet, a time stamp and a per-sender replay window, checked by
 :class:`~.auth.ReplayGuard`). Version 1 packets are foreign (counted, never taken).
 
-A DIGEST packet (:mod:`.gossip`) names, per entry, a member and the (epoch, seq) of the row the sender
-holds for it ((0, 0): none) and whether it wants a newer one; 17 bytes an entry, framed, numbered and
+A digest (:mod:`.gossip`) names, per entry, a member, the (epoch's low 32 bits, seq) of the row the
+sender holds for it ((0, 0): none) and whether it wants a newer one; 13 bytes an entry. It rides in the
+last STATE packet of a broadcast when it fits there, else in a DIGEST packet, framed, numbered and
 signed like every other packet (:func:`encode_digest`).
 
 Names longer than 16 bytes are cut at a character boundary; positions are rounded to 1e-7 deg and 1 cm,
@@ -109,7 +110,7 @@ _CLAIM = struct.Struct("!IHdB")
 _PART = struct.Struct("!QdIIBBH")
 _TASK = struct.Struct("!IHBBIHdd")
 _POINT = struct.Struct("!iii")
-_DIGEST = struct.Struct("!IQIB")
+_DIGEST = struct.Struct("!IIIB")
 _NO_TST = 0xFFFFFFFF
 _PART_BOARD = 0x01   #: a STATE packet's parts flags: a board part follows the rows
 _PART_DIGEST = 0x02  #: ... and a digest after it
@@ -164,8 +165,9 @@ class BoardPart:
 
 @dataclass(frozen=True)
 class DigestEntry:
-    """One line of a digest: the (epoch, seq) of the row the sender holds for ``member`` ((0, 0): none);
-    ``want``: the sender asks for a newer one (its row went stale, or it never had one)."""
+    """One line of a digest: the (epoch tag, seq) of the row the sender holds for ``member`` ((0, 0): none;
+    the tag is the epoch's low 32 bits, :func:`companion.team.gossip.epoch_tag`); ``want``: the sender asks
+    for a newer one (its row went stale, or it never had one)."""
 
     member: int
     epoch: int
@@ -336,7 +338,7 @@ def _digest_bytes(entries: list[DigestEntry] | tuple[DigestEntry, ...]) -> bytes
     if len(entries) > 255:
         raise WireError(f"{len(entries)} digest entries, at most 255")
     return bytes([len(entries)]) + b"".join(
-        _DIGEST.pack(_u(e.member, 32, "digest member"), _u(e.epoch, 64, "digest epoch"),
+        _DIGEST.pack(_u(e.member, 32, "digest member"), _u(e.epoch, 32, "digest epoch tag"),
                      _u(e.seq, 32, "digest seq"), 1 if e.want else 0) for e in entries)
 
 
@@ -390,7 +392,7 @@ def _encode_packets(origin: _Origin, entries: list[MemberEntry] | tuple[MemberEn
 
 def encode_digest(sender: int, entries: list[DigestEntry] | tuple[DigestEntry, ...], *, epoch: int = 0,
                   stamp: float = 0.0, pseq: int = 0, key: bytes | None = None) -> bytes:
-    """One DIGEST packet from ``sender`` in its boot ``epoch`` (at most 255 entries, 17 bytes each), framed
+    """One DIGEST packet from ``sender`` in its boot ``epoch`` (at most 255 entries, 13 bytes each), framed
     and signed as :func:`encode_packets` does; :class:`WireError` if not encodable."""
     try:
         _u(sender, 32, "sender id")
