@@ -30,6 +30,7 @@ from companion.flightlog import log_violations, read_flight_log
 from companion.team.station import TeamControlStation
 from companion.team.tasks import TaskDef
 from companion.team.transport import open_transport
+from companion.tst.platform import load_platform
 from harness import ROOT
 from harness.fleet import ports, start_fleet
 from harness.observer import Gcs
@@ -83,7 +84,8 @@ class TeamRig:
         except BaseException:
             self.close()
             raise
-        self.limits = Limits()  # the companions' queue limits (no --flight-config)
+        # the companions' queue limits: their platform's (a patrol flown at its own 6 m/s is within them)
+        self.limits: Limits = load_platform(PLATFORM).flight_limits()
 
     # --- processes -----------------------------------------------------------------------------------
     def start_companion(self, i: int) -> None:
@@ -185,22 +187,25 @@ class TeamRig:
 def fly_nine_tasks(rig: TeamRig) -> None:
     """Seed 003 Sec. V: "A series of nine tasks was assigned to the three UAVs, including multiple-agent
     tasks such as cooperative border patrol. On three occasions, conflicts were declared ..."." Every
-    vehicle's claims are sampled over the whole run (:class:`ClaimSampler`): no task is held twice."""
+    vehicle's claims are sampled over the whole run (:class:`ClaimSampler`): no task is held twice; every
+    visit was flown to (some vehicle's track, from its autopilot, came within 3 m of it)."""
     st = rig.station
     assert st is not None
     with ClaimSampler(rig) as claims:
-        _fly_nine_tasks(rig, st)
+        visits = _fly_nine_tasks(rig, st)
     claims.assert_no_task_held_twice()
+    claims.assert_visited(visits, within_m=3.0)
 
 
-def _fly_nine_tasks(rig: TeamRig, st: TeamControlStation) -> None:
-    visits = [rig.add(TaskDef("visit", (geo(25, -15, 8),), name="visit-1"))[0],
-              rig.add(TaskDef("visit", (geo(-20, 25, 8),), name="visit-2"))[0]]
+def _fly_nine_tasks(rig: TeamRig, st: TeamControlStation) -> list[tuple[float, float, float]]:
+    points = [geo(25, -15, 8), geo(-20, 25, 8), geo(35, 10, 8), geo(-10, -25, 8)]
+    visits = [rig.add(TaskDef("visit", (points[0],), name="visit-1"))[0],
+              rig.add(TaskDef("visit", (points[1],), name="visit-2"))[0]]
     area = rig.add(TaskDef("area_scan", (geo(15, 40), geo(15, 60), geo(45, 60), geo(45, 40)), n=2,
                            name="area"))
     wait_for(lambda: all(rig.state(t) == "done" for t in visits), rig.wall(120), "the first visits done")
-    visits += [rig.add(TaskDef("visit", (geo(35, 10, 8),), name="visit-3"))[0],
-               rig.add(TaskDef("visit", (geo(-10, -25, 8),), name="visit-4"))[0]]
+    visits += [rig.add(TaskDef("visit", (points[2],), name="visit-3"))[0],
+               rig.add(TaskDef("visit", (points[3],), name="visit-4"))[0]]
     # the tasks that end come first: a vehicle flying a patrol keeps it until it is cancelled
     wait_for(lambda: all(rig.state(t) == "done" for t in [*visits, *area]), rig.wall(240),
              "visits and area parts flown")
@@ -217,45 +222,62 @@ def _fly_nine_tasks(rig: TeamRig, st: TeamControlStation) -> None:
              "every task done or cancelled")
     assert {rig.state(t) for t in visits + list(area)} == {"done"}
     assert rig.state(patrol) == "cancelled" and {rig.state(t) for t in border} == {"cancelled"}
-    # every visit was flown to: some vehicle's track came within 2 m of it (GLOBAL_POSITION_INT)
     # idle vehicles loiter: each in the team, holding no task, hovering where it is
     def loitering() -> bool:
         teams = [rig.team(i) for i in range(rig.n)]
         return all(t["status"] in ("idle", "landed") and not t["claims"] and t["controller"] == "loiter"
                    for t in teams)
     wait_for(loitering, rig.wall(60), "every vehicle idle")
+    return points
 
 
 class ClaimSampler:
     """Every vehicle's claims, read from its companion (``GET /team``) every ``period_s`` in a thread for
-    the whole run: each sample is (wall time, {task: [vehicles holding it]}) over the claims not done.
+    the whole run: each sample is (wall time, {task: [vehicles holding it]}, [packets each vehicle sent])
+    over the claims held (not done, not failed); and every vehicle's track (its autopilot's
+    GLOBAL_POSITION_INT, when the rig has ground stations) every ``period_s / 5``.
 
-    :meth:`assert_no_task_held_twice` fails when a task is held by two vehicles in two samples in a row
-    (seed 003 Sec. II: a conflict is declared and resolved, so a double claim may be seen once, while one
-    vehicle's release and the next one's claim are read a few milliseconds apart; one that lasts a whole
-    period is a task flown twice). The message shows the samples that broke it."""
+    :meth:`assert_no_task_held_twice` checks every sample of the run, not its end: by default it fails when
+    a task is held by two vehicles in two samples in a row (seed 003 Sec. II: a conflict is declared and
+    resolved, so a double claim may be seen once, while one vehicle's release and the next one's claim are
+    read a few milliseconds apart; one that lasts a whole period is a task flown twice); with
+    ``max_packets`` it fails when a stretch of samples holding a task twice lasted more than that many
+    team-link packets sent by one of the vehicles (a conflict's length counted in the link's own periods,
+    so a loaded machine that runs the link late does not lengthen it). The message shows the samples that
+    broke it. :meth:`assert_visited`: each point came within a distance of some vehicle's track."""
 
     def __init__(self, rig: TeamRig, period_s: float = 0.25) -> None:
         self.rig, self.period_s = rig, period_s
         self.samples: list[tuple[float, dict[int, list[int]]]] = []
+        self.sent: list[list[int]] = []
+        self.tracks: list[list[tuple[float, float, float]]] = [[] for _ in range(rig.n)]
         self.errors: list[str] = []
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="claim-sampler", daemon=True)
+        self._tracker = threading.Thread(target=self._track, name="track-sampler", daemon=True)
 
     def __enter__(self) -> ClaimSampler:
         self._thread.start()
+        if getattr(self.rig, "gcs", None):
+            self._tracker.start()
         return self
 
     def __exit__(self, *exc: object) -> None:
         self._stop.set()
         self._thread.join(10.0)
+        if self._tracker.is_alive():
+            self._tracker.join(10.0)
 
     def sample(self) -> dict[int, list[int]]:
         holders: dict[int, list[int]] = {}
+        sent: list[int] = []
         for i in range(self.rig.n):
-            for c in self.rig.team(i)["claims"]:
-                if c["state"] != "done":
+            team = self.rig.team(i)
+            sent.append(int(team.get("link", {}).get("packets_sent", 0)))
+            for c in team["claims"]:
+                if c["state"] not in ("done", "failed"):
                     holders.setdefault(c["task"], []).append(i)
+        self.sent.append(sent)
         return holders
 
     def _run(self) -> None:
@@ -265,15 +287,41 @@ class ClaimSampler:
             except (httpx.HTTPError, ValueError, KeyError) as e:  # a companion killed or restarting
                 self.errors.append(repr(e))
 
-    def assert_no_task_held_twice(self) -> None:
+    def _track(self) -> None:
+        while not self._stop.wait(self.period_s / 5):
+            for i in range(self.rig.n):
+                p = self.rig.position(i)
+                if p is not None:
+                    self.tracks[i].append(p)
+
+    def assert_no_task_held_twice(self, max_packets: int | None = None) -> None:
         assert self.samples, f"no claims sampled (errors: {self.errors[-3:]})"
         t0 = self.samples[0][0]
-        for (t_a, a), (t_b, b) in zip(self.samples, self.samples[1:], strict=False):
-            twice = {task: (a[task], b[task]) for task in a.keys() & b.keys()
-                     if len(set(a[task])) > 1 and set(a[task]) == set(b[task])}
-            assert not twice, (f"task(s) held by two vehicles in two samples in a row, at {t_a - t0:.2f} s "
-                               f"and {t_b - t0:.2f} s: {twice}; samples: {a} then {b} "
-                               f"({len(self.samples)} samples)")
+        if max_packets is None:
+            for (t_a, a), (t_b, b) in zip(self.samples, self.samples[1:], strict=False):
+                twice = {task: (a[task], b[task]) for task in a.keys() & b.keys()
+                         if len(set(a[task])) > 1 and set(a[task]) == set(b[task])}
+                assert not twice, (f"task(s) held by two vehicles in two samples in a row, at "
+                                   f"{t_a - t0:.2f} s and {t_b - t0:.2f} s: {twice}; samples: {a} then {b} "
+                                   f"({len(self.samples)} samples)")
+            return
+        since: dict[int, int] = {}  # task held twice now -> the sample where that began
+        for k, (t_k, held) in enumerate(self.samples):
+            twice = {task for task, who in held.items() if len(set(who)) > 1}
+            for task in twice:
+                began = since.setdefault(task, k)
+                packets = max(b - a for a, b in zip(self.sent[began], self.sent[k], strict=True))
+                assert packets <= max_packets, (
+                    f"task {task} held by two vehicles from {self.samples[began][0] - t0:.2f} s to "
+                    f"{t_k - t0:.2f} s ({packets} packets sent by one of them meanwhile): "
+                    f"{[s for _, s in self.samples[began:k + 1]]}")
+            for task in set(since) - twice:
+                del since[task]
+
+    def assert_visited(self, points: list[tuple[float, float, float]], within_m: float) -> None:
+        for p in points:
+            nearest = min((distance_m(q, p) for track in self.tracks for q in track), default=math.inf)
+            assert nearest <= within_m, f"no vehicle came within {within_m} m of {p}: nearest {nearest:.1f} m"
 
 
 def distance_m(a: tuple[float, float, float], b: tuple[float, float, float]) -> float:

@@ -97,8 +97,71 @@ def test_cli_team_sim_prints_changes_and_a_table(capsys: pytest.CaptureFixture[s
     out = capsys.readouterr().out
     assert rc == 0
     assert "task  101 assigned -> vehicle" in out and "task  113 cancelled" in out
-    assert "tasks held twice at the end: 0" in out
+    assert "tasks held twice at some step: " in out and "every step sampled" in out
     bad = tmp_path / "t.yaml"
     bad.write_text("tasks:\n  - {kind: visit}\n")
     assert main(["team", "sim", "--tasks", str(bad)]) == 2
     assert "t.yaml:2" in capsys.readouterr().err
+
+
+BORDER = """
+home: [-35.363261, 149.165230]
+tasks:
+  - {kind: border_patrol, n: 3, altitude: 20,
+     points: [[-35.3625, 149.1640], [-35.3625, 149.1660], [-35.3625, 149.1680]]}
+"""
+
+
+def test_a_divided_task_is_redivided_among_the_vehicles_left_when_one_drops_out() -> None:
+    """Seed 003 Sec. II: a border patrol for three vehicles; one dies (stops flying and broadcasting). Once
+    its voc ran out at the station, the border is redivided into two pieces and each vehicle left patrols
+    one (sampled every step: never a piece held by two)."""
+    sim = TeamSim(task_script_from_yaml(BORDER), 3, loss=0.0, seed=2, voc_max=6)
+    sim.run(60.0)
+    pieces = [t for t in sim.ledger.board().live() if t.group]
+    assert len(pieces) == 3 and {sim.ledger.holder(t.id) for t in pieces} == {1, 2, 3}
+    group = pieces[0].group
+    victim = sim.ledger.holder(pieces[0].id)
+    assert victim is not None
+    sim.vehicles[victim - 1].alive = False
+    sim.run(sim.now + 30.0)
+    live = [t for t in sim.ledger.board().live() if t.group == group]
+    assert len(live) == 2, [(t.id, t.state) for t in sim.ledger.board().tasks]
+    assert {sim.ledger.holder(t.id) for t in live} == {1, 2, 3} - {victim}
+    assert any(e["event"] == "redivided" and e.get("why") == "dropout" for e in sim.station.log.entries)
+    assert sim.result().held_twice_longest_s <= 4 * sim.period_s
+
+
+def test_the_operator_redivides_among_the_vehicles_that_can_fly_it() -> None:
+    sim = TeamSim(task_script_from_yaml(BORDER), 2, loss=0.0, seed=2)
+    sim.run(40.0)  # three pieces for two vehicles: one waits
+    group = next(t.group for t in sim.ledger.board().live())
+    ids = sim.station.redivide(group)
+    assert len(ids) == 2
+    sim.run(sim.now + 40.0)
+    assert {sim.ledger.holder(i) for i in ids} == {1, 2}
+    with pytest.raises(ValueError, match="group"):
+        sim.station.redivide(ids[0])  # a piece is not a divided task
+
+
+def test_the_offer_of_a_smaller_n_counts_a_vehicle_whose_claims_are_not_flown_yet_as_free() -> None:
+    """Under CBBA a vehicle's bundle may hold claims it does not fly yet: it re-bids when new tasks come, so
+    it is free for a border patrol's N; a vehicle flying a task is not."""
+    from companion.team.station import TeamControlStation
+    from companion.team.tasks import TaskDef
+    from companion.team.transport import MemoryBus
+    from companion.team.types import Claim, ClaimState, MemberEntry, MemberStatus
+
+    st = TeamControlStation(MemoryBus("offer").attach())
+    (v,) = st.add(TaskDef("visit", ((-35.3625, 149.1640, 20.0),))).ids
+    rows = [MemberEntry(member=1, stamp=1.0, seq=1, voc=5, status=MemberStatus.BUSY,
+                        claims=(Claim(v, 1, 10.0, ClaimState.CLAIMED),)),
+            MemberEntry(member=2, stamp=1.0, seq=1, voc=5, status=MemberStatus.IDLE),
+            MemberEntry(member=3, stamp=1.0, seq=1, voc=5, status=MemberStatus.BUSY,
+                        claims=(Claim(v, 1, 5.0, ClaimState.ACTIVE),))]
+    st.state.merge(rows)
+    assert st.free_vehicles() == 2
+    border = TaskDef("border_patrol", ((-35.3625, 149.1640, 20.0), (-35.3625, 149.1680, 20.0)), n=3)
+    result = st.add(border)
+    assert result.offer == 2 and result.free == 2 and not result.ids
+    assert st.add(TaskDef("border_patrol", border.points, n=2)).added

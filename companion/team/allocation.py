@@ -6,9 +6,18 @@ central allocator. :meth:`AllocationPolicy.decide` is pure: from the rows, the b
 function and its current claims it returns its new claims, which the caller publishes.
 
 Only live tasks (on the board, not done or cancelled, claims of the board's version) and only members
-whose status is available count. A claim that is ACTIVE (being flown) or DONE cannot be outbid, except
-that of two ACTIVE claims (flown by both after a partition) the clearly costlier yields, and within the
-hysteresis margin the higher id.
+whose status is available count. A DONE claim cannot be outbid. An ACTIVE claim (being flown) yields
+only to a clearly cheaper one (seed 003 Sec. III-B: "when one UAV sees that the other could complete the
+task at a lower cost, it gives up the task"): a claim cheaper by the *active* hysteresis margin
+(:data:`ACTIVE_MARGIN_REL` of the holder's cost, at least :data:`ACTIVE_MARGIN_ABS`), wider than the margin
+between merely claimed tasks, so that a task being flown does not flap between two vehicles whose costs
+differ a little. Of two ACTIVE claims (flown by both: after a partition, or two vehicles that started
+flying at once) the one clearly dearer (by :data:`ACTIVE_TIE`) yields, and within that band the higher id
+yields: each member compares the cost it *published* with the rival's published one (never its fresh
+cost with the rival's a period older: both approach the task, so each would read itself cheaper and both
+would fly it to the end). The holder's cost of an ACTIVE task is refreshed every decision (it falls as it
+approaches) and is 0 once it has reached the task (:data:`REACHED`): a vehicle working on its task is
+never out-bid by one that would first have to fly there.
 
 :class:`GreedyPolicy` is seed 003's rule: "each UAV selects the task that it could complete at the lowest
 cost to itself (a greedy algorithm), and then broadcasts its selection. In the event that two UAVs select
@@ -39,6 +48,20 @@ CostFn = Callable[[TeamTask], float]
 _FIRM = 0
 _SOFT = 1
 
+#: an ACTIVE claim yields to a claim cheaper by this fraction of its cost ...
+ACTIVE_MARGIN_REL = 0.25
+#: ... and by at least this much (cost units: s of flight, m for the Euclidean cost)
+ACTIVE_MARGIN_ABS = 5.0
+#: an ACTIVE claim whose cost fell below this has reached its task: its cost is 0 from then on
+REACHED = 2.0
+#: of two ACTIVE claims on one task, costs closer than this are a tie (the lower id keeps the task): wider
+#: than the drift of two approaching vehicles' costs between their rows (a period each)
+ACTIVE_TIE = 5.0
+#: a challenger judges an ACTIVE holder's cost as this much lower than the row says: the holder's cost falls
+#: as it approaches (up to 1 s a second) and the challenger reads a row up to a period or two old, so without
+#: it the challenger would claim a task the holder (checking its fresher cost) keeps: both would hold it
+ACTIVE_DRIFT = 2.0
+
 
 @dataclass(frozen=True)
 class Rival:
@@ -47,9 +70,45 @@ class Rival:
     member: int
     cost: float
     firm: bool  #: ACTIVE or DONE
+    done: bool = False  #: DONE (never outbid); firm and not done: ACTIVE
+
+    @property
+    def active(self) -> bool:
+        return self.firm and not self.done
 
     def key(self) -> tuple[int, float, int]:
         return (_FIRM if self.firm else _SOFT, self.cost, self.member)
+
+
+def clearly_cheaper(bid: float, holder_cost: float) -> bool:
+    """Does ``bid`` take a task flown (ACTIVE) at ``holder_cost``? Only when cheaper by the active margin."""
+    return bid < holder_cost - _margin(holder_cost, ACTIVE_MARGIN_REL, ACTIVE_MARGIN_ABS)
+
+
+def active_cost(previous: float, now: float) -> float:
+    """The holder's cost of its ACTIVE task: ``now``, and 0 once it reached the task (latched)."""
+    return 0.0 if previous <= 0.0 or now < REACHED else now
+
+
+def active_loses(me: int, c: Claim, rs: Sequence[Rival]) -> bool:
+    """My ACTIVE claim ``c`` (its cost as I published it) yields: to a DONE report, to an ACTIVE rival that
+    beats it (:func:`_active_beats`), or to a claim clearly cheaper (the active margin)."""
+    for r in rs:
+        if r.done:
+            return True
+        if r.firm and _active_beats(r.cost, r.member, c.cost, me):
+            return True
+        if not r.firm and clearly_cheaper(r.cost, c.cost):
+            return True
+    return False
+
+
+def _active_beats(cost: float, member: int, mine: float, me: int) -> bool:
+    """Does an ACTIVE claim at ``cost`` by ``member`` beat mine? One that reached the task (0) beats one that
+    did not; else cheaper by :data:`ACTIVE_TIE`, or within it with the lower id."""
+    if (cost <= 0.0) != (mine <= 0.0):
+        return cost <= 0.0
+    return cost < mine - ACTIVE_TIE or (abs(cost - mine) <= ACTIVE_TIE and member < me)
 
 
 def rivals(me: int, entries: Mapping[int, MemberEntry], board: TaskBoard) -> dict[int, list[Rival]]:
@@ -63,7 +122,7 @@ def rivals(me: int, entries: Mapping[int, MemberEntry], board: TaskBoard) -> dic
             if live.get(c.task) != c.version or c.state is ClaimState.FAILED:
                 continue
             firm = c.state in (ClaimState.ACTIVE, ClaimState.DONE)
-            out.setdefault(c.task, []).append(Rival(m, c.cost, firm))
+            out.setdefault(c.task, []).append(Rival(m, c.cost, firm, c.state is ClaimState.DONE))
     return out
 
 
@@ -122,7 +181,8 @@ class GreedyPolicy(AllocationPolicy):
     task I can do at the lowest cost among those I can win; a task another member claims can be won only
     by a cost lower than its reported cost by the margin (hysteresis: costs change as vehicles fly, tasks
     must not flap); nothing left -> no claim (loiter). An ACTIVE claim is never given up for a cheaper
-    task. My reported cost of a claimed task is refreshed every decision (it falls as I approach).
+    task, and a task flown by another member is won only by a clearly cheaper claim (module docstring).
+    My reported cost of a claimed task is refreshed every decision (it falls as I approach).
 
     ``margin_rel`` and ``margin_abs`` (cost units) set the hysteresis.
     """
@@ -151,7 +211,7 @@ class GreedyPolicy(AllocationPolicy):
                 excluded.add(c.task)
                 log.debug("member %d: conflict on task %d, yields", me, c.task)
         if mine is not None and mine.state is ClaimState.ACTIVE:
-            return (replace(mine, cost=cost(live[mine.task])), *parked)
+            return (replace(mine, cost=active_cost(mine.cost, cost(live[mine.task]))), *parked)
         costs = {tid: cost(t) for tid, t in live.items() if tid not in excluded}
         if mine is not None:
             now = costs.get(mine.task, mine.cost)
@@ -171,27 +231,33 @@ class GreedyPolicy(AllocationPolicy):
         return (Claim(best[1], live[best[1]].version, best[0]), *parked)
 
     def _loses(self, me: int, c: Claim, rs: list[Rival]) -> bool:
-        for r in rs:
-            if c.state is ClaimState.ACTIVE:
-                if r.firm and self._active_loses(me, c, r):
-                    return True
-            elif r.firm or (r.cost, r.member) < (c.cost, me):
-                return True
-        return False
+        if c.state is ClaimState.ACTIVE:
+            return active_loses(me, c, rs)
+        return any(_claimed_loses(me, c, r) for r in rs)
 
     def _winnable(self, me: int, c: float, rs: list[Rival]) -> bool:
-        return all(not r.firm and c < r.cost - self._margin(r.cost) for r in rs)
+        return all(_beats(c, r, self._margin(r.cost)) for r in rs)
 
-    def _active_loses(self, me: int, c: Claim, r: Rival) -> bool:
-        """Two ACTIVE claims (both flew the task, e.g. apart during a partition): the clearly cheaper keeps
-        it; within the hysteresis margin the lower id does. Each compares its own cost with the other's
-        reported one, a moment older: without the margin two vehicles both on a patrol line (costs near 0,
-        changing as they fly) could each find itself the cheaper and both fly it for ever."""
-        if r.cost < c.cost - self._margin(c.cost):
-            return True
-        if c.cost < r.cost - self._margin(r.cost):
-            return False
-        return r.member < me
+
+def _claimed_loses(me: int, c: Claim, r: Rival) -> bool:
+    """My merely CLAIMED ``c`` against rival ``r``: a DONE report wins; an ACTIVE holder wins unless my
+    claim is clearly cheaper than its cost; another claim wins with a lower (cost, id)."""
+    if r.done:
+        return True
+    if r.active:
+        return not clearly_cheaper(c.cost, r.cost)
+    return (r.cost, r.member) < (c.cost, me)
+
+
+def _beats(bid: float, r: Rival, margin: float) -> bool:
+    """Can a new claim at ``bid`` take a task ``r`` holds? Never a DONE one; an ACTIVE one when clearly
+    cheaper than its cost less :data:`ACTIVE_DRIFT` (the holder judges with a fresher cost); a CLAIMED one
+    when lower by ``margin`` (hysteresis)."""
+    if r.done:
+        return False
+    if r.active:
+        return clearly_cheaper(bid, r.cost - ACTIVE_DRIFT)
+    return bid < r.cost - margin
 
 
 class CbbaPolicy(AllocationPolicy):
@@ -282,22 +348,25 @@ class CbbaPolicy(AllocationPolicy):
         # 1. release: outbid on a task -> drop it and everything added after it (ACTIVE ones stay)
         bundle: list[Claim] = []
         lost = False
+        outbid: set[int] = set()  # not bid for again in this decision (a drop and re-bid would hold it on)
         for c in held:
             if c.state is ClaimState.ACTIVE:
-                if any(r.firm and (r.cost, r.member) < (c.cost, me) for r in riv.get(c.task, [])):
+                if active_loses(me, c, riv.get(c.task, [])):  # the cost I published against theirs
                     self.conflicts += 1
                     lost = True
+                    outbid.add(c.task)
                     continue
-                bundle.append(c)
+                bundle.append(replace(c, cost=active_cost(c.cost, cost(live[c.task]))))
                 continue
             if lost:
                 continue
-            if any(r.firm or (r.cost, r.member) < (c.cost, me) for r in riv.get(c.task, [])):
+            if any(_claimed_loses(me, c, r) for r in riv.get(c.task, [])):
                 self.conflicts += 1
                 lost = True
+                outbid.add(c.task)
                 continue
             bundle.append(c)
-        excluded = {c.task for c in parked} | {c.task for c in bundle}
+        excluded = {c.task for c in parked} | {c.task for c in bundle} | outbid
         # 2. bundle building
         path = self._path(at, bundle, live, cost)
         first_fixed = any(c.state is ClaimState.ACTIVE for c in bundle)
@@ -312,8 +381,7 @@ class CbbaPolicy(AllocationPolicy):
                     continue
                 bid = max(marginal, last)
                 rs = riv.get(tid, [])
-                if not all(not r.firm and bid < r.cost - _margin(r.cost, self.margin_rel, self.margin_abs)
-                           for r in rs):
+                if not all(_beats(bid, r, _margin(r.cost, self.margin_rel, self.margin_abs)) for r in rs):
                     continue
                 if best is None or (bid, tid) < best[:2]:
                     best = (bid, tid, idx)

@@ -71,8 +71,9 @@ class CostModel:
                 raise ValueError(f"{name}: must be a finite number > 0, got {v!r}")
 
     def leg_time(self, horizontal: float, vertical: float = 0.0, speed: float = 0.0) -> float:
-        """Seconds to fly ``horizontal`` m from rest to rest and climb/descend ``vertical`` m."""
-        v = min(speed, self.speed) if speed > 0 else self.speed
+        """Seconds to fly ``horizontal`` m from rest to rest and climb/descend ``vertical`` m, at ``speed``
+        (a task's own speed, the one its tree flies: bids and flights agree) or the standard speed (0)."""
+        v = speed if speed > 0 else self.speed
         d = abs(horizontal)
         if d >= v * v / self.accel:
             t = d / v + v / self.accel

@@ -9,7 +9,10 @@ along with its knowledge of its own state" (controlled flooding). :class:`TeamLi
   (garbage and foreign versions counted, never raised; its own echoes dropped by sender id); once a
   period has passed since the last broadcast it refreshes the own row (the content from ``own()``,
   stamped ``now`` with the next sequence number: the owner's (stamp, seq) always advances), ticks the
-  votes of confidence (one sample interval per period) and broadcasts every alive row it knows.
+  votes of confidence (one sample interval per period) and broadcasts its own row, the rows others need
+  and a digest of what it knows (:mod:`companion.team.gossip`: a packet's rows and digest entries are
+  bounded whatever the team's size); ``selection="full"`` sends every alive row it knows instead (seed
+  003's plain flooding, O(N^2) on the channel, kept for comparison in the bench).
 * The task board floods too: the station (member 0) sends it with every broadcast, members relay it
   with every ``relay_board_every``-th broadcast and with the first one after they learned a newer
   board, so it spreads in about one period per hop while the bandwidth stays low.
@@ -48,6 +51,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from companion.team.auth import FUTURE_WINDOW_S, ReplayGuard
+from companion.team.gossip import Gossip
 from companion.team.groupstate import GroupState
 from companion.team.transport import Transport
 from companion.team.types import STATION_ID, MemberEntry, TaskBoard
@@ -93,6 +97,9 @@ class LinkStats:
     send_errors: int = 0
     broadcasts: int = 0
     announcements: int = 0        #: broadcasts between periods (a member announcing new claims)
+    rows_relayed: int = 0         #: rows of others sent (asked for in a digest, new or changed)
+    digests: int = 0              #: digests received (in a STATE packet or a DIGEST one)
+    digests_sent: int = 0         #: digests sent
     first_send: float | None = None
     last_send: float | None = None
     max_packet: int = 0
@@ -127,7 +134,8 @@ class TeamLink:
     def __init__(self, state: GroupState, transport: Transport, *, period_s: float = DEFAULT_PERIOD_S,
                  clock: Callable[[], float] = time.time, own: Callable[[], MemberEntry | None] | None = None,
                  relay_board_every: int = 4, max_packet: int = MAX_PACKET, key: bytes | None = None,
-                 future_s: float = FUTURE_WINDOW_S) -> None:
+                 future_s: float = FUTURE_WINDOW_S, selection: str = "digest",
+                 gossip: Gossip | None = None) -> None:
         if not period_s > 0:
             raise ValueError(f"TeamLink: period_s {period_s!r} must be positive")
         if relay_board_every < 1:
@@ -135,6 +143,10 @@ class TeamLink:
         self.state, self.transport = state, transport
         self.period_s, self.clock, self._own_fn = period_s, clock, own
         self.relay_board_every, self.max_packet = relay_board_every, max_packet
+        if selection not in ("digest", "full"):
+            raise ValueError(f"TeamLink: selection {selection!r} is not 'digest' or 'full'")
+        self.selection = selection
+        self.gossip = gossip or Gossip(state.own_id, period_s)
         self.stats = LinkStats()
         self.key = key
         self.future_s = future_s
@@ -193,6 +205,9 @@ class TeamLink:
                 events.extend(self._duplicate_of_self(pkt))
             return
         self._watch_duplicates(pkt, events)
+        if pkt.digest:
+            self.stats.digests += 1
+            self.gossip.heard_digest(pkt.digest, pkt.sender, self.state)
         if pkt.rows:
             rows = []
             for r in pkt.rows:
@@ -200,7 +215,13 @@ class TeamLink:
                     self._count_future("row", r.member, r.stamp, now)
                 else:
                     rows.append(r)
+            self.gossip.heard_rows(rows, pkt.sender)
+            before = {r.member: self.state.get(r.member) for r in rows}
             res = self.state.merge(rows, sender=pkt.sender)
+            for m, old in before.items():
+                row = self.state.get(m)
+                if row is not None and (old is None or (row.epoch, row.seq) != (old.epoch, old.seq)):
+                    self.gossip.taken(old, row, now, pkt.sender)
             self.stats.rows_replaced += res.replaced
             self.stats.vocs_raised += res.raised
             self.stats.other_epoch += len(res.other_epoch)
@@ -314,7 +335,7 @@ class TeamLink:
                 self._refresh_own(now)
             gone = self.state.tick()
             if self.refused is None:
-                self._broadcast(now)
+                self._broadcast(now, periodic=True)
             else:
                 self._beacon(now)
         self._notify([LinkEvent("gone", member=m) for m in gone])
@@ -351,24 +372,40 @@ class TeamLink:
         self._send(encode_packets(self.own_id, [], None, max_size=self.max_packet, epoch=self.epoch,
                                   stamp=now, pseq=self._pseq, key=self.key), now)
 
-    def _broadcast(self, now: float) -> None:
-        rows = sorted(self.state.alive().values(), key=lambda e: e.member != self.own_id)  # own row first
+    def _select(self, periodic: bool) -> list[MemberEntry]:
+        """The rows this broadcast carries, own row first: every alive one (``full``), or the own row and
+        the relays the gossip picks (an announcement between periods: the own row only)."""
+        if self.selection == "full":
+            return sorted(self.state.alive().values(), key=lambda e: e.member != self.own_id)
+        own = self.state.own()
+        rows = [own] if own is not None else []
+        if periodic:
+            relays = self.gossip.relays(self.state)
+            self.stats.rows_relayed += len(relays)
+            rows += relays
+        return rows
+
+    def _broadcast(self, now: float, periodic: bool = False) -> None:
+        rows = self._select(periodic)
         if not rows:
             return
         board = self.state.board
         send_board = bool(board.tasks) or board.seq > 0 or board.stamp > 0 or board.epoch != 0
         if send_board and self.own_id != STATION_ID:
             send_board = self._board_news or self.stats.broadcasts % self.relay_board_every == 0
+        digest = self.gossip.digest(self.state, now) if periodic and self.selection == "digest" else []
         try:
             packets = encode_packets(self.own_id, rows, board if send_board else None,
                                      max_size=self.max_packet, epoch=self.epoch, stamp=now,
-                                     pseq=self._pseq, key=self.key)
+                                     pseq=self._pseq, key=self.key, digest=digest)
         except WireError as exc:
             log.error("member %d: group state not encodable, not sent: %s", self.own_id, exc)
             self.stats.send_errors += 1
             return
         if send_board:
             self._board_news = False
+        if digest:
+            self.stats.digests_sent += 1
         self._send(packets, now)
 
     def _send(self, packets: list[bytes], now: float) -> None:

@@ -19,7 +19,10 @@ three occasions, conflicts were declared when two UAVs claimed the same task. Th
 resolved"). A task whose tree succeeded is reported DONE in the row until the board says it is done; a task
 whose tree failed (rejected by delegation, or failed in flight) is reported FAILED and not claimed again by
 this vehicle for :data:`~companion.team.decision.RETRY_FAILED_S`. A vehicle bids only once it is
-localized (seed 001's SELF_LOCALIZE active: ArduCopter's EKF takes tens of seconds after boot).
+localized (seed 001's SELF_LOCALIZE active: ArduCopter's EKF takes tens of seconds after boot); a
+vehicle that loses its localization while its tree flies a task keeps its claims (no new bids) until the
+tree ends: the tree flies the task whatever the belief says, and a claim dropped would let another
+vehicle take the task and both fly it.
 
 Identity: a member whose link refuses to join (another member has used its id longer:
 :mod:`companion.team.link`) publishes no claims and flies no team task; its report says
@@ -201,8 +204,9 @@ class TeamMember:
             if self.switchboard.controller is Controller.TEAM and self._paused():
                 return  # a break-in by the operator: the claims stand until it is resumed
             if not self._ready():
-                self.decision.clear()  # no bids before the vehicle knows where it is (its estimate healthy)
-                return
+                if not self._flying_team_tree():
+                    self.decision.clear()  # no bids before the vehicle knows where it is
+                return  # a tree still flies its task: the claims stand (the tree, not the belief, flies it)
             board = self.state.board
             rows = {m: e for m, e in self.state.alive().items() if m != self.id}
             self._progress()
@@ -231,6 +235,15 @@ class TeamMember:
         """The executive layer localizes the vehicle (SELF_LOCALIZE active: a healthy estimate), so the
         motion behaviors a task needs may start."""
         return self.missions.layer.coordinator.is_active("SELF_LOCALIZE")
+
+    def _flying_team_tree(self) -> bool:
+        """The team's tree of a held task is still running (loaded, running or paused): while it flies, the
+        task is this vehicle's whatever the localization belief says, so its claims are kept (dropping them
+        would let another vehicle claim the "free" task and two vehicles fly it)."""
+        if self.switchboard.controller is not Controller.TEAM or self.switchboard.task is None:
+            return False
+        out = self.switchboard.outcome()
+        return out is not None and out.state not in ("succeeded", "failed", "aborted")
 
     def _paused(self) -> bool:
         status = self.missions.execution.root_status()

@@ -81,6 +81,8 @@ class SimVehicle:
         self.decision = DecisionStep(member, self.policy, sim.model.cost, clock=lambda: sim.now)
         self.work: Work | None = None
         self.alive = True
+        self.flown_m = 0.0      #: horizontal metres flown (toward tasks later lost too)
+        self.moving_s = 0.0     #: simulated seconds spent moving
 
     @property
     def claims(self) -> tuple[Claim, ...]:
@@ -116,6 +118,7 @@ class SimVehicle:
         return (n, e, -up)
 
     def _plan(self, t: TeamTask) -> Work:
+        self.body.speed = t.speed if t.speed > 0 else self.sim.model.speed  # the task's speed, as bid
         route = kinds.for_task(t.kind).route(t, self.geo())
         loop = [self._local(p) for p in route.loop] if route.loop is not None else None
         return Work(t, [self._local(p) for p in route.waypoints], loop=loop, scan_left=route.scan_m)
@@ -131,7 +134,7 @@ class SimVehicle:
             return
         w = self.work
         if w is None:
-            self.body.fly_toward(self.body.p, dt)  # loiter where it is
+            self._count(self.body.fly_toward(self.body.p, dt), dt)  # loiter where it is (braking first)
             return
         target = w.waypoints[0] if w.waypoints else None
         if target is None and w.loop:
@@ -139,6 +142,7 @@ class SimVehicle:
         if target is None:
             return
         moved = self.body.fly_toward(target, dt)
+        self._count(moved, dt)
         if w.scan_left > 0 and not w.waypoints:
             w.scan_left -= moved
             if w.scan_left <= 0:
@@ -160,6 +164,11 @@ class SimVehicle:
             elif not w.loop:
                 w.loop = self._reverse(w.task, pt)  # a patrol turns back at its end
 
+    def _count(self, moved: float, dt: float) -> None:
+        self.flown_m += moved
+        if moved > 1e-6:
+            self.moving_s += dt
+
     def _reverse(self, t: TeamTask, last: Vec3) -> list[Vec3]:
         pts = [self._local(with_altitude(t, p)) for p in t.points]
         if math.dist(pts[0], last) < math.dist(pts[-1], last):
@@ -177,10 +186,10 @@ class SimResult:
     conflict_free_at: float | None
     duration: float
     done_by: dict[int, int] = field(default_factory=dict)
-    held_twice_at_end: int = 0
     held_twice_s: dict[int, float] = field(default_factory=dict)
-    """Per task ever held by two or more vehicles at once (claimed or active, while live): the simulated
-    seconds it was, summed over the whole run (every step sampled, :meth:`TeamSim.step`)."""
+    """Per task ever held by two or more vehicles at once (claimed or active, whatever the task's state on
+    the board): the simulated seconds it was, summed over the whole run (every step sampled,
+    :meth:`TeamSim.step`); its keys are the tasks held twice at some step."""
     held_twice_longest_s: float = 0.0
     """The longest stretch of simulated seconds any one task was held by two or more vehicles at once:
     how long a conflict (seed 003 Sec. III-B) lasted before one of them let the task go."""
@@ -291,12 +300,14 @@ class TeamSim:
         return not (free and room)
 
     def held_twice(self) -> dict[int, int]:
-        """Live tasks held (claimed or active) by two or more vehicles now (the true claims): how many."""
-        live = {t.id for t in self.ledger.board().live()}
+        """Tasks held (claimed or active) by two or more living vehicles now (their true claims, done or
+        cancelled tasks included: a vehicle still flying a task the board says is over holds it): how many."""
         count: dict[int, int] = {}
         for v in self.vehicles:
+            if not v.alive:
+                continue
             for c in v.claims:
-                if c.task in live and c.state in (ClaimState.CLAIMED, ClaimState.ACTIVE):
+                if c.state in (ClaimState.CLAIMED, ClaimState.ACTIVE):
                     count[c.task] = count.get(c.task, 0) + 1
         return {t: n for t, n in count.items() if n > 1}
 
@@ -345,7 +356,6 @@ class TeamSim:
                          changes=list(self.changes),
                          conflict_free_at=self._last_bad if self.conflict_free() else None,
                          duration=self.now, done_by=dict(self.done_by),
-                         held_twice_at_end=len(self.held_twice()),
                          held_twice_s=dict(self.held_twice_s), held_twice_longest_s=self.held_twice_longest_s,
                          claims={v.member: v.claims for v in self.vehicles})
 

@@ -55,5 +55,6 @@ def run_sim(args: argparse.Namespace) -> int:
     print(f"\n{args.vehicles} vehicles, policy {args.policy}, loss {args.loss:g}: "
           f"{r.duration:.1f} s simulated, "
           f"{r.conflicts} conflicts declared, conflict-free since {cf}, "
-          f"tasks held twice at the end: {r.held_twice_at_end}")
+          f"tasks held twice at some step: {len(r.held_twice_s)} "
+          f"(longest {r.held_twice_longest_s:.2f} s, every step sampled)")
     return 0

@@ -13,7 +13,14 @@ tasks is greater than the number of unassigned UAVs, the user is offered the cho
 of UAVs assigned to the border patrol task. In this event, the border task is automatically redivided into
 a smaller number of individual tasks and reassigned." :meth:`TeamControlStation.add` answers such a
 request with the offer and changes nothing; the operator adds it again with the smaller N, or with
-``force`` to keep N (the pieces wait for vehicles). :meth:`redivide` re-divides a task already added.
+``force`` to keep N (the pieces wait for vehicles). A vehicle is free when it flies no task (no ACTIVE
+claim): under CBBA a vehicle whose bundle holds only claims not yet flown re-bids for the new pieces.
+
+:meth:`redivide` re-divides a task already added (the operator's ``POST /api/tasks/{id}/redivide``; without
+N, into as many pieces as vehicles can fly it now). When vehicles drop out of a divided task (a piece's
+holder gone, taken or overridden, and no free vehicle to take the piece over), the station redivides it
+among the vehicles left (:meth:`step`, logged as ``redivided`` with ``why: dropout``), as seed 003 does
+for the smaller N.
 
 Durability: an operator verb's change is handed to :attr:`TeamControlStation.persist` (the ground
 service's database) before it is published; if that raises, the ledger is put back as it was and the
@@ -110,6 +117,7 @@ class TeamControlStation:
         self.persist: Callable[[dict[str, Any]], None] | None = None
         self._held: set[int] = set()
         self._hold_pending = False
+        self._piece_holders: dict[int, int] = {}  # piece of a divided task -> the last vehicle that held it
 
     # --- lifecycle --------------------------------------------------------------------------------------
     def start(self) -> TeamControlStation:
@@ -160,12 +168,34 @@ class TeamControlStation:
             self._held -= set(ids)
             return ids
 
-    def redivide(self, group: int, n: int) -> tuple[int, ...]:
+    def redivide(self, group: int, n: int | None = None, why: str = "operator") -> tuple[int, ...]:
+        """Re-divide the divided task ``group`` into ``n`` pieces (None: as many as vehicles can fly it now:
+        those holding one of its pieces and the free ones; at least 1). ValueError for a task that is
+        not divided, finished, or a bad N (nothing changes then)."""
         with self._lock:
+            if not self._live_pieces(group):
+                raise ValueError(f"group: task {group} is not a divided task with live pieces")
+            if n is None:
+                n = max(1, self.capacity(group))
+            if n < 1:
+                raise ValueError(f"n: must be >= 1, got {n}")
             before = self.ledger.export() if self.persist else None
             ids = self.ledger.redivide(group, n, self.clock())
-            self._commit(before, "redivided", group=group, n=n, ids=list(ids))
+            self._commit(before, "redivided", group=group, n=n, ids=list(ids), why=why)
             return ids
+
+    def _live_pieces(self, group: int) -> list[int]:
+        return [t.id for t in self.ledger.board().live() if t.group == group and group != 0]
+
+    def capacity(self, group: int) -> int:
+        """Vehicles that can fly the divided task ``group`` now: those holding one of its live pieces and
+        the free ones (:meth:`free_vehicles`) holding none."""
+        pieces = set(self._live_pieces(group))
+        rows = self.vehicle_rows()
+        holders = {m for m, e in rows.items() if e.status.available
+                   and any(c.task in pieces and c.state in (ClaimState.CLAIMED, ClaimState.ACTIVE)
+                           for c in e.claims)}
+        return len(holders) + sum(1 for m, e in rows.items() if m not in holders and self._free(e))
 
     def _commit(self, before: LedgerSnapshot | None, event: str, **fields: Any) -> None:
         """Persist an operator verb's change (undone if that fails, the error raised), then record and
@@ -244,7 +274,35 @@ class TeamControlStation:
                 self._record("task", task=tid, state=state.value, holder=holder)
             if changes:
                 self._publish()
+            self._redivide_after_dropouts(derived, rows)
             return changes
+
+    def _redivide_after_dropouts(self, derived: dict[int, tuple[TaskState, int | None, float]],
+                                 rows: dict[int, MemberEntry]) -> None:
+        """A divided task whose pieces outnumber the vehicles that can fly it, after a piece's holder
+        dropped out (gone, taken, overridden: not among the available rows), is redivided among them."""
+        groups: dict[int, list[int]] = {}
+        for t in self.ledger.board().live():
+            if t.group and t.id not in self._held:  # a held task waits for the operator
+                groups.setdefault(t.group, []).append(t.id)
+        live = {tid for ids in groups.values() for tid in ids}
+        for tid in [t for t in self._piece_holders if t not in live]:
+            del self._piece_holders[tid]
+        available = {m for m, e in rows.items() if e.status.available}
+        for group, ids in groups.items():
+            holders = {tid: derived[tid][1] for tid in ids if tid in derived}
+            orphaned = [tid for tid in ids if holders.get(tid) is None
+                        and tid in self._piece_holders and self._piece_holders[tid] not in available]
+            for tid, holder in holders.items():
+                if holder is not None:
+                    self._piece_holders[tid] = holder
+            if not orphaned:
+                continue
+            n = self.capacity(group)
+            if 1 <= n < len(ids):
+                log.info("team station: task %d: pieces %s lost their vehicles; redivided among %d", group,
+                         orphaned, n)
+                self.redivide(group, n, why="dropout")
 
     def _watch_conflicts(self, rows: dict[int, MemberEntry]) -> None:
         """Seed 003 Sec. V: "conflicts were declared when two UAVs claimed the same task. These conflicts
@@ -317,13 +375,14 @@ class TeamControlStation:
         return {m: e for m, e in self.state.alive().items() if e.status is not MemberStatus.STATION}
 
     def free_vehicles(self) -> int:
-        """Vehicles in the team holding no live claim (seed 003: the unassigned UAVs)."""
-        n = 0
-        for e in self.vehicle_rows().values():
-            busy = any(c.state in (ClaimState.CLAIMED, ClaimState.ACTIVE) for c in e.claims)
-            if e.status.available and not busy:
-                n += 1
-        return n
+        """Vehicles in the team flying no task (seed 003: the unassigned UAVs): a claim not yet flown does
+        not bind a vehicle (under CBBA its bundle is re-bid when new tasks come; under greedy it is held
+        for a moment before it is flown)."""
+        return sum(1 for e in self.vehicle_rows().values() if self._free(e))
+
+    @staticmethod
+    def _free(e: MemberEntry) -> bool:
+        return e.status.available and not any(c.state is ClaimState.ACTIVE for c in e.claims)
 
     def tasks(self) -> list[TaskView]:
         with self._lock:

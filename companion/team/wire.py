@@ -10,8 +10,11 @@ Layout (all integers big-endian, ``struct``)::
     header   magic b"TF" | version u8 (=2) | kind u8 | flags u8 (bit 0: signed) | sender u32
              | epoch u64 (the sender's boot epoch) | stamp f64 (the sender's clock, s) | pseq u32 (the
              sender's packet number in its epoch)
-    body     kind STATE (1): n_rows u8, n_rows x row, has_board u8, [board part]
+    body     kind STATE (1): n_rows u8, n_rows x row, parts u8 (bit 0: a board part follows, bit 1: a
+             digest), [board part], [digest]
              kind BOARD (2): board part
+             kind DIGEST (3): digest
+    digest   n u8, n x (member u32 | epoch tag u32 (the epoch's low 32 bits) | seq u32 | want u8)
     trailer  unsigned: crc32 u32 of everything before it
              signed: the first 16 bytes of HMAC-SHA256(key, everything before it) (:mod:`.auth`)
 
@@ -44,6 +47,11 @@ draw the same epoch with a probability of 2^-64), so freshness is (epoch, seq), 
 which packet number, and with a team key (:mod:`.auth`) the packet is signed as MAVLink 2 signing does
 (HMAC-SHA256 over the whole packet, a time stamp and a per-sender replay window, checked by
 :class:`~.auth.ReplayGuard`). Version 1 packets are foreign (counted, never taken).
+
+A digest (:mod:`.gossip`) names, per entry, a member, the (epoch's low 32 bits, seq) of the row the
+sender holds for it ((0, 0): none) and whether it wants a newer one; 13 bytes an entry. It rides in the
+last STATE packet of a broadcast when it fits there, else in a DIGEST packet, framed, numbered and
+signed like every other packet (:func:`encode_digest`).
 
 Names longer than 16 bytes are cut at a character boundary; positions are rounded to 1e-7 deg and 1 cm,
 velocities to 1 cm/s. Costs are float64: members compare each other's bids in a conflict (seed 003
@@ -82,6 +90,8 @@ MAGIC = b"TF"
 VERSION = 2
 KIND_STATE = 1
 KIND_BOARD = 2
+#: what a member knows of the rows, a slice of it per packet (:mod:`companion.team.gossip`)
+KIND_DIGEST = 3
 #: largest packet :func:`encode_packets` makes by default (bytes of UDP payload)
 MAX_PACKET = 1400
 NAME_MAX = 16
@@ -100,7 +110,10 @@ _CLAIM = struct.Struct("!IHdB")
 _PART = struct.Struct("!QdIIBBH")
 _TASK = struct.Struct("!IHBBIHdd")
 _POINT = struct.Struct("!iii")
+_DIGEST = struct.Struct("!IIIB")
 _NO_TST = 0xFFFFFFFF
+_PART_BOARD = 0x01   #: a STATE packet's parts flags: a board part follows the rows
+_PART_DIGEST = 0x02  #: ... and a digest after it
 
 _KIND_CODES: dict[TaskKind, int] = kinds.wire_codes()  #: each kind names its own code
 _KINDS = {v: k for k, v in _KIND_CODES.items()}
@@ -151,9 +164,22 @@ class BoardPart:
 
 
 @dataclass(frozen=True)
+class DigestEntry:
+    """One line of a digest: the (epoch tag, seq) of the row the sender holds for ``member`` ((0, 0): none;
+    the tag is the epoch's low 32 bits, :func:`companion.team.gossip.epoch_tag`); ``want``: the sender asks
+    for a newer one (its row went stale, or it never had one)."""
+
+    member: int
+    epoch: int
+    seq: int
+    want: bool = False
+
+
+@dataclass(frozen=True)
 class Packet:
     """A decoded packet: who sent it (member id, boot epoch, its clock's stamp, its packet number in the
-    epoch, signed or not), the group-state rows it carries and maybe a board part."""
+    epoch, signed or not), the group-state rows it carries and maybe a board part, or a digest (kind
+    DIGEST)."""
 
     sender: int
     kind: int
@@ -163,6 +189,7 @@ class Packet:
     stamp: float = 0.0
     pseq: int = 0
     signed: bool = False
+    digest: tuple[DigestEntry, ...] = ()
 
     @property
     def board(self) -> TaskBoard | None:
@@ -285,27 +312,38 @@ def peek_sender(data: bytes) -> int | None:
 
 def encode_packets(sender: int, entries: list[MemberEntry] | tuple[MemberEntry, ...],
                    board: TaskBoard | None = None, *, max_size: int = MAX_PACKET, epoch: int = 0,
-                   stamp: float = 0.0, pseq: int = 0, key: bytes | None = None) -> list[bytes]:
+                   stamp: float = 0.0, pseq: int = 0, key: bytes | None = None,
+                   digest: list[DigestEntry] | tuple[DigestEntry, ...] = ()) -> list[bytes]:
     """The packets that carry ``entries`` (and ``board``) from ``sender`` in its boot ``epoch``, each at
     most ``max_size`` bytes: STATE packets with as many rows as fit, the board inline in the last one
     when it fits whole, else BOARD packets with its parts. Each header carries ``stamp`` (the sender's
     clock) and a packet number (``pseq``, ``pseq + 1``, ... : the caller counts them); with ``key`` every
-    packet is signed. Raises :class:`WireError` for a value the format cannot carry (a member id over
-    32 bits, a NaN position, a board over 255 parts, a wrong type...)."""
+    packet is signed. A ``digest`` (:mod:`.gossip`) rides in the last STATE packet when it fits there,
+    else in a DIGEST packet of its own (one packet's header and signature saved each period). Raises
+    :class:`WireError` for a value the format cannot carry (a member id over 32 bits, a NaN position, a
+    board over 255 parts, a wrong type...)."""
     try:
         _u(sender, 32, "sender id")
         _u(epoch, 64, "epoch")
         _u(pseq, 32, "packet number")
         origin = _Origin(sender, epoch, _finite(stamp, "packet stamp"), pseq, key)
-        return _encode_packets(origin, entries, board, max_size)
+        return _encode_packets(origin, entries, board, max_size, _digest_bytes(digest) if digest else b"")
     except WireError:
         raise
     except (ValueError, TypeError, KeyError, AttributeError, struct.error, OverflowError) as exc:
         raise WireError(f"not encodable ({type(exc).__name__}: {exc})") from exc
 
 
+def _digest_bytes(entries: list[DigestEntry] | tuple[DigestEntry, ...]) -> bytes:
+    if len(entries) > 255:
+        raise WireError(f"{len(entries)} digest entries, at most 255")
+    return bytes([len(entries)]) + b"".join(
+        _DIGEST.pack(_u(e.member, 32, "digest member"), _u(e.epoch, 32, "digest epoch tag"),
+                     _u(e.seq, 32, "digest seq"), 1 if e.want else 0) for e in entries)
+
+
 def _encode_packets(origin: _Origin, entries: list[MemberEntry] | tuple[MemberEntry, ...],
-                    board: TaskBoard | None, max_size: int) -> list[bytes]:
+                    board: TaskBoard | None, max_size: int, digest: bytes = b"") -> list[bytes]:
     if max_size < 200:
         raise WireError(f"max_size {max_size} too small (at least 200 bytes)")
     rows = [encode_row(e) for e in entries]
@@ -337,12 +375,35 @@ def _encode_packets(origin: _Origin, entries: list[MemberEntry] | tuple[MemberEn
                 raise WireError(f"board of {len(body)} compressed bytes needs more than 255 parts")
             board_bodies = [_part_bytes(bepoch, stamp, seq, crc, i, len(chunks), c)
                             for i, c in enumerate(chunks)]
+    if len(digest) > room + 1:
+        raise WireError(f"digest of {len(digest)} bytes, more than a packet of {max_size} bytes holds")
+    digest_inline = bool(digest) and used + len(inline) + len(digest) <= room
     out = []
     for i, g in enumerate(groups):
         last = i == len(groups) - 1
-        tail = (b"\x01" + inline) if (last and inline) else b"\x00"
+        parts = (_PART_BOARD if last and inline else 0) | (_PART_DIGEST if last and digest_inline else 0)
+        tail = bytes([parts]) + (inline if last else b"") + (digest if last and digest_inline else b"")
         out.append(origin.frame(KIND_STATE, bytes([len(g)]) + b"".join(g) + tail))
-    return out + [origin.frame(KIND_BOARD, b) for b in board_bodies]
+    out += [origin.frame(KIND_BOARD, b) for b in board_bodies]
+    if digest and not digest_inline:
+        out.append(origin.frame(KIND_DIGEST, digest))
+    return out
+
+
+def encode_digest(sender: int, entries: list[DigestEntry] | tuple[DigestEntry, ...], *, epoch: int = 0,
+                  stamp: float = 0.0, pseq: int = 0, key: bytes | None = None) -> bytes:
+    """One DIGEST packet from ``sender`` in its boot ``epoch`` (at most 255 entries, 13 bytes each), framed
+    and signed as :func:`encode_packets` does; :class:`WireError` if not encodable."""
+    try:
+        _u(sender, 32, "sender id")
+        _u(epoch, 64, "epoch")
+        _u(pseq, 32, "packet number")
+        origin = _Origin(sender, epoch, _finite(stamp, "packet stamp"), pseq, key)
+        return origin.frame(KIND_DIGEST, _digest_bytes(entries))
+    except WireError:
+        raise
+    except (ValueError, TypeError, struct.error, OverflowError) as exc:
+        raise WireError(f"digest not encodable ({type(exc).__name__}: {exc})") from exc
 
 
 def encode_packet(sender: int, entries: list[MemberEntry] | tuple[MemberEntry, ...],
@@ -475,20 +536,38 @@ def _decode(data: bytes, key: bytes | None) -> Packet:
             raise WireError("bad CRC (corrupt or truncated packet)")
         end = len(data) - _CRC.size
     r = _Reader(data, _HEADER.size, end)
+    digest: tuple[DigestEntry, ...] = ()
     if code == KIND_STATE:
         rows = tuple(_read_row(r) for _ in range(r.u8("row count")))
-        has_board = r.u8("board flag")
-        if has_board not in (0, 1):
-            raise WireError(f"board flag {has_board}")
-        part = _read_part(r) if has_board else None
+        parts = r.u8("parts flags")
+        if parts & ~(_PART_BOARD | _PART_DIGEST):
+            raise WireError(f"parts flags {parts:#x}")
+        part = _read_part(r) if parts & _PART_BOARD else None
+        if parts & _PART_DIGEST:
+            digest = _read_digest_list(r)
     elif code == KIND_BOARD:
         rows, part = (), _read_part(r)
+    elif code == KIND_DIGEST:
+        rows, part = (), None
+        digest = _read_digest_list(r)
     else:
         raise WireError(f"unknown packet kind {code}")
     if r.pos != r.end:
         raise WireError(f"{r.end - r.pos} trailing bytes")
     return Packet(sender=sender, kind=code, rows=rows, board_part=part, epoch=epoch,
-                  stamp=_finite_in(stamp, "packet stamp"), pseq=pseq, signed=signed)
+                  stamp=_finite_in(stamp, "packet stamp"), pseq=pseq, signed=signed,
+                  digest=digest)
+
+
+def _read_digest_list(r: _Reader) -> tuple[DigestEntry, ...]:
+    return tuple(_read_digest(r) for _ in range(r.u8("digest count")))
+
+
+def _read_digest(r: _Reader) -> DigestEntry:
+    member, epoch, seq, want = _DIGEST.unpack(r.take(_DIGEST.size, "digest entry"))
+    if want not in (0, 1):
+        raise WireError(f"digest want flag {want}")
+    return DigestEntry(member, epoch, seq, bool(want))
 
 
 def decode_board_body(body: bytes, stamp: float, seq: int, body_crc: int, epoch: int = 0) -> TaskBoard:

@@ -5,6 +5,7 @@ from __future__ import annotations
 from typing import Annotated, Any
 
 from fastapi import APIRouter, Body, Path, Request
+from pydantic import BaseModel, Field
 
 from groundstation.schemas import (
     ErrorAnswer,
@@ -15,6 +16,7 @@ from groundstation.schemas import (
     TaskRequest,
     TasksReleased,
 )
+from taskflight_common.httpapi import ApiError
 
 from . import audited, service_of
 
@@ -54,3 +56,34 @@ def release_tasks(request: Request, body: Annotated[ReleaseRequest | None, Body(
     return audited(request, "release_tasks", "tasks" if ids is None else f"tasks {ids}",
                    body.model_dump() if body is not None else None,
                    lambda: {"released": svc.release_tasks(ids), "held": list(svc.station.held())})
+
+
+class RedivideRequest(BaseModel):
+    vehicles: int | None = Field(default=None, ge=1, le=255,
+                                 description="the new N (absent: the vehicles that can fly it now, "
+                                             "those holding one of its pieces and the free ones)")
+
+
+class TaskRedivided(BaseModel):
+    group: int = Field(description="the divided task")
+    ids: list[int] = Field(description="its new pieces (the old live ones are cancelled)")
+    vehicles: int = Field(description="the N used")
+
+
+@router.post("/tasks/{tid}/redivide", response_model=TaskRedivided,
+             responses={409: {"model": ErrorAnswer, "description": "not a divided task with live pieces"}})
+def redivide_task(request: Request, tid: Annotated[int, Path(ge=1, le=10**9)],
+                  body: RedivideRequest | None = None) -> Any:
+    """Re-divide a border patrol or area scan among N vehicles (seed 003 Sec. II); the station does it by
+    itself when vehicles drop out of it."""
+    svc = service_of(request)
+    n = body.vehicles if body is not None else None
+
+    def run() -> dict[str, Any]:
+        try:
+            ids = svc.station.redivide(tid, n)
+        except ValueError as exc:
+            raise ApiError(409, str(exc)) from None
+        return {"group": tid, "ids": list(ids), "vehicles": len(ids)}
+
+    return audited(request, "redivide_task", f"task {tid}", body.model_dump() if body else None, run)

@@ -13,7 +13,7 @@ from shapely.ops import nearest_points
 from companion.team.geometry import LocalFrame, split_polygon_equal_area
 from companion.team.types import GeoPoint, TaskKind, TeamTask
 
-from .base import Route, TeamTaskKind, piece_name, with_altitude
+from .base import Route, TeamTaskKind, altitude_params, piece_name, speed_params, with_altitude
 
 if TYPE_CHECKING:
     from companion.team.tasks import TaskDef
@@ -80,5 +80,5 @@ class AreaScan(TeamTaskKind):
 
     def node(self, task: TeamTask, standard_altitude: float) -> dict[str, Any]:
         return {"type": "scan-ground", "id": f"task{task.id}",
-                "params": {"area": [[p[0], p[1]] for p in task.points], "speed": "standard",
-                           "altitude": "standard", "data_uuid": f"team-task-{task.id}"}}
+                "params": {"area": [[p[0], p[1]] for p in task.points], **speed_params(task),
+                           **altitude_params(task), "data_uuid": f"team-task-{task.id}"}}

@@ -61,7 +61,13 @@ def altitude_of(task: TeamTask, point: GeoPoint, fallback: float) -> float:
 
 
 def speed_params(task: TeamTask) -> dict[str, Any]:
+    """The tree's speed: the task's own (m/s, flown and bid with) or the platform's standard."""
     return {"commanded_speed": float(task.speed)} if task.speed > 0 else {"speed": DEFAULT_SPEED}
+
+
+def altitude_params(task: TeamTask) -> dict[str, Any]:
+    """A scan's altitude: the task's own (m above home) or the platform's standard."""
+    return {"commanded_altitude": float(task.altitude)} if task.altitude > 0 else {"altitude": "standard"}
 
 
 def piece_name(name: str, k: int) -> str:
@@ -170,5 +176,5 @@ class PatrolKind(TeamTaskKind):
         wps = [[p[0], p[1], altitude_of(task, p, standard_altitude)] for p in task.points]
         return {"type": "scan-ground", "id": f"task{task.id}",
                 "params": {"waypoints_scan_flag": True, "waypoints": wps, "segment_flag": False,
-                           "repeat_flag": True, "loiter_mode": "pass", "speed": "standard",
+                           "repeat_flag": True, "loiter_mode": "pass", **speed_params(task),
                            "data_uuid": f"team-task-{task.id}"}}

@@ -25,6 +25,7 @@ from companion.tst.executor import TstExecutor
 from companion.tst.leaves.base import LeafType
 from companion.tst.leaves.common import (
     check_follow_ground,
+    declare_number,
     finish_plan,
     follow_ground_params,
     leg_time,
@@ -170,8 +171,12 @@ class ScanGround(LeafType):
         ParamSpec("any_order_flag", "bool", "If true fly segments or waypoints in any order."),
         ParamSpec("speed", "qualitative", '"fast", "standard", "slow", unspecified.',
                   options=("fast", "standard", "slow", "unspecified"), default="unspecified"),
+        ParamSpec("commanded_speed", "float", "Wanted speed in m/s (instead of speed; ours, as fly-to's).",
+                  unit="m/s", minimum=0.0),
         ParamSpec("altitude", "qualitative", '"high", "standard", "low", unspecified.',
                   options=("high", "standard", "low", "unspecified"), default="unspecified"),
+        ParamSpec("commanded_altitude", "float", "Scan altitude in m above home (instead of altitude; ours).",
+                  unit="m", minimum=0.0),
         *follow_ground_params(),
         ParamSpec("repeat_flag", "bool",
                   "If this is true we are in patrol mode and repeat the scan of the area.", default=False),
@@ -187,6 +192,9 @@ class ScanGround(LeafType):
     has_speed = True
 
     def check_params(self, p: dict[str, Any]) -> None:
+        for word, number in (("speed", "commanded_speed"), ("altitude", "commanded_altitude")):
+            if number in p and p.get(word, "unspecified") != "unspecified":
+                raise ParamError(f"given with {word} {p[word]!r}: give one of them", number)
         if p.get("waypoints_scan_flag"):
             if "waypoints" not in p:
                 raise ParamError("required when waypoints_scan_flag is true", "waypoints")
@@ -228,6 +236,9 @@ class ScanGround(LeafType):
     def altitude_variables(self, node: TstNode, platform: Platform, problem: ConstraintProblem
                            ) -> list[tuple[str, str]]:
         alt = var(node, "altitude")
+        if "commanded_altitude" in node.params:
+            declare_number(problem, alt, node.params["commanded_altitude"], f"{node.id}.commanded_altitude")
+            return [(alt, f"{node.id}.commanded_altitude")]
         allowed = qualitative_allowed(node.params.get("altitude"), dict(platform.altitudes))
         problem.qualitative(alt, dict(platform.altitudes), allowed=allowed, prefer="standard",
                             label=f"{node.id}.altitude in {{{', '.join(platform.altitudes)}}}")
