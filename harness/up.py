@@ -159,7 +159,8 @@ class UpRig(GroundRig):
     its model's UDP port (positions read from the autopilots over MAVLink). Offers GroundRig's views
     (``ground.url``, ``ground.http()``, ``vehicles()``, ``tasks()``, ``position(i)``, ``tracks``)."""
 
-    def __init__(self, tmp: Path, n: int = 3, speedup: float = 3.0, scenario: Path | None = None) -> None:
+    def __init__(self, tmp: Path, n: int = 3, speedup: float = 3.0, scenario: Path | None = None,
+                 extra: Sequence[str] = ()) -> None:
         self.tmp, self.n, self.speedup = tmp, n, speedup
         self.base = free_base(n)
         tokens = tmp / "tokens.yaml"
@@ -171,10 +172,11 @@ class UpRig(GroundRig):
         self.up = UpProcess(["--vehicles", str(n), "--speedup", str(speedup), "--base-instance",
                              str(self.base), "--ground-port", str(port), "--tokens", str(tokens),
                              "--no-persist", "--ready-timeout", "170",  # a loaded machine starts slowly
-                             *(["--scenario", str(scenario)] if scenario else [])],
+                             *(["--scenario", str(scenario)] if scenario else []), *extra],
                             tmp / "state")
         try:
             summary = self.up.wait_ready(180.0)
+            self.summary = summary
             assert summary.ground, self.up.output
             self.ground = _UpGround(summary.ground)
             self._observe()
