@@ -26,6 +26,7 @@ from taskflight_common.ports import free_base, free_ports, port_free
 os.environ.setdefault("MAVLINK20", "1")
 from pymavlink import mavutil
 
+from companion.team.auth import load_key
 from companion.team.transport import open_transport
 from companion.team.wire import WireError, decode_packet
 from taskflight.team_tasking import HttpError, http_json
@@ -89,6 +90,7 @@ def test_each_vehicle_answers_on_its_tcp_port_with_its_system_id(running: Runnin
 
 def test_every_companion_row_is_heard_on_the_team_link(running: Running) -> None:
     url = running.summary.team.split("?")[0]  # the test listens without the members' test loss
+    key = load_key(running.state / "team.key")  # the fleet's generated team key: every packet is signed
     transport = open_transport(url, member=0, position_of=lambda m: None)
     heard: set[int] = set()
     try:
@@ -98,7 +100,7 @@ def test_every_companion_row_is_heard_on_the_team_link(running: Running) -> None
             if data is None:
                 continue
             try:
-                pkt = decode_packet(data)
+                pkt = decode_packet(data, key=key)
             except WireError:
                 continue
             heard.add(pkt.sender)  # each companion's own packets, not rows relayed
