@@ -40,6 +40,13 @@ if TYPE_CHECKING:
 
 log = logging.getLogger(__name__)
 
+#: companions started at once: each waits for its autopilot, but also builds its control surface's app
+#: (~0.4 s of CPU) and has ``ControlServer.start``'s 10 s to get its server up: 25 at once under one
+#: interpreter's lock on a loaded machine missed that deadline
+START_PARALLEL = 4
+#: companions closed at once (each mostly waits for its own threads to end)
+CLOSE_PARALLEL = 64
+
 
 class HostConfigError(ValueError):
     """The host's configuration (or one companion's options) is wrong; the message names which."""
@@ -133,14 +140,27 @@ class CompanionHost:
             raise
 
     def start(self, stop: threading.Event | None = None) -> CompanionHost:
-        """Start every companion, each in a thread of a pool (each waits for its own autopilot); the first
-        error (``MissionRejectedError``, ``OSError``, ``RuntimeError``) is raised once all have returned."""
+        """Start every companion, :data:`START_PARALLEL` at a time (each waits for its own autopilot); once
+        one fails, those not yet started are not started, and the first error (``MissionRejectedError``,
+        ``OSError``, ``RuntimeError``) is raised when the others have returned (:meth:`close` closes
+        all)."""
         stop = stop or threading.Event()
         if not self.companions:
             return self
-        with ThreadPoolExecutor(max_workers=min(16, len(self.companions)),
+        with ThreadPoolExecutor(max_workers=min(START_PARALLEL, len(self.companions)),
                                 thread_name_prefix="host-start") as pool:
-            futures = [pool.submit(c.start, stop) for c in self.companions]
+            failed = threading.Event()
+
+            def start(c: Companion) -> None:
+                if stop.is_set() or failed.is_set():
+                    return
+                try:
+                    c.start(stop)
+                except BaseException:
+                    failed.set()
+                    raise
+
+            futures = [pool.submit(start, c) for c in self.companions]
             errors = [f.exception() for f in futures]
         first = next((e for e in errors if e is not None), None)
         if first is not None:
@@ -152,7 +172,7 @@ class CompanionHost:
         """Close every companion (in parallel: each waits for its own threads)."""
         if not self.companions:
             return
-        with ThreadPoolExecutor(max_workers=min(16, len(self.companions)),
+        with ThreadPoolExecutor(max_workers=min(CLOSE_PARALLEL, len(self.companions)),
                                 thread_name_prefix="host-close") as pool:
             for f in [pool.submit(c.close) for c in self.companions]:
                 if (exc := f.exception()) is not None:
