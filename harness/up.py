@@ -179,6 +179,7 @@ class UpRig(GroundRig):
                             tmp / "state")
         try:
             summary = self.up.wait_ready(ready_s)
+            self.summary = summary
             assert summary.ground, self.up.output
             self.ground = _UpGround(summary.ground)
             self._observe()

@@ -50,6 +50,12 @@ def _cmd_companion(args: argparse.Namespace) -> int:
     return run_companion(args)
 
 
+def _cmd_companion_host(args: argparse.Namespace) -> int:
+    from companion.host import run_host
+
+    return run_host(args)
+
+
 def _cmd_behaviors(args: argparse.Namespace) -> int:
     return args.behaviors_handler(args)
 
@@ -204,6 +210,12 @@ def build_parser() -> argparse.ArgumentParser:
 
     add_companion_arguments(cp)
     handlers["companion"] = _cmd_companion
+    hp = sub.add_parser("companion-host", help="run K vehicles' companions in one process (a simulated "
+                                               "fleet's; each the companion 'taskflight companion' runs)")
+    from companion.host import add_host_arguments
+
+    add_host_arguments(hp)
+    handlers["companion-host"] = _cmd_companion_host
 
     bp = sub.add_parser("behaviors", help="the executive layer: behaviors, beliefs, processes (seed 001)")
     add_behaviors_arguments(bp)

@@ -13,7 +13,10 @@ starts, each as a child process in a process group of its own (:mod:`taskflight.
   any ground station (MAVProxy, QGroundControl: the lowest tier of seed 003 Fig. 1) and UDP 14550+10(I+i)
   for its companion. The default I = 0 gives the ports users expect (5760, 5770, ...); tests pick a free
   block with ``--base-instance``;
-* N companions (``taskflight companion``), each on its vehicle's UDP port, all joined to one team link
+* N companions, each on its vehicle's UDP port, K to a process (``--companions-per-process K``: each
+  process a ``taskflight companion-host`` of K companions, :mod:`companion.host`; default: the vehicles
+  spread over as many hosts as the machine has cores; K = 1: one ``taskflight companion`` process each, as
+  on a real vehicle), all joined to one team link
   (a free multicast port of 239.255.70.1 unless ``--team``; ``--team-loss F`` appends ``?loss=F`` to the
   members' URL: that fraction of team packets is dropped at each member), each serving its control surface
   on a free port of loopback (``--control-host HOST`` for a ground service on another host) with the
@@ -54,6 +57,7 @@ from typing import Any
 import yaml
 
 from mission_specs import bundled
+from taskflight import hostproc
 from taskflight.children import Child, first_dead, stop_all
 from taskflight_common.geo import ned_to_geodetic
 from taskflight_common.ports import free_ports, model_ports, port_free
@@ -66,6 +70,13 @@ ROOT = Path(__file__).resolve().parents[1]
 PLATFORM = bundled("platform_outdoor.yaml")
 TEAM_GROUP = "239.255.70.1"
 DEFAULT_GROUND_PORT = 8700
+
+
+def default_per_process(vehicles: int) -> int:
+    """The default K: the companions spread over as many host processes as the machine has cores (one
+    interpreter runs on one core at a time), e.g. 50 vehicles on 2 cores: 2 hosts of 25."""
+    hosts = max(1, min(vehicles, os.cpu_count() or 1))
+    return -(-vehicles // hosts)
 
 
 class UpError(RuntimeError):
@@ -144,6 +155,15 @@ class UpOptions:
     tiles: str | None = None
     """the ground's map tiles (``taskflight ground --tiles``); None: the demo's own, drawn at the first run"""
 
+    #: companions per process (1: a ``taskflight companion`` each; None: :func:`default_per_process`)
+    companions_per_process: int | None = None
+
+    @property
+    def per_process(self) -> int:
+        """K, the companions per process (given, else :func:`default_per_process`)."""
+        k = self.companions_per_process
+        return k if k is not None else default_per_process(self.vehicles)
+
     def check(self) -> None:
         if not 1 <= self.vehicles <= 200:
             raise UpError(f"--vehicles must be within 1..200, got {self.vehicles}", 2)
@@ -165,6 +185,9 @@ class UpOptions:
             raise UpError(f"--platform: no such file: {self.platform}", 2)
         if self.scenario is not None and not self.scenario.is_file():
             raise UpError(f"--scenario: no such file: {self.scenario}", 2)
+        if self.companions_per_process is not None and not 1 <= self.companions_per_process <= 200:
+            raise UpError("--companions-per-process must be within 1..200, got "
+                          f"{self.companions_per_process}", 2)
         if not 1 <= self.ground_port <= 65535:
             raise UpError(f"--ground-port must be within 1..65535, got {self.ground_port}", 2)
 
@@ -207,6 +230,8 @@ class Up:
     tokens_path: Path | None = None
     team_key_path: Path | None = None
     startup_s: float = float("nan")
+    #: the system ids each companion process runs, by its name
+    _hosted: dict[str, tuple[int, ...]] = field(default_factory=dict)
     _stopped: threading.Event = field(default_factory=threading.Event)
 
     @property
@@ -221,7 +246,12 @@ class Up:
         return self.children[0]
 
     def companions(self) -> list[Child]:
+        """The companions' processes (``companion<sysid>`` each, or ``companions<first>-<last>`` hosts)."""
         return [c for c in self.children if c.name.startswith("companion")]
+
+    def companion_of(self, sysid: int) -> Child | None:
+        """The process that runs vehicle ``sysid``'s companion."""
+        return next((c for c in self.companions() if sysid in self._hosted.get(c.name, ())), None)
 
     def ground(self) -> Child | None:
         return next((c for c in self.children if c.name == "ground"), None)
@@ -338,19 +368,30 @@ class Up:
         pp = os.environ.get("PYTHONPATH", "")
         return {"PYTHONPATH": os.pathsep.join(p for p in (str(ROOT), pp) if p)}
 
+    def _companion_args(self, v: VehicleInfo) -> tuple[list[str], list[str]]:
+        """Vehicle ``v``'s ``taskflight companion`` options: its own, and those every vehicle shares."""
+        o = self.opts
+        own = ["--autopilot", f"udpout:127.0.0.1:{v.udp}", "--control-port", v.control_url.rsplit(":", 1)[1],
+               "--flight-log", str(o.state_dir / "logs" / f"flight{v.sysid}.jsonl")]
+        common = ["--team", self.member_url, "--control-host", o.control_host, "--platform", str(o.platform),
+                  *(["--scenario", str(o.scenario)] if o.scenario is not None else [])]
+        return own, common
+
     def _start_companions(self) -> None:
         o = self.opts
         env = {**self._pythonpath(), **self._key_env(), TOKEN_ENV: self.control_token}
-        for v in self.vehicles:
-            port = v.control_url.rsplit(":", 1)[1]
-            nice = ["nice", "-n", str(o.companion_nice)] if o.companion_nice else []
-            argv = [*nice, *self._exe(), "companion", "--autopilot", f"udpout:127.0.0.1:{v.udp}",
-                    "--team", self.member_url, "--control-port", port, "--control-host", o.control_host,
-                    "--platform", str(o.platform),
-                    "--flight-log", str(o.state_dir / "logs" / f"flight{v.sysid}.jsonl"),
-                    *(["--scenario", str(o.scenario)] if o.scenario is not None else [])]
-            self.children.append(Child(f"companion{v.sysid}", argv, o.state_dir / "logs" /
-                                       f"companion{v.sysid}.log", env=env, cwd=ROOT).start())
+        nice = ["nice", "-n", str(o.companion_nice)] if o.companion_nice else []
+        k = o.per_process
+        for at in range(0, len(self.vehicles), k):
+            group = self.vehicles[at:at + k]
+            if k == 1:  # as on a real vehicle: one `taskflight companion` process
+                own, common = self._companion_args(group[0])
+                name, argv = f"companion{group[0].sysid}", [*self._exe(), "companion", *own, *common]
+            else:
+                name, argv = hostproc.host_command(self._exe(), group, self._companion_args)
+            self._hosted[name] = tuple(v.sysid for v in group)
+            self.children.append(Child(name, [*nice, *argv], o.state_dir / "logs" / f"{name}.log", env=env,
+                                       cwd=ROOT).start())
 
     def _start_ground(self) -> None:
         o = self.opts
@@ -382,8 +423,9 @@ class Up:
             if time.monotonic() > end:
                 what = (f"vehicle(s) {sorted(pending)} not heard" if pending
                         else "the ground service did not answer with every vehicle")
+                late = {self.companion_of(s) for s in pending}
                 hint = "\n".join(f"--- {c.name}:\n{c.tail(5)}" for c in self.children
-                                 if c.name == "ground" or c.name[len("companion"):] in map(str, pending))
+                                 if c.name == "ground" or c in late)
                 raise UpError(f"not ready in time: {what}\n{hint}")
             sleep_or_stop(stop, 0.2)
 
@@ -438,12 +480,16 @@ class Up:
         lines.append(f"team link: {self.member_url}")
         if self.team_key_path is not None:
             lines.append(f"team key: {self.team_key_path}")
-        lines.append(f"pids: fleet {self.fleet.pid}; companions "
-                     + " ".join(str(c.pid) for c in self.companions())
+        lines.append(f"pids: fleet {self.fleet.pid}; companions "  # each vehicle's companion process
+                     + " ".join(str(c.pid) if (c := self.companion_of(v.sysid)) else "0"
+                                for v in self.vehicles)
                      + (f"; ground {g.pid}" if (g := self.ground()) is not None else ""))
         for v in self.vehicles:
             lines.append(f"vehicle {v.index}: sysid {v.sysid}  MAVLink tcp:{o.mavlink_host}:{v.tcp}  "
                          f"(mavproxy.py --master=tcp:127.0.0.1:{v.tcp})  companion {v.control_url}")
+        if o.per_process > 1:
+            lines.append(f"companion hosts: {len(self.companions())} processes of up to {o.per_process} "
+                         "companions (taskflight companion-host)")
         lines.append(f"logs: {o.state_dir / 'logs'}; Ctrl-C stops everything")
         return "\n".join(lines)
 
@@ -540,6 +586,10 @@ def add_up_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--companion-nice", type=int, default=0, metavar="K",
                    help="run the companions at niceness K (0..19), so that the models' one process keeps "
                         "its clock when many companions load the machine (default 0)")
+    p.add_argument("--companions-per-process", type=int, default=None, metavar="K",
+                   help="run K vehicles' companions in one process (taskflight companion-host; 1: one "
+                        "'taskflight companion' process each, as on a real vehicle; default: the vehicles "
+                        f"spread over as many processes as the machine has cores, {os.cpu_count()} here)")
     p.add_argument("--resume-tasks", action="store_true",
                    help="the open tasks an earlier run left in <state-dir>/ground.db are given to the new "
                         "vehicles at start (default: shown held until the operator releases them)")
@@ -560,7 +610,8 @@ def options_from_args(args: argparse.Namespace) -> UpOptions:
                      persist=not args.no_persist, platform=Path(args.platform),
                      companion_nice=args.companion_nice,
                      scenario=Path(args.scenario) if args.scenario else None,
-                     resume_tasks=args.resume_tasks, tiles=args.tiles)
+                     resume_tasks=args.resume_tasks, tiles=args.tiles,
+                     companions_per_process=args.companions_per_process)
 
 
 def run_up(args: argparse.Namespace) -> int:

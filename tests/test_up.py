@@ -90,6 +90,7 @@ def test_each_vehicle_answers_on_its_tcp_port_with_its_system_id(running: Runnin
 
 def test_every_companion_row_is_heard_on_the_team_link(running: Running) -> None:
     url = running.summary.team.split("?")[0]  # the test listens without the members' test loss
+    key = load_key(running.state / "team.key")  # the fleet's generated team key: every packet is signed
     transport = open_transport(url, member=0, position_of=lambda m: None)
     key = load_key(running.state / "team.key")  # up signs its fleet's packets with the key it generated
     heard: set[int] = set()

@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 import threading
 from collections import deque
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Any
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
@@ -229,5 +229,18 @@ class VehicleMirror:
             return False
         changes["messages"] = s.messages + 1
         with self._lock:
-            self._state = replace(s, **changes)
+            self._state = _replaced(s, changes)
         return True
+
+
+def _replaced(s: MirrorState, changes: dict[str, Any]) -> MirrorState:
+    """``dataclasses.replace(s, **changes)`` for the mirror's one hot path (~90 messages a second per
+    vehicle): :class:`MirrorState` has no ``__post_init__`` and no slots, so a copy of the instance's
+    ``__dict__`` with the changes is the same new state, at a fifth of ``replace``'s cost (which walks the
+    fields and calls ``__init__``). Every key is a field (the literal names in
+    :meth:`VehicleMirror.update`)."""
+    new = object.__new__(MirrorState)
+    d = new.__dict__
+    d.update(s.__dict__)
+    d.update(changes)
+    return new
