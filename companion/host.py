@@ -32,7 +32,6 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from taskflight_common.runtime import freeze_startup_heap, stop_on_signals
 from taskflight_common.yamlio import ConfigError
 
 if TYPE_CHECKING:
@@ -188,24 +187,11 @@ class CompanionHost:
 
 def run_host(args: argparse.Namespace) -> int:
     """Run until SIGINT/SIGTERM; 2 for bad options or files, 1 if a companion could not start."""
-    from companion.builder import MissionRejectedError
+    from companion.main import serve
 
     try:
         host = CompanionHost(configs_from_sets(argument_sets(args)))
     except (HostConfigError, ConfigError, ValueError, OSError) as exc:
         log.error("%s", exc)
         return 2
-    stop = stop_on_signals()
-    try:
-        host.start(stop)
-        freeze_startup_heap(f"companion host ({len(host.companions)} companions)")
-        while not stop.wait(0.5):
-            pass
-    except MissionRejectedError:
-        return 1
-    except (OSError, RuntimeError) as exc:
-        log.error("%s", exc)
-        return 1
-    finally:
-        host.close()
-    return 0
+    return serve(host, f"companion host ({len(host.companions)} companions)")

@@ -28,7 +28,7 @@ import argparse
 import dataclasses
 import logging
 import os
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from taskflight_common.runtime import freeze_startup_heap, stop_on_signals
 from taskflight_common.tokens import COMPANION_ROLES, TOKEN_ENV, load_tokens
@@ -167,17 +167,25 @@ def config_from_args(args: argparse.Namespace) -> CompanionConfig:
 
 def run_companion(args: argparse.Namespace) -> int:
     """Run until SIGINT/SIGTERM; returns the exit status (2 for bad options or files)."""
-    from companion.builder import MissionRejectedError, build_companion  # start-up cost: see config_from_args
+    from companion.builder import build_companion  # start-up cost: see config_from_args
 
     try:
         companion = build_companion(config_from_args(args))
     except (ConfigError, ValueError, OSError) as exc:
         log.error("%s", exc)
         return 2
+    return serve(companion, "companion")
+
+
+def serve(runner: Any, label: str) -> int:
+    """Start ``runner`` (a companion, or a host of them), run until SIGINT/SIGTERM, close it; the exit
+    status: 0, or 1 when it could not start (a mission rejected at start, a port taken...)."""
+    from companion.builder import MissionRejectedError
+
     stop = stop_on_signals()
     try:
-        companion.start(stop)
-        freeze_startup_heap("companion")
+        runner.start(stop)
+        freeze_startup_heap(label)
         while not stop.wait(0.5):
             pass
     except MissionRejectedError:
@@ -186,5 +194,5 @@ def run_companion(args: argparse.Namespace) -> int:
         log.error("%s", exc)
         return 1
     finally:
-        companion.close()
+        runner.close()
     return 0

@@ -184,6 +184,18 @@ class Gcs:
 
         self.wait(echoed, timeout_s, f"PARAM_VALUE {name}={value}")
 
+    def param(self, name: str, timeout_s: float = 10.0) -> float:
+        """The autopilot's value of ``name`` now (PARAM_REQUEST_READ, answered by PARAM_VALUE)."""
+        with self._lock:
+            self.last.pop("PARAM_VALUE", None)
+        self.conn.mav.param_request_read_send(self.target, 1, name.encode(), -1)
+        def answered() -> Any:
+            p = self.last.get("PARAM_VALUE")
+            return p if p is not None and p.param_id == name else None
+
+        m: Any = self.wait(answered, timeout_s, f"PARAM_VALUE {name}")
+        return float(m.param_value)
+
     def request_streams(self, hz: int) -> None:
         """REQUEST_DATA_STREAM for every group (ArduCopter streams on a fresh link only when asked)."""
         self.conn.mav.request_data_stream_send(self.target, 1, M.MAV_DATA_STREAM_ALL, hz, 1)

@@ -11,6 +11,8 @@ import json
 import os
 import shutil
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 from urllib.parse import urlsplit
@@ -95,3 +97,21 @@ class Shots:
             self.extra.mkdir(parents=True, exist_ok=True)
             shutil.copy(path, self.extra / path.name)
         return path
+
+
+@contextmanager
+def operator_page(url: str, token: str, vehicles: int, urls: list[str]) -> Iterator[Any]:
+    """A headless browser logged in to the ground service at ``url`` once its fleet list shows
+    ``vehicles`` rows; on leaving, every URL the page requested is added to ``urls`` and the browser quits."""
+    from selenium.webdriver.common.by import By
+    from selenium.webdriver.support.ui import WebDriverWait
+
+    d = browser()
+    try:
+        login(d, url, token)
+        WebDriverWait(d, 30).until(lambda d: len(d.find_elements(By.CSS_SELECTOR, "#fleet tbody tr"))
+                                   == vehicles)
+        yield d
+    finally:
+        urls.extend(requested_urls(d))
+        d.quit()

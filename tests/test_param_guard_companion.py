@@ -8,8 +8,6 @@ so in AUTOPILOT_VERSION), ArduPilot's documented ranges for ArduCopter SITL (``T
 
 from __future__ import annotations
 
-from typing import Any
-
 import pytest
 
 from harness.flight_session import FlightSession, SessionSpec
@@ -23,13 +21,7 @@ NAME = "WPNAV_RADIUS"  # in both tables (cm); a waypoint acceptance radius chang
 
 def observed(session: FlightSession, name: str) -> float:
     """The autopilot's value now, asked by the pymavlink ground station (not through the companion)."""
-    g = session.gcs
-    with g._lock:
-        g.last.pop("PARAM_VALUE", None)
-    g.conn.mav.param_request_read_send(g.target, 1, name.encode(), -1)
-    m: Any = g.wait(lambda: (p := g.last.get("PARAM_VALUE")) is not None and p.param_id == name and p, 10,
-                    f"PARAM_VALUE {name}")
-    return float(m.param_value)
+    return session.gcs.param(name)
 
 
 def test_the_companion_refuses_what_its_table_does_not_allow(flight_session: FlightSession) -> None:

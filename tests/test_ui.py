@@ -20,7 +20,7 @@ from typing import Any
 import pytest
 import yaml
 
-from harness.ui import Shots, browser, foreign, login, missing, requested_urls
+from harness.ui import Shots, browser, foreign, login, missing, operator_page, requested_urls
 
 if missing():
     pytest.skip(missing() or "", allow_module_level=True)
@@ -54,14 +54,8 @@ def shots(tmp_path_factory: pytest.TempPathFactory) -> Shots:
 
 @pytest.fixture(scope="module")
 def page(up_rig: GroundRig) -> Iterator[Any]:
-    d = browser()
-    try:
-        login(d, up_rig.ground.url, OPERATOR)
-        WebDriverWait(d, 30).until(lambda d: len(d.find_elements(By.CSS_SELECTOR, "#fleet tbody tr")) == 3)
+    with operator_page(up_rig.ground.url, OPERATOR, 3, URLS) as d:
         yield d
-    finally:
-        URLS.extend(requested_urls(d))
-        d.quit()
 
 
 def markers(d: Any) -> dict[int, tuple[float, float]]:

@@ -26,7 +26,7 @@ from typing import Any
 import httpx
 import pytest
 
-from harness.ui import Shots, browser, foreign, login, missing, requested_urls
+from harness.ui import Shots, foreign, missing, operator_page
 
 if missing():
     pytest.skip(missing() or "", allow_module_level=True)
@@ -71,15 +71,10 @@ def keep(d: Any, name: str) -> None:
 
 @pytest.fixture(scope="module")
 def page(up_rig: GroundRig) -> Iterator[Any]:
-    d = browser()
-    try:
-        login(d, up_rig.ground.url, OPERATOR)
-        WebDriverWait(d, 30).until(lambda d: len(d.find_elements(By.CSS_SELECTOR, "#fleet tbody tr")) == 3)
+    urls: list[str] = []
+    with operator_page(up_rig.ground.url, OPERATOR, 3, urls) as d:
         yield d
-    finally:
-        urls = requested_urls(d)
-        d.quit()
-        assert not foreign(urls, up_rig.ground.url), "the page asked another host"
+    assert not foreign(urls, up_rig.ground.url), "the page asked another host"
 
 
 def click_map(d: Any, n: float, e: float) -> None:

@@ -94,13 +94,7 @@ def page(up_rig: GroundRig) -> Iterator[Any]:
 
 def observed(rig: GroundRig, i: int, name: str) -> float:
     """Vehicle ``i``'s value of ``name``, asked of its autopilot by a pymavlink ground station."""
-    g = rig.gcs[i]
-    with g._lock:
-        g.last.pop("PARAM_VALUE", None)
-    g.conn.mav.param_request_read_send(g.target, 1, name.encode(), -1)
-    m: Any = g.wait(lambda: (p := g.last.get("PARAM_VALUE")) is not None and p.param_id == name and p, 10,
-                    f"PARAM_VALUE {name}")
-    return float(m.param_value)
+    return rig.gcs[i].param(name)
 
 
 def param_audit(rig: GroundRig) -> list[dict[str, Any]]:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
 from fastapi import Request
@@ -36,3 +37,20 @@ def audited(request: Request, action: str, target: str, body: Any, fn: Any) -> A
     status = answer.get("status", 200) if isinstance(answer, dict) and "command" in answer else 200
     svc.audit(who, action, target, body, status, answer)
     return answer
+
+
+def each_vehicle(request: Request, action: str, targets: list[int], one: Any) -> list[dict[str, Any]]:
+    """``one(vid)`` -> a CommandAnswer record for every target at once, each audited."""
+    svc, who = service_of(request), principal_of(request)
+
+    def run(vid: int) -> dict[str, Any]:
+        try:
+            out = one(vid)
+        except ApiError as exc:
+            out = {"vehicle": vid, "command": action, "ok": False, "status": exc.status, "answer": None,
+                   "error": exc.message}
+        svc.audit(who, action, f"vehicle {vid}", {"vehicles": targets}, out["status"], out)
+        return out
+
+    with ThreadPoolExecutor(max_workers=min(16, len(targets))) as pool:
+        return list(pool.map(run, targets))

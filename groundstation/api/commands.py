@@ -3,7 +3,6 @@ home."""
 
 from __future__ import annotations
 
-from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
 from fastapi import APIRouter, Request
@@ -11,7 +10,7 @@ from fastapi import APIRouter, Request
 from groundstation.companions import ApiError
 from groundstation.schemas import MultiCommand, MultiCommandAnswer
 
-from . import principal_of, service_of
+from . import each_vehicle, service_of
 
 router = APIRouter(tags=["commands"])
 
@@ -42,16 +41,5 @@ def fleet_rtl(request: Request) -> Any:
 
 
 def _many(request: Request, command: str, targets: list[int]) -> list[dict[str, Any]]:
-    svc, who = service_of(request), principal_of(request)
-
-    def one(vid: int) -> dict[str, Any]:
-        try:
-            out = svc.command(vid, command)
-        except ApiError as exc:
-            out = {"vehicle": vid, "command": command, "ok": False, "status": exc.status, "answer": None,
-                   "error": exc.message}
-        svc.audit(who, command, f"vehicle {vid}", {"vehicles": targets}, out["status"], out)
-        return out
-
-    with ThreadPoolExecutor(max_workers=min(8, len(targets))) as pool:
-        return list(pool.map(one, targets))
+    svc = service_of(request)
+    return each_vehicle(request, command, targets, lambda vid: svc.command(vid, command))

@@ -12,7 +12,6 @@ autopilot's fence (the MAVLink mission protocol, MAV_MISSION_TYPE_FENCE) and ena
 
 from __future__ import annotations
 
-from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
 from fastapi import APIRouter, Request
@@ -22,7 +21,7 @@ from groundstation.companions import ApiError
 from groundstation.schemas import MultiCommandAnswer
 from groundstation.service import fence_of
 
-from . import principal_of, service_of
+from . import each_vehicle, service_of
 
 router = APIRouter(tags=["commands"])
 #: a companion's answer to ``POST /fence`` may take its whole upload and three parameter round trips, each
@@ -64,23 +63,6 @@ def _targets(request: Request, asked: list[int] | None) -> list[int]:
     return list(dict.fromkeys(asked))
 
 
-def _each(request: Request, action: str, targets: list[int], one: Any) -> list[dict[str, Any]]:
-    """``one(vid)`` -> a CommandAnswer record for every target at once, each audited."""
-    svc, who = service_of(request), principal_of(request)
-
-    def run(vid: int) -> dict[str, Any]:
-        try:
-            out = one(vid)
-        except ApiError as exc:
-            out = {"vehicle": vid, "command": action, "ok": False, "status": exc.status, "answer": None,
-                   "error": exc.message}
-        svc.audit(who, action, f"vehicle {vid}", {"vehicles": targets}, out["status"], out)
-        return out
-
-    with ThreadPoolExecutor(max_workers=min(16, len(targets))) as pool:
-        return list(pool.map(run, targets))
-
-
 def _report(request: Request, kind: str, what: str, results: list[dict[str, Any]]) -> None:
     ok = [r["vehicle"] for r in results if r["ok"]]
     refused = {r["vehicle"]: r["error"] for r in results if not r["ok"]}
@@ -94,7 +76,7 @@ def fleet_land(request: Request, body: FleetVerb | None = None) -> Any:
     """Every vehicle (or those named) lands where it is: each companion's LAND behavior as the operator."""
     svc = service_of(request)
     targets = _targets(request, body.vehicles if body else None)
-    results = _each(request, "land", targets, lambda vid: svc.command(vid, "land"))
+    results = each_vehicle(request, "land", targets, lambda vid: svc.command(vid, "land"))
     _report(request, "land", "land", results)
     return {"results": results}
 
@@ -105,7 +87,8 @@ def fleet_hold(request: Request, body: FleetVerb | None = None) -> Any:
     each with ``POST /api/vehicles/{vid}/resume`` or ``/api/commands`` ``resume``)."""
     svc = service_of(request)
     targets = _targets(request, body.vehicles if body else None)
-    results = _each(request, "pause", targets, lambda vid: svc.command(vid, "pause", {"routine_id": "hover"}))
+    results = each_vehicle(request, "pause", targets,
+                           lambda vid: svc.command(vid, "pause", {"routine_id": "hover"}))
     _report(request, "hold", "hold", results)
     return {"results": results}
 
@@ -133,6 +116,6 @@ def post_fence(request: Request, body: FenceRequest) -> Any:
         return {"vehicle": vid, "command": "fence", "ok": ok, "status": status, "answer": answer,
                 "error": error}
 
-    results = _each(request, "fence", targets, one)
+    results = each_vehicle(request, "fence", targets, one)
     _report(request, "fence", f"fence of {len(points)} vertices", results)
     return {"points": points, "results": results}
