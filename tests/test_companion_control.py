@@ -207,7 +207,8 @@ def test_openapi_documents_request_and_response_schemas(http: httpx.Client) -> N
                 ("get", "/pause_routines"): "PauseRoutinesResponse",
                 ("post", "/external/{stream}"): "AcceptedResponse", ("post", "/run"): "VerbResponse",
                 ("post", "/commands/{command_id}/retarget"): "FlightCommandModel",
-                ("get", "/params/{name}"): "ParamAnswer", ("put", "/params/{name}"): "ParamAnswer"}
+                ("get", "/params/{name}"): "ParamAnswer", ("put", "/params/{name}"): "ParamAnswer",
+                ("post", "/fence"): "FenceAnswer"}
     operations = 0
     for path, ops in doc["paths"].items():
         for method, op in ops.items():
@@ -219,7 +220,7 @@ def test_openapi_documents_request_and_response_schemas(http: httpx.Client) -> N
             assert names and names <= set(schemas), (method, path, answers["200"])
             if (method, path) in expected:
                 assert names == {expected[method, path]}, (method, path)
-    assert operations == 16  # the QAPI's 14 and the autopilot parameters (get, put)
+    assert operations == 17  # the QAPI's 14, the autopilot parameters (get, put) and its fence (post)
     assert set(schemas["AddedResponse"]["properties"]) == {"ids", "indices", "activation_id"}
     assert set(schemas["ErrorResponse"]["properties"]) == {"error"}
 

@@ -136,7 +136,8 @@ def _routes(ground: InProcessGround) -> list[tuple[str, str]]:
         paths = c.get("/openapi.json").json()["paths"]
     out = []
     for path, ops in paths.items():
-        concrete = path.replace("{vid}", "1").replace("{tid}", "101").replace("{name}", "ATC_RAT_RLL_P")
+        concrete = (path.replace("/mission_files/{name}", "/mission_files/scan_and_search.yaml")
+                    .replace("{vid}", "1").replace("{tid}", "101").replace("{name}", "ATC_RAT_RLL_P"))
         out += [(m.upper(), concrete) for m in ops]
     return out
 
