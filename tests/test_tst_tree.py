@@ -30,7 +30,8 @@ def test_registry_matches_the_papers_parameter_tables() -> None:
     assert set(leaf_type("scan-ground").param_names) == {
         "area", "waypoints_scan_flag", "waypoints", "loiter_mode", "segment_flag", "any_order_flag", "speed",
         "altitude", "follow_ground_flag", "follow_ground_altitude", "repeat_flag", "sensor_type", "data_uuid",
-        "generate_scan_specs_flag"}
+        "generate_scan_specs_flag",
+        "commanded_speed", "commanded_altitude"}  # ours: a team task's speed and altitude, in numbers
     scan = leaf_type("scan-ground")
     assert scan.param("sensor_type").options == ("artva", "laser", "camera")  # type: ignore[union-attr]
     assert scan.param("altitude").options == ("high", "standard", "low", "unspecified")  # type: ignore[union-attr]
