@@ -35,7 +35,9 @@ def test_scan_until_a_person_is_seen_then_hover_over_it_and_ask(flight_session: 
              flight_session.wall(120),
              f"asking the operator: {flight_session.http.get('/mission').json()}")
     assert flight_session.layer is not None
-    assert [d.object_id for d in flight_session.layer.camera.detections] == [7]
+    # the person, and nothing else, was seen (again, if it left the footprint while the vehicle braked and
+    # turned back over it: each entry into view is a sighting)
+    assert {d.object_id for d in flight_session.layer.camera.detections} == {7}
     assert flight_session.layer.camera.detections[0].data_uuid == "search-1"
     assert flight_session.layer.beliefs.holds("waiting_for(self, operator)")
     n, e, _ = flight_session.pos()
