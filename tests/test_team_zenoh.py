@@ -25,6 +25,7 @@ import subprocess
 import sys
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -155,6 +156,42 @@ def _exchange(url: str) -> None:
 
 
 @pytest.mark.integration
+class _Bus:
+    """A fleet bus that keeps what is published (a collaborator of the presence under test)."""
+
+    def __init__(self) -> None:
+        self.sent: dict[str, list[bytes]] = {}
+
+    def key(self, *parts: object) -> str:
+        return "/".join(map(str, parts))
+
+    def publisher(self, key: str) -> object:
+        bus = self
+
+        class Pub:
+            def put(self, data: bytes) -> None:
+                bus.sent.setdefault(key, []).append(data)
+
+        return Pub()
+
+
+def test_a_detection_is_published_again_until_its_repeats_are_spent() -> None:
+    """Publications are not acknowledged (one made before the ground's subscriber matched is lost): each
+    object is published DETECTION_REPEATS times, with its first sighting's position, then no more."""
+    from companion.team.presence import DETECTION_EVERY, DETECTION_REPEATS, Presence
+
+    seen = [{"x": 7, "kind": "person", "p": [3.0, 4.0, 0.0]},
+            {"x": 1, "kind": "aerial_robot", "p": [0, 0, 0]}]
+    bus: Any = _Bus()
+    presence = Presence(bus, 5, name="uav5", status=lambda: {"queue": {}}, detections=lambda: seen)
+    for _ in range(DETECTION_EVERY * (DETECTION_REPEATS + 3)):
+        presence.publish_once()
+        seen[0] = {**seen[0], "p": [9.0, 9.0, 0.0]}  # it moved: the events keep the first sighting
+    events = [json.loads(b) for b in bus.sent["vehicle/5/events"]]
+    assert [e["object"] for e in events] == [7] * DETECTION_REPEATS
+    assert all(e["ned"] == [3.0, 4.0, 0.0] and e["t"] == events[0]["t"] for e in events)
+
+
 def test_group_state_over_zenoh_peer_mode() -> None:
     _exchange(f"zenoh:?team={_team_name()}")
 

@@ -39,6 +39,9 @@ DEFAULT_PERIOD_S = 0.5
 MISSION_EVERY = 10
 #: the camera's beliefs are looked at every this many status messages
 DETECTION_EVERY = 4
+#: each detection is published this many times (every DETECTION_EVERY messages): a publication is not
+#: acknowledged, and one made before a subscriber is matched is lost (the ground keeps the first it hears)
+DETECTION_REPEATS = 5
 #: object kinds that are the vehicle's own beliefs about itself, not detections
 OWN_KINDS = frozenset({"aerial_robot"})
 
@@ -71,7 +74,7 @@ class Presence:
         self._loopback = loopback_id()
         self._status_pub = bus.publisher(bus.key("vehicle", vehicle, "status"))
         self._events_pub = bus.publisher(bus.key("vehicle", vehicle, "events"))
-        self._seen: set[str] = set()
+        self._seen: dict[str, tuple[int, list[Any], float]] = {}  #: object -> (times published, first p, t)
         self._last_mission: str | None = None
         self.published = 0
         self.errors = 0
@@ -93,21 +96,25 @@ class Presence:
         self._status_pub.put(json.dumps(self.message(), default=str).encode())
         self.published += 1
         if self._detections is not None and self.published % DETECTION_EVERY == 1:
-            for ev in self.new_detections():
+            for ev in self.due_detections():
                 self._events_pub.put(json.dumps(ev, default=str).encode())
 
-    def new_detections(self) -> list[dict[str, Any]]:
-        """Objects seen for the first time (bindings ``{"x", "kind", "p"}``) as detection events."""
+    def due_detections(self) -> list[dict[str, Any]]:
+        """The objects seen (bindings ``{"x", "kind", "p"}``) not yet published :data:`DETECTION_REPEATS`
+        times, as detection events (the first sighting's position and time)."""
         assert self._detections is not None
         out = []
         for b in self._detections():
             key, pos = str(b.get("x")), b.get("p")
-            if key in self._seen or b.get("kind") in OWN_KINDS or not isinstance(pos, list | tuple) \
-                    or len(pos) != 3:
+            if b.get("kind") in OWN_KINDS or not isinstance(pos, list | tuple) or len(pos) != 3:
                 continue
-            self._seen.add(key)
+            first = self._seen.setdefault(key, (0, list(pos), time.time()))
+            if first[0] >= DETECTION_REPEATS:
+                continue
+            self._seen[key] = (first[0] + 1, first[1], first[2])
+            pos, t = first[1], first[2]
             out.append({"kind": "detection", "object": b.get("x"), "object_kind": b.get("kind"),
-                        "ned": list(pos), "t": time.time()})
+                        "ned": list(pos), "t": t})
         return out
 
     def start(self) -> Presence:
