@@ -128,8 +128,9 @@ async def _serve(ports: list[int], blackholes: list[int]) -> None:
 
 def fake_companions(ports: list[int], blackholes: list[int]) -> subprocess.Popen[str]:
     """The companion-like endpoints in a process of their own (not the bench's nor the service's CPU)."""
-    proc = subprocess.Popen([sys.executable, __file__, "--serve", ",".join(map(str, ports)),
-                             "--holes", ",".join(map(str, blackholes))], stdout=subprocess.PIPE, text=True)
+    proc = subprocess.Popen([sys.executable, "-m", "bench.bench_ground", "--serve", ",".join(map(str, ports)),
+                             "--holes", ",".join(map(str, blackholes))], stdout=subprocess.PIPE, text=True,
+                            cwd=Path(__file__).resolve().parents[1])
     assert proc.stdout is not None and proc.stdout.readline().strip() == "SERVING"
     return proc
 
