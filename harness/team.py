@@ -14,7 +14,10 @@
 
 from __future__ import annotations
 
+import contextlib
 import math
+import os
+import signal
 import socket
 import subprocess
 import sys
@@ -53,6 +56,13 @@ def geo(n: float, e: float, alt: float = 0.0) -> tuple[float, float, float]:
 def new_team_url() -> str:
     """A team link of its own: the project's multicast group on a UDP port free on every interface."""
     return f"udp://239.255.70.1:{free_ports(1, socket.SOCK_DGRAM, host='')[0]}"
+
+
+def kill_group(p: subprocess.Popen[bytes]) -> None:
+    """SIGKILL the session ``p`` leads (started with ``start_new_session``) and reap ``p``."""
+    with contextlib.suppress(ProcessLookupError, PermissionError):
+        os.killpg(p.pid, signal.SIGKILL)
+    p.wait(10)
 
 
 class TeamRig:
@@ -97,14 +107,13 @@ class TeamRig:
             [str(exe), "companion", "--autopilot", f"udpout:127.0.0.1:{ports(self.base + i)[1]}",
              "--team", self.member_url, "--control-port", str(self.control_ports[i]),
              "--platform", str(PLATFORM), "--flight-log", str(log), "--team-policy", self.policy],
-            stdout=out, stderr=subprocess.STDOUT, cwd=ROOT)
+            stdout=out, stderr=subprocess.STDOUT, cwd=ROOT, start_new_session=True)
         out.close()
 
     def kill_companion(self, i: int) -> None:
         p = self.companions[i]
         if p is not None:
-            p.kill()
-            p.wait(10)
+            kill_group(p)
         self.companions[i] = None
 
     def ensure_companions(self) -> None:
@@ -127,6 +136,7 @@ class TeamRig:
         for p in self.companions:
             if p is not None:
                 stop_child(p, 10.0)
+                kill_group(p)  # what it started (a companion behind faketime is faketime's child)
         self.fleet.stop()
 
     def _control_up(self, i: int) -> bool:

@@ -40,7 +40,7 @@ def start_companion(rig: TeamRig, i: int, *, prefix: tuple[str, ...] = (),
             [*prefix, str(exe), "companion", "--autopilot", f"udpout:127.0.0.1:{ports(rig.base + i)[1]}",
              "--team", rig.member_url, "--control-port", str(rig.control_ports[i]),
              "--platform", str(PLATFORM), "--flight-log", str(log), "--team-policy", rig.policy, *extra],
-            stdout=out, stderr=subprocess.STDOUT, cwd=ROOT, env=env)
+            stdout=out, stderr=subprocess.STDOUT, cwd=ROOT, env=env, start_new_session=True)
 
 
 class FirstHeard:
