@@ -175,6 +175,11 @@ def test_greedy_active_claim_yields_to_a_clearly_cheaper_one() -> None:
     assert {m: [c.task for c in x.claims] for m, x in final.items()} == {1: [b], 2: [a]}
 
 
+def policy_named(name: str) -> AllocationPolicy:
+    """A fresh policy of one vehicle: seed 003's greedy rule, or CBBA with 3 tasks per vehicle."""
+    return GreedyPolicy() if name == "greedy" else CbbaPolicy(MODEL, 3)
+
+
 @pytest.mark.parametrize("policy", ["greedy", "cbba"])
 def test_active_claim_does_not_flap_within_the_hysteresis(policy: str) -> None:
     """Two vehicles whose costs to a task differ by less than the active margin, in turn a little nearer
@@ -183,10 +188,7 @@ def test_active_claim_does_not_flap_within_the_hysteresis(policy: str) -> None:
     board = led.board()
     v = board.get(a).version
 
-    def make() -> AllocationPolicy:
-        return GreedyPolicy() if policy == "greedy" else CbbaPolicy(MODEL, 3)
-
-    p1, p2 = make(), make()
+    p1, p2 = policy_named(policy), policy_named(policy)
     holder = (Claim(a, v, MODEL.leg_time(100), ClaimState.ACTIVE),)
     for k in range(20):
         d1 = 100.0 - 2 * k  # vehicle 1 approaches; vehicle 2 is alternately a little nearer and farther
@@ -222,10 +224,7 @@ def test_two_vehicles_flying_one_task_side_by_side_one_lets_go(policy: str) -> N
     board = led.board()
     v = board.get(a).version
 
-    def make() -> AllocationPolicy:
-        return GreedyPolicy() if policy == "greedy" else CbbaPolicy(MODEL, 3)
-
-    p1, p2 = make(), make()
+    p1, p2 = policy_named(policy), policy_named(policy)
     c1 = (Claim(a, v, MODEL.leg_time(100.0) + 0.6, ClaimState.ACTIVE),)  # published a period ago
     c2 = (Claim(a, v, MODEL.leg_time(100.0), ClaimState.ACTIVE),)
     e = {1: row(1, (200 - 97.0, 3), c1), 2: row(2, (200 - 97.0, -3), c2)}  # both 3 m nearer now
@@ -235,7 +234,7 @@ def test_two_vehicles_flying_one_task_side_by_side_one_lets_go(policy: str) -> N
     # vehicle 2, clearly nearer, takes it from vehicle 1 (and 1 lets go)
     e = {1: row(1, (0, 0), (Claim(a, v, MODEL.leg_time(200.0), ClaimState.ACTIVE),)),
          2: row(2, (150, 0), (Claim(a, v, MODEL.leg_time(50.0), ClaimState.ACTIVE),))}
-    k1, k2 = decide(make(), 1, e, board), decide(make(), 2, e, board)
+    k1, k2 = decide(policy_named(policy), 1, e, board), decide(policy_named(policy), 2, e, board)
     assert a not in [c.task for c in k1] and a in [c.task for c in k2]
 
 
@@ -250,19 +249,16 @@ def test_a_challenger_reading_an_older_row_of_the_holder_does_not_claim_what_the
     board = led.board()
     v = board.get(a).version
 
-    def make() -> AllocationPolicy:
-        return GreedyPolicy() if policy == "greedy" else CbbaPolicy(MODEL, 3)
-
     seen = {2: row(2, (0, 0), (Claim(a, v, 42.3, ClaimState.ACTIVE),)), 3: row(3, (50, 0))}
-    challenger = make().decide(3, seen, board, lambda t: 31.7, ())
+    challenger = policy_named(policy).decide(3, seen, board, lambda t: 31.7, ())
     now = {2: row(2, (0, 0), (Claim(a, v, 41.8, ClaimState.ACTIVE),)), 3: row(3, (50, 0), challenger)}
-    holder = make().decide(2, now, board, lambda t: 41.3, now[2].claims)
+    holder = policy_named(policy).decide(2, now, board, lambda t: 41.3, now[2].claims)
     holders = [m for m, k in ((2, holder), (3, challenger)) if a in [c.task for c in k]]
     assert holders == [2], (holder, challenger)
     # clearly cheaper than the holder's cost less the allowance: taken, and the holder lets go
-    challenger = make().decide(3, seen, board, lambda t: 25.0, ())
+    challenger = policy_named(policy).decide(3, seen, board, lambda t: 25.0, ())
     now[3] = dataclasses.replace(now[3], claims=challenger)
-    holder = make().decide(2, now, board, lambda t: 41.3, now[2].claims)
+    holder = policy_named(policy).decide(2, now, board, lambda t: 41.3, now[2].claims)
     assert a in [c.task for c in challenger] and a not in [c.task for c in holder]
 
 
