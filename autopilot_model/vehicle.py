@@ -73,12 +73,12 @@ class Vehicle:
                  home: Sequence[float] = DEFAULT_HOME, speedup: float = 0.0, instance: int = 0,
                  sensors: str | None = None, use_truth: bool = False, seed: int | None = 0,
                  offset_heuristic: str = "optimised", extra_select: Sequence[str] = (),
-                 params_file: str | Path | None = None) -> None:
+                 params_file: str | Path | None = None, spin_s: float = 0.0) -> None:
         self.airframe = airframe
         self.instance = instance
         self.home = (float(home[0]), float(home[1]), float(home[2]))
         self.home_heading_deg = float(home[3]) if len(home) > 3 else 0.0
-        self.clock = SimClock(speedup)
+        self.clock = SimClock(speedup, spin_s=spin_s)
         self.params = ParamStore()
         if params_file is not None:
             # before any piece declares (and copies) its parameters: the saved values are the flown

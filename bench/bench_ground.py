@@ -22,7 +22,15 @@ accepts connections and never answers: each poll of them runs into its time-out)
 * a command to a reachable vehicle (``POST /api/vehicles/{vid}/pause``: the service -> companion round
   trip) while the unreachable ones are polled.
 
-Run: ``python bench/bench_ground.py [--vehicles 100] [--seconds 20] [--companions 0.75]``.
+``--bus zenoh`` runs the team on the Zenoh fleet bus instead (a ``taskflight router`` on loopback, the
+service a client of it, as on a field network): a publisher process sends the N members' rows on the bus
+and runs N real :class:`~companion.team.presence.Presence` publishers (the companion's own code: status
+and mission at 2 Hz, the control URL with them); a fraction F (``--companions``, default 0.75) point at
+companion-like endpoints that answer, the rest go silent on the bus after 3 s (a companion that died:
+the service marks them unreachable after its lost time and polls nobody). The command latency is then the
+service -> companion round trip of a control URL learnt from the bus.
+
+Run: ``python -m bench.bench_ground [--vehicles 100] [--seconds 20] [--companions 0.75] [--bus zenoh]``.
 """
 
 from __future__ import annotations
@@ -39,6 +47,7 @@ import tempfile
 import threading
 import time
 from pathlib import Path
+from typing import Any
 
 from bench.common import machine, pct, table
 from companion.team.transport import open_transport
@@ -60,7 +69,7 @@ def cpu_s(pid: int) -> float:
 
 def feed(url: str, n: int, rate_hz: float, stop: threading.Event) -> None:
     """N members' rows at ``rate_hz`` each on the team link."""
-    tr = open_transport(url, member=1)
+    tr = open_transport(url, member=None if url.startswith("zenoh:") else 1)
     seq = 0
     period = 1.0 / rate_hz
     next_t = time.monotonic()
@@ -126,13 +135,62 @@ async def _serve(ports: list[int], blackholes: list[int]) -> None:
     await asyncio.gather(*(srv.serve_forever() for srv in servers))
 
 
-def fake_companions(ports: list[int], blackholes: list[int]) -> subprocess.Popen[str]:
-    """The companion-like endpoints in a process of their own (not the bench's nor the service's CPU)."""
-    proc = subprocess.Popen([sys.executable, "-m", "bench.bench_ground", "--serve", ",".join(map(str, ports)),
-                             "--holes", ",".join(map(str, blackholes))], stdout=subprocess.PIPE, text=True,
+#: seconds a silent vehicle's presence is heard before it goes quiet (--bus zenoh)
+SILENT_AFTER_S = 3.0
+
+
+def _publish(url: str, n: int, rate_hz: float, urls: dict[int, str], silent: set[int]) -> None:
+    """The ``--publish`` process: N members' rows and N Presence publishers on one bus session (each
+    vehicle's ``status`` a companion's ``GET /status`` answer), until its stdin closes."""
+    from companion.team.presence import Presence
+    from companion.team.zenoh_transport import ZenohBus
+
+    stop = threading.Event()
+    feeder = threading.Thread(target=feed, args=(url, n, rate_hz, stop), daemon=True)
+    feeder.start()
+    bus = ZenohBus.open(url)
+
+    def status_of(m: int) -> Any:
+        def status() -> dict[str, Any]:
+            st = json.loads(json.dumps(STATUS))
+            st["team"]["member"] = m
+            return st
+        return status
+
+    def url_of(m: int) -> Any:
+        return lambda: urls.get(m)
+
+    presences = {m: Presence(bus, m, name=f"sim{m}", status=status_of(m), mission=lambda: MISSION,
+                             control_url=url_of(m), owns_bus=False).start()
+                 for m in range(1, n + 1)}
+    print("PUBLISHING", flush=True)
+    time.sleep(SILENT_AFTER_S)
+    for m in silent:
+        presences[m].close()
+    sys.stdin.read()  # until the bench closes it (or dies)
+    stop.set()
+    for p in presences.values():
+        p.close()
+    bus.close()
+
+
+def _child(args: list[str], ready: str) -> subprocess.Popen[str]:
+    """A helper process of the bench (its CPU is neither the bench's nor the service's), once it printed a
+    line containing ``ready``."""
+    proc = subprocess.Popen([sys.executable, *args], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True,
                             cwd=Path(__file__).resolve().parents[1])
-    assert proc.stdout is not None and proc.stdout.readline().strip() == "SERVING"
+    assert proc.stdout is not None
+    line = proc.stdout.readline()
+    if ready not in line:
+        proc.kill()
+        raise SystemExit(f"bench helper {' '.join(args[:4])} did not start: {line!r}")
     return proc
+
+
+def fake_companions(ports: list[int], blackholes: list[int]) -> subprocess.Popen[str]:
+    """The companion-like endpoints in a process of their own."""
+    return _child(["-m", "bench.bench_ground", "--serve", ",".join(map(str, ports)),
+                   "--holes", ",".join(map(str, blackholes))], "SERVING")
 
 
 def main() -> int:
@@ -142,6 +200,10 @@ def main() -> int:
     ap.add_argument("--seconds", type=float, default=20.0, help="measurement window")
     ap.add_argument("--companions", type=float, default=None, metavar="F",
                     help="register every member's companion; the fraction F answers, the rest are blackholes")
+    ap.add_argument("--bus", choices=("udp", "zenoh"), default="udp",
+                    help="the team link: UDP multicast (the service polls the registered companions) or the "
+                         "Zenoh fleet bus through a router (the companions publish; nobody is polled)")
+    ap.add_argument("--publish", default=None, help=argparse.SUPPRESS)
     ap.add_argument("--serve", default=None, help=argparse.SUPPRESS)
     ap.add_argument("--holes", default="", help=argparse.SUPPRESS)
     args = ap.parse_args()
@@ -149,30 +211,60 @@ def main() -> int:
         asyncio.run(_serve([int(p) for p in args.serve.split(",") if p],
                            [int(p) for p in args.holes.split(",") if p]))
         return 0
+    if args.publish is not None:
+        spec = json.loads(args.publish)
+        _publish(spec["url"], args.vehicles, args.rate, {int(k): v for k, v in spec["urls"].items()},
+                 set(spec["silent"]))
+        return 0
+    zenoh = args.bus == "zenoh"
+    fraction = args.companions if args.companions is not None else (0.75 if zenoh else None)
+    children: list[subprocess.Popen[str]] = []
     team = new_team_url()
+    if zenoh:
+        rport = free_ports(1, socket.SOCK_STREAM)[0]
+        children.append(_child(["-m", "taskflight.cli", "router", "--listen", f"tcp/127.0.0.1:{rport}"],
+                               "listening"))
+        team = f"zenoh:tcp/127.0.0.1:{rport}?team=bench{os.getpid()}"
     companions: dict[int, str] = {}
-    server: subprocess.Popen[str] | None = None
     reachable: list[int] = []
-    if args.companions is not None:
+    if fraction is not None:
         ports = free_ports(args.vehicles, socket.SOCK_STREAM)
-        n_ok = round(args.companions * args.vehicles)
+        n_ok = round(fraction * args.vehicles)
         reachable = list(range(1, n_ok + 1))
-        server = fake_companions(ports[:n_ok], ports[n_ok:])
+        children.append(fake_companions(ports[:n_ok], ports[n_ok:]))
         companions = {m: f"http://127.0.0.1:{ports[m - 1]}" for m in range(1, args.vehicles + 1)}
+    stop = threading.Event()
+    if zenoh:  # the vehicles publish (rows and presence); the service is told no companion
+        spec = {"url": team, "urls": companions, "silent": sorted(set(companions) - set(reachable))}
+        children.append(_child(["-m", "bench.bench_ground", "--vehicles", str(args.vehicles), "--rate",
+                                str(args.rate), "--publish", json.dumps(spec)], "PUBLISHING"))
+        companions = {}
     ground = GroundProcess(Path(tempfile.mkdtemp(prefix="bench_ground")), team, companions).start()
     assert ground.proc is not None
     pid = ground.proc.pid
     http = ground.http(timeout=10)
     ophttp = ground.http(timeout=10)
-    stop = threading.Event()
     feeder = threading.Thread(target=feed, args=(team, args.vehicles, args.rate, stop), daemon=True)
     try:
-        feeder.start()
+        if not zenoh:
+            feeder.start()
         deadline = time.monotonic() + 30
         while len(http.get("/api/vehicles").json()["vehicles"]) < args.vehicles:
             if time.monotonic() > deadline:
                 raise SystemExit("not every member heard")
             time.sleep(0.2)
+        if zenoh:  # the silent ones marked unreachable, the others' control URLs learnt from the bus
+            deadline = time.monotonic() + 30
+            while True:
+                vs = http.get("/api/vehicles").json()["vehicles"]
+                ok = sum(v["companion"] == "ok" for v in vs)
+                lost = sum(v["companion"] == "unreachable" for v in vs)
+                if ok == len(reachable) and lost == args.vehicles - len(reachable):
+                    break
+                if time.monotonic() > deadline:
+                    raise SystemExit(f"bus: {ok} companions ok, {lost} unreachable, want {len(reachable)} "
+                                     f"and {args.vehicles - len(reachable)}")
+                time.sleep(0.5)
         lat_ws: list[float] = []
         intervals: list[float] = []
         snaps = [0]
@@ -229,8 +321,14 @@ def main() -> int:
         cpu = 100.0 * (cpu_s(pid) - c0) / wall
         ws_stop.set()
         watcher.join(6)
-        extra = (f"; companions registered: {len(reachable)} answering, {args.vehicles - len(reachable)} "
-                 "blackholes" if companions else "; no companion registered")
+        if zenoh:
+            extra = (f"; Zenoh fleet bus through a router: {args.vehicles} Presence publishers, "
+                     f"{len(reachable)} answering, {args.vehicles - len(reachable)} silent (unreachable)")
+        elif companions:
+            extra = (f"; companions registered: {len(reachable)} answering, {args.vehicles - len(reachable)} "
+                     "blackholes")
+        else:
+            extra = "; no companion registered"
         print(f"# bench_ground: {args.vehicles} members at {args.rate:g} Hz on the team link, "
               f"{wall:.0f} s{extra}")
         print(f"# {machine()}")
@@ -252,9 +350,11 @@ def main() -> int:
         http.close()
         ophttp.close()
         ground.close()
-        if server is not None:
-            server.kill()
-            server.wait(10)
+        for c in reversed(children):
+            if c.stdin is not None:
+                c.stdin.close()
+            c.kill()
+            c.wait(10)
     return 0
 
 
