@@ -11,10 +11,12 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.optimize import Bounds, LinearConstraint, OptimizeResult, milp
-from scipy.sparse import csr_matrix
+
+if TYPE_CHECKING:
+    from scipy.optimize import OptimizeResult
 
 #: One row ``lower <= sum(coef * x[column]) <= upper``: (coefficients by column, lower, upper).
 Row = tuple[dict[int, float], float, float]
@@ -49,8 +51,12 @@ def run_milp(cost: np.ndarray, integer: Sequence[bool], rows: Sequence[Row]) -> 
     """Minimise ``cost @ x`` subject to ``rows``; integer columns are binaries, the others free.
 
     Columns past ``len(integer)`` (auxiliary ones) are continuous and >= 0. Status 0: optimal, 2:
-    infeasible, 3: unbounded (scipy's codes).
+    infeasible, 3: unbounded (scipy's codes). SciPy is imported at the first check, not at start-up (a
+    quarter of a companion's start-up imports).
     """
+    from scipy.optimize import Bounds, LinearConstraint, milp
+    from scipy.sparse import csr_matrix
+
     n = len(cost)
     integrality = np.zeros(n, dtype=np.uint8)
     integrality[: len(integer)] = np.asarray(integer, dtype=np.uint8)
