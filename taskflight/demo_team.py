@@ -38,7 +38,7 @@ import yaml
 
 from mission_specs import bundled
 from taskflight.team_tasking import GroundTasking, StationTasking, Tasking, TaskRow, http_json
-from taskflight.up import Up, UpError, UpOptions, ground_available, sleep_or_stop
+from taskflight.up import AUTOPILOTS, Up, UpError, UpOptions, ground_available, sleep_or_stop
 from taskflight_common.geo import ned_to_geodetic
 
 MISSION = bundled("scan_and_search_outdoor.yaml")
@@ -56,6 +56,9 @@ def geo(n: float, e: float, alt: float) -> tuple[float, float, float]:
 def add_demo_team_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--vehicles", "-n", type=int, default=3, help="vehicles (default 3; at least 3)")
     p.add_argument("--speedup", type=float, default=2.0, help="simulated seconds per wall second (default 2)")
+    p.add_argument("--autopilot", choices=AUTOPILOTS, default="model",
+                   help="model (default) or arducopter: ArduPilot's own copter SITL, one per vehicle "
+                        "($TASKFLIGHT_ARDUCOPTER; see taskflight up --help)")
     p.add_argument("--keep", action="store_true", help="stay up for the operator after the scenario")
     p.add_argument("--no-ground", action="store_true",
                    help="no ground service: the tasks go through an in-process team-control station")
@@ -107,9 +110,10 @@ def run_demo_team(args: argparse.Namespace) -> int:
     ground = not args.no_ground and ground_available()
     up = Up(UpOptions(vehicles=args.vehicles, state_dir=state, speedup=args.speedup,
                       base_instance=args.base_instance, ground=ground,
-                      ground_port=args.ground_port, persist=False))
+                      ground_port=args.ground_port, persist=False, autopilot=args.autopilot))
     try:
-        print(f"taskflight demo: starting {args.vehicles} vehicles (speedup {args.speedup:g})", flush=True)
+        print(f"taskflight demo: starting {args.vehicles} vehicles (speedup {args.speedup:g}"
+              + (", ArduCopter SITL" if args.autopilot == "arducopter" else "") + ")", flush=True)
         up.start(stop)
         print(up.summary(), flush=True)
         key = str(up.team_key_path) if up.team_key_path else None  # the fleet's team key
