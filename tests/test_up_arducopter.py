@@ -17,6 +17,7 @@ import logging
 import math
 import os
 import re
+import signal
 import socket
 import time
 from collections.abc import Callable
@@ -26,7 +27,7 @@ from pathlib import Path
 import pytest
 
 from harness.arducopter import arducopter_missing
-from harness.observer import Gcs
+from harness.observer import GUIDED, Gcs
 from harness.timing import wait_for
 from harness.up import UpProcess, alive, child_env, processes_mentioning
 from taskflight import arducopter_fleet
@@ -34,6 +35,7 @@ from taskflight.up import ground_available
 from taskflight_common.ports import free_base, free_ports, port_free
 
 pytestmark = pytest.mark.integration
+MAV_RESULT_ACCEPTED, MAV_CMD_COMPONENT_ARM_DISARM = 0, 400
 log = logging.getLogger(__name__)
 
 N = 3
@@ -168,3 +170,51 @@ def test_arducopter_needs_a_rate(tmp_path: Path) -> None:
         up.close()
     assert rc == 2 and "--speedup 0" in up.output and "ArduCopter" in up.output, up.output
     assert not (tmp_path / "state").exists()
+
+
+@pytest.mark.skipif(arducopter_missing() is not None, reason=arducopter_missing() or "")
+def test_ready_means_ready_to_arm_and_ctrl_c_stops_every_sitl(tmp_path: Path) -> None:
+    """READY only once each vehicle can arm (GUIDED and arming accepted at the first try, from a ground
+    station on its SERIAL1); Ctrl-C then stops every SITL, companion and the ground service, ports freed."""
+    base = free_arducopter_base(2)
+    up = UpProcess(["--autopilot", "arducopter", "--vehicles", "2", "--speedup", f"{SPEEDUP:g}",
+                    "--base-instance", str(base), "--no-ground"], tmp_path / "state")
+    try:
+        summary = up.wait_ready(300)
+        sitls = [summary.pids[f"arducopter{i + 1}"] for i in range(2)]
+        assert all(alive(p) for p in sitls)
+        for i, port in enumerate(summary.tcp):
+            gcs = Gcs(0, SPEEDUP, url=f"tcp:127.0.0.1:{port}", background=True, target=i + 1)
+            try:
+                assert gcs.set_mode(GUIDED) == MAV_RESULT_ACCEPTED, gcs.texts[-5:]
+                assert gcs.command(MAV_CMD_COMPONENT_ARM_DISARM, 1) == MAV_RESULT_ACCEPTED, gcs.texts[-5:]
+            finally:
+                gcs.close()
+        assert up.interrupt(60) == 0, up.output
+        assert "taskflight up: stopped" in up.output
+    finally:
+        up.close()
+    assert [p for p in summary.pids.values() if alive(p)] == []
+    assert processes_mentioning(str(tmp_path)) == []
+    for i in range(2):
+        for port in (5760 + 10 * (base + i), arducopter_fleet.watch_port(base + i)):
+            wait_for(partial(port_free, socket.SOCK_STREAM, port), 10, f"TCP {port} free")
+
+
+@pytest.mark.skipif(arducopter_missing() is not None, reason=arducopter_missing() or "")
+def test_sigkill_of_up_stops_its_sitl_by_itself(tmp_path: Path) -> None:
+    """``taskflight up`` killed outright: its SITL stops on the parent-death signal, as the model does."""
+    up = UpProcess(["--autopilot", "arducopter", "--vehicles", "1", "--speedup", f"{SPEEDUP:g}",
+                    "--base-instance", str(free_arducopter_base(1)), "--no-ground"], tmp_path / "state")
+    pids: dict[str, int] = {}
+    try:
+        pids = dict(up.wait_ready(300).pids)
+        assert "arducopter1" in pids and all(alive(p) for p in pids.values()), pids
+        up.proc.send_signal(signal.SIGKILL)
+        up.proc.wait(10)
+        wait_for(lambda: not [p for p in pids.values() if alive(p)], 30,
+                 f"every child of the killed taskflight up gone: {pids}")
+    finally:
+        up.close()
+        for pid in [p for p in pids.values() if alive(p)]:
+            os.kill(pid, signal.SIGKILL)
