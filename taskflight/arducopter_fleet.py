@@ -198,6 +198,14 @@ class ReadyWatch:
         return f"EKF flags {w.flags:#x}" + (" (constant position mode, no GPS yet)"
                                              if w.flags & EKF_CONST_POS_MODE else "")
 
+    def progress(self, waiting: set[int]) -> str:
+        """What the vehicles ``waiting`` wait for, those waiting alike together."""
+        alike: dict[str, list[int]] = {}
+        for s in sorted(waiting):
+            alike.setdefault(self.describe(s), []).append(s)
+        return "; ".join(f"vehicle{'s' if len(ids) > 1 else ''} {', '.join(map(str, ids))}: {what}"
+                         for what, ids in alike.items())
+
     @staticmethod
     def _close(w: _Watched) -> None:
         if w.conn is not None:

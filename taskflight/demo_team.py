@@ -16,7 +16,8 @@ ground service), then plays a short scenario:
   holders, each vehicle's flight time and distance, and the tracking figure from its companion's flight
   log (streamed position setpoints against the autopilot's LOCAL_POSITION_NED at the same autopilot time).
 
-Exit 0 when the scenario completed; with ``--keep`` the fleet then stays up for the operator (the URL
+``--autopilot arducopter`` flies it on ArduPilot's own copter SITL, one per vehicle
+(:mod:`taskflight.arducopter_fleet`, ``$TASKFLIGHT_ARDUCOPTER``). Exit 0 when the scenario completed; with ``--keep`` the fleet then stays up for the operator (the URL
 and tokens are printed) until Ctrl-C.
 """
 

@@ -442,8 +442,7 @@ class Up:
                     if unarmable and time.monotonic() > note:
                         note += 5.0
                         log.info("waiting for ArduCopter: %d of %d vehicles ready to arm; %s",
-                                 len(want) - len(unarmable), len(want),
-                                 "; ".join(f"vehicle {s}: {watch.describe(s)}" for s in sorted(unarmable)))
+                                 len(want) - len(unarmable), len(want), watch.progress(unarmable))
                 if not pending and not ground_ok:
                     ground_ok = self._ground_ready()
                 if time.monotonic() > end:
@@ -455,8 +454,7 @@ class Up:
 
     def _late(self, pending: set[int], unarmable: set[int], watch: acf.ReadyWatch | None) -> UpError:
         what = (f"vehicle(s) {sorted(pending)} not heard" if pending
-                else f"vehicle(s) {sorted(unarmable)} not ready to arm (" + "; ".join(
-                    watch.describe(s) for s in sorted(unarmable)) + ")" if unarmable and watch
+                else f"not ready to arm: {watch.progress(unarmable)}" if unarmable and watch
                 else "the ground service did not answer with every vehicle")
         late = {self.companion_of(s) for s in pending} | {c for c in self.autopilots()
                                                           if c.name in {f"arducopter{s}" for s in unarmable}}
