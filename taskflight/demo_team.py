@@ -17,7 +17,9 @@ ground service), then plays a short scenario:
   log (streamed position setpoints against the autopilot's LOCAL_POSITION_NED at the same autopilot time).
 
 ``--autopilot arducopter`` flies it on ArduPilot's own copter SITL, one per vehicle
-(:mod:`taskflight.arducopter_fleet`, ``$TASKFLIGHT_ARDUCOPTER``). Exit 0 when the scenario completed; with ``--keep`` the fleet then stays up for the operator (the URL
+(:mod:`taskflight.arducopter_fleet`, ``$TASKFLIGHT_ARDUCOPTER``).
+
+Exit 0 when the scenario completed; with ``--keep`` the fleet then stays up for the operator (the URL
 and tokens are printed) until Ctrl-C.
 """
 
