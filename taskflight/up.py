@@ -155,6 +155,9 @@ class UpOptions:
         if self.autopilot == "arducopter" and not self.speedup > 0:
             raise UpError("--speedup 0 (as fast as possible) is the model's: ArduCopter SITL needs a "
                           "rate > 0", 2)
+        if self.autopilot == "arducopter" and self.mavlink_host not in ("127.0.0.1", "0.0.0.0"):
+            raise UpError(f"--mavlink-host {self.mavlink_host}: ArduCopter SITL serves its TCP ports on "
+                          "every interface (0.0.0.0), it cannot be narrowed to one address", 2)
         if not 0 <= self.base_instance <= 255 - self.vehicles:
             raise UpError(f"instances {self.base_instance}..{self.base_instance + self.vehicles - 1} are "
                           "not all within 0..254", 2)
@@ -520,8 +523,9 @@ class Up:
                      + " ".join(str(c.pid) if (c := self.companion_of(v.sysid)) else "0"
                                 for v in self.vehicles)
                      + (f"; ground {g.pid}" if (g := self.ground()) is not None else ""))
+        mav_host = "0.0.0.0" if self._arducopter else o.mavlink_host  # SITL listens on every interface
         for v in self.vehicles:
-            lines.append(f"vehicle {v.index}: sysid {v.sysid}  MAVLink tcp:{o.mavlink_host}:{v.tcp}  "
+            lines.append(f"vehicle {v.index}: sysid {v.sysid}  MAVLink tcp:{mav_host}:{v.tcp}  "
                          f"(mavproxy.py --master=tcp:127.0.0.1:{v.tcp})  companion {v.control_url}")
         if o.per_process > 1:
             lines.append(f"companion hosts: {len(self.companions())} processes of up to {o.per_process} "

@@ -22,7 +22,8 @@ def add_up_arguments(p: argparse.ArgumentParser) -> None:
                         "ArduPilot's own copter SITL, one process per vehicle ($TASKFLIGHT_ARDUCOPTER names "
                         "the binary, $TASKFLIGHT_ARDUCOPTER_DEFAULTS the parameter file, default "
                         "../shared/ardupilot/copter.parm); READY once every vehicle's EKF uses GPS (ready "
-                        "to arm), ~42 simulated s; a ground station connects to TCP 5760+10(I+i) alike")
+                        "to arm), ~42 simulated s; a ground station connects to TCP 5760+10(I+i) alike "
+                        "(SITL listens on every interface); each SITL starts from copter.parm (-w)")
     p.add_argument("--speedup", type=float, default=1.0,
                    help="simulated seconds per wall second (default 1: real time; 0: as fast as possible)")
     p.add_argument("--base-instance", "-I", type=int, default=0,
@@ -32,7 +33,8 @@ def add_up_arguments(p: argparse.ArgumentParser) -> None:
                    help=f"the ground service's HTTP port (default {DEFAULT_GROUND_PORT})")
     p.add_argument("--host", default="127.0.0.1", help="the ground service's bind address (default loopback)")
     p.add_argument("--mavlink-host", default="127.0.0.1",
-                   help="bind address of the models' MAVLink ports (default loopback; 0.0.0.0 for a LAN)")
+                   help="bind address of the models' MAVLink ports (default loopback; 0.0.0.0 for a LAN; "
+                        "ArduCopter SITL: always every interface)")
     p.add_argument("--control-host", default="127.0.0.1", metavar="HOST",
                    help="bind address of the companions' control surfaces (default loopback; 0.0.0.0 for a "
                         "ground service on another host: on a zenoh: team it finds them through the bus; "

@@ -158,17 +158,20 @@ def test_without_the_binary_up_says_which_variable_and_starts_nothing(tmp_path: 
     assert processes_mentioning(str(tmp_path)) == []
 
 
-def test_arducopter_needs_a_rate(tmp_path: Path) -> None:
-    """``--speedup 0`` (the model's lockstep) is refused for ArduCopter, not run at some other rate."""
+@pytest.mark.parametrize(("option", "said"), [(["--speedup", "0"], "--speedup 0 (as fast as possible)"),
+                                               (["--mavlink-host", "10.1.2.3"], "every interface")])
+def test_what_arducopter_cannot_do_is_refused(tmp_path: Path, option: list[str], said: str) -> None:
+    """``--speedup 0`` (the model's lockstep) and a MAVLink bind address SITL cannot honour are refused,
+    saying why, rather than run some other way."""
     env = child_env()
     env["TASKFLIGHT_ARDUCOPTER"] = os.environ.get("TASKFLIGHT_ARDUCOPTER", "/bin/true")
-    up = UpProcess(["--autopilot", "arducopter", "--vehicles", "1", "--speedup", "0", "--no-ground"],
+    up = UpProcess(["--autopilot", "arducopter", "--vehicles", "1", *option, "--no-ground"],
                    tmp_path / "state", env=env)
     try:
         rc = up.proc.wait(60)
     finally:
         up.close()
-    assert rc == 2 and "--speedup 0" in up.output and "ArduCopter" in up.output, up.output
+    assert rc == 2 and said in up.output and "ArduCopter" in up.output, up.output
     assert not (tmp_path / "state").exists()
 
 
