@@ -158,6 +158,36 @@ def test_without_the_binary_up_says_which_variable_and_starts_nothing(tmp_path: 
     assert processes_mentioning(str(tmp_path)) == []
 
 
+def test_a_missing_parameter_file_is_named_and_nothing_starts(tmp_path: Path) -> None:
+    env = {**child_env(), "TASKFLIGHT_ARDUCOPTER": "/bin/true",
+           "TASKFLIGHT_ARDUCOPTER_DEFAULTS": str(tmp_path / "nowhere.parm")}
+    up = UpProcess(["--autopilot", "arducopter", "--vehicles", "1", "--no-ground"], tmp_path / "state",
+                   env=env)
+    try:
+        rc = up.proc.wait(60)
+    finally:
+        up.close()
+    assert rc == 2 and f"copter.parm not found at {tmp_path / 'nowhere.parm'}" in up.output, up.output
+    assert "TASKFLIGHT_ARDUCOPTER_DEFAULTS" in up.output and not (tmp_path / "state").exists()
+
+
+def test_a_sitl_dying_at_start_up_is_reported_and_everything_stops(tmp_path: Path) -> None:
+    """A SITL that exits while the fleet starts (here a "binary" that exits 1 at once): its name and exit
+    status are reported, every other child is stopped (exit 1)."""
+    parm = tmp_path / "copter.parm"
+    parm.write_text("FRAME_CLASS 1\n")
+    env = {**child_env(), "TASKFLIGHT_ARDUCOPTER": "/bin/false", "TASKFLIGHT_ARDUCOPTER_DEFAULTS": str(parm)}
+    up = UpProcess(["--autopilot", "arducopter", "--vehicles", "2", "--base-instance",
+                    str(free_arducopter_base(2)), "--no-ground"], tmp_path / "state", env=env)
+    try:
+        rc = up.proc.wait(120)
+    finally:
+        up.close()
+    assert rc == 1, up.output
+    assert re.search(r"arducopter\d \(pid \d+\) exited with status 1 during start-up", up.output), up.output
+    assert processes_mentioning(str(tmp_path)) == []
+
+
 @pytest.mark.parametrize(("option", "said"), [(["--speedup", "0"], "--speedup 0 (as fast as possible)"),
                                                (["--mavlink-host", "10.1.2.3"], "every interface")])
 def test_what_arducopter_cannot_do_is_refused(tmp_path: Path, option: list[str], said: str) -> None:
