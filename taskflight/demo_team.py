@@ -295,8 +295,9 @@ def report(up: Up, progress: Progress) -> str:
     held: dict[int, list[str]] = {}
     for tid, who in progress.holders.items():
         r = progress.rows[tid]
-        for h in who:
-            held.setdefault(h, []).append(f"{r.name or r.kind} (task {tid}, {r.state})")
+        for h in who:  # in the order they held it: the last one flew it, the others handed it on
+            state = r.state if h == who[-1] else f"handed to vehicle {who[-1]}"
+            held.setdefault(h, []).append(f"{r.name or r.kind} (task {tid}, {state})")
     for v in up.vehicles:
         did = []
         if v.index == 0:
