@@ -46,11 +46,13 @@ def child_env() -> dict[str, str]:
 
 
 class UpProcess:
-    """``taskflight up ARGS`` in a child process; :meth:`wait_ready` parses its summary."""
+    """``taskflight up ARGS`` in a child process; :meth:`wait_ready` parses its summary. ``command``: another
+    command that prints the same summary (``demo-team``); ``env``: the child's environment (child_env())."""
 
-    def __init__(self, args: Sequence[str], state_dir: Path) -> None:
-        env = child_env()
-        self.argv = [sys.executable, "-m", "taskflight.cli", "up", "--state-dir", str(state_dir), *args]
+    def __init__(self, args: Sequence[str], state_dir: Path, command: str = "up",
+                 env: dict[str, str] | None = None) -> None:
+        env = child_env() if env is None else env
+        self.argv = [sys.executable, "-m", "taskflight.cli", command, "--state-dir", str(state_dir), *args]
         self.proc = subprocess.Popen(self.argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                                      env=env, cwd=ROOT, stdin=subprocess.DEVNULL)
         self.lines: list[str] = []
@@ -93,12 +95,16 @@ class UpProcess:
         self.wait_line("logs:", 10.0)
         s = Summary()
         for line in self.lines:
-            if m := re.match(r"pids: fleet (\d+); companions ([\d ]+)(?:; ground (\d+))?", line):
-                s.pids["fleet"] = int(m.group(1))
-                for i, p in enumerate(m.group(2).split()):
+            if m := re.match(r"pids: (?:fleet (\d+)|arducopter ([\d ]+)); companions ([\d ]+)"
+                             r"(?:; ground (\d+))?", line):
+                if m.group(1):
+                    s.pids["fleet"] = int(m.group(1))
+                for i, p in enumerate((m.group(2) or "").split()):  # an ArduCopter SITL per vehicle
+                    s.pids[f"arducopter{i + 1}"] = int(p)
+                for i, p in enumerate(m.group(3).split()):
                     s.pids[f"companion{i + 1}"] = int(p)
-                if m.group(3):
-                    s.pids["ground"] = int(m.group(3))
+                if m.group(4):
+                    s.pids["ground"] = int(m.group(4))
             elif m := re.match(r"vehicle \d+: sysid \d+  MAVLink tcp:[\d.]+:(\d+) .* companion (\S+)", line):
                 s.tcp.append(int(m.group(1)))
                 s.companions.append(m.group(2))

@@ -16,6 +16,9 @@ ground service), then plays a short scenario:
   holders, each vehicle's flight time and distance, and the tracking figure from its companion's flight
   log (streamed position setpoints against the autopilot's LOCAL_POSITION_NED at the same autopilot time).
 
+``--autopilot arducopter`` flies it on ArduPilot's own copter SITL, one per vehicle
+(:mod:`taskflight.arducopter_fleet`, ``$TASKFLIGHT_ARDUCOPTER``).
+
 Exit 0 when the scenario completed; with ``--keep`` the fleet then stays up for the operator (the URL
 and tokens are printed) until Ctrl-C.
 """
@@ -38,7 +41,7 @@ import yaml
 
 from mission_specs import bundled
 from taskflight.team_tasking import GroundTasking, StationTasking, Tasking, TaskRow, http_json
-from taskflight.up import Up, UpError, UpOptions, ground_available, sleep_or_stop
+from taskflight.up import AUTOPILOTS, Up, UpError, UpOptions, ground_available, sleep_or_stop
 from taskflight_common.geo import ned_to_geodetic
 
 MISSION = bundled("scan_and_search_outdoor.yaml")
@@ -56,6 +59,9 @@ def geo(n: float, e: float, alt: float) -> tuple[float, float, float]:
 def add_demo_team_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--vehicles", "-n", type=int, default=3, help="vehicles (default 3; at least 3)")
     p.add_argument("--speedup", type=float, default=2.0, help="simulated seconds per wall second (default 2)")
+    p.add_argument("--autopilot", choices=AUTOPILOTS, default="model",
+                   help="model (default) or arducopter: ArduPilot's own copter SITL, one per vehicle "
+                        "($TASKFLIGHT_ARDUCOPTER; see taskflight up --help)")
     p.add_argument("--keep", action="store_true", help="stay up for the operator after the scenario")
     p.add_argument("--no-ground", action="store_true",
                    help="no ground service: the tasks go through an in-process team-control station")
@@ -107,9 +113,10 @@ def run_demo_team(args: argparse.Namespace) -> int:
     ground = not args.no_ground and ground_available()
     up = Up(UpOptions(vehicles=args.vehicles, state_dir=state, speedup=args.speedup,
                       base_instance=args.base_instance, ground=ground,
-                      ground_port=args.ground_port, persist=False))
+                      ground_port=args.ground_port, persist=False, autopilot=args.autopilot))
     try:
-        print(f"taskflight demo: starting {args.vehicles} vehicles (speedup {args.speedup:g})", flush=True)
+        print(f"taskflight demo: starting {args.vehicles} vehicles (speedup {args.speedup:g}"
+              + (", ArduCopter SITL" if args.autopilot == "arducopter" else "") + ")", flush=True)
         up.start(stop)
         print(up.summary(), flush=True)
         key = str(up.team_key_path) if up.team_key_path else None  # the fleet's team key
@@ -288,8 +295,9 @@ def report(up: Up, progress: Progress) -> str:
     held: dict[int, list[str]] = {}
     for tid, who in progress.holders.items():
         r = progress.rows[tid]
-        for h in who:
-            held.setdefault(h, []).append(f"{r.name or r.kind} (task {tid}, {r.state})")
+        for h in who:  # in the order they held it: the last one flew it, the others handed it on
+            state = r.state if h == who[-1] else f"handed to vehicle {who[-1]}"
+            held.setdefault(h, []).append(f"{r.name or r.kind} (task {tid}, {state})")
     for v in up.vehicles:
         did = []
         if v.index == 0:

@@ -2,7 +2,7 @@
 
     taskflight up --vehicles N [--speedup K] [--ground-port P] [--tokens FILE] [--team-loss F]
                   [--team URL] [--team-key FILE] [--first-sysid K] [--state-dir DIR] [--base-instance I]
-                  [--no-ground] [--control-host HOST]
+                  [--no-ground] [--control-host HOST] [--autopilot model|arducopter]
 
 starts, each as a child process in a process group of its own (:mod:`taskflight.children`):
 
@@ -13,6 +13,8 @@ starts, each as a child process in a process group of its own (:mod:`taskflight.
   any ground station (MAVProxy, QGroundControl: the lowest tier of seed 003 Fig. 1) and UDP 14550+10(I+i)
   for its companion. The default I = 0 gives the ports users expect (5760, 5770, ...); tests pick a free
   block with ``--base-instance``;
+  With ``--autopilot arducopter``: one ArduPilot copter SITL per vehicle instead, on the same ports
+  (:mod:`taskflight.arducopter_fleet`), and READY waits until every vehicle's EKF uses GPS;
 * N companions, each on its vehicle's UDP port, K to a process (``--companions-per-process K``: each
   process a ``taskflight companion-host`` of K companions, :mod:`companion.host`; default: the vehicles
   spread over as many hosts as the machine has cores; K = 1: one ``taskflight companion`` process each, as
@@ -54,12 +56,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import yaml
-
-from mission_specs import bundled
+from taskflight import arducopter_fleet as acf
 from taskflight import hostproc
 from taskflight.children import Child, first_dead, stop_all
-from taskflight_common.geo import ned_to_geodetic
+from taskflight.up_args import AUTOPILOTS, DEFAULT_GROUND_PORT, PLATFORM, TEAM_GROUP
+from taskflight.up_args import add_up_arguments as add_up_arguments  # its options, re-exported
+from taskflight.up_ground import demo_tiles, ground_arguments, ground_available, write_fence, write_tokens
 from taskflight_common.ports import free_ports, model_ports, port_free
 from taskflight_common.tokens import TOKEN_ENV, load_tokens, new_token, role_tokens
 from taskflight_common.yamlio import ConfigError
@@ -67,9 +69,6 @@ from taskflight_common.yamlio import ConfigError
 log = logging.getLogger(__name__)
 
 ROOT = Path(__file__).resolve().parents[1]
-PLATFORM = bundled("platform_outdoor.yaml")
-TEAM_GROUP = "239.255.70.1"
-DEFAULT_GROUND_PORT = 8700
 
 
 def default_per_process(vehicles: int) -> int:
@@ -106,27 +105,6 @@ def read_tokens(path: Path) -> dict[str, list[str]]:
         raise UpError(str(exc), 2) from None
 
 
-def write_tokens(path: Path, tokens: dict[str, list[str]]) -> None:
-    """Write the tokens file readable by its owner only (mode 0600 from its creation on)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(".tmp")
-    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
-    with os.fdopen(fd, "w", encoding="utf-8") as f:
-        yaml.safe_dump(tokens, f)
-    os.chmod(tmp, 0o600)
-    os.replace(tmp, path)
-
-
-def ground_available() -> bool:
-    """Whether ``taskflight ground`` (the ground service) is part of this installation."""
-    import importlib.util
-
-    try:
-        return importlib.util.find_spec("groundstation.service") is not None
-    except (ImportError, ValueError):
-        return False
-
-
 # --- options -----------------------------------------------------------------------------------------
 @dataclass
 class UpOptions:
@@ -134,6 +112,9 @@ class UpOptions:
 
     vehicles: int
     state_dir: Path
+    autopilot: str = "model"
+    """``model``: the bundled models in one process; ``arducopter``: an ArduCopter SITL each
+    (:mod:`taskflight.arducopter_fleet`)"""
     speedup: float = 1.0
     base_instance: int = 0
     ground: bool = True
@@ -169,6 +150,14 @@ class UpOptions:
             raise UpError(f"--vehicles must be within 1..200, got {self.vehicles}", 2)
         if not self.speedup >= 0:
             raise UpError(f"--speedup must be >= 0 (0: as fast as possible), got {self.speedup}", 2)
+        if self.autopilot not in AUTOPILOTS:
+            raise UpError(f"--autopilot must be one of {', '.join(AUTOPILOTS)}, got {self.autopilot!r}", 2)
+        if self.autopilot == "arducopter" and not self.speedup > 0:
+            raise UpError("--speedup 0 (as fast as possible) is the model's: ArduCopter SITL needs a "
+                          "rate > 0", 2)
+        if self.autopilot == "arducopter" and self.mavlink_host not in ("127.0.0.1", "0.0.0.0"):
+            raise UpError(f"--mavlink-host {self.mavlink_host}: ArduCopter SITL serves its TCP ports on "
+                          "every interface (0.0.0.0), it cannot be narrowed to one address", 2)
         if not 0 <= self.base_instance <= 255 - self.vehicles:
             raise UpError(f"instances {self.base_instance}..{self.base_instance + self.vehicles - 1} are "
                           "not all within 0..254", 2)
@@ -200,6 +189,8 @@ class UpOptions:
                 out.append(f"TCP {tcp} (vehicle {i}, sysid {self.first_sysid + i})")
             if not port_free(socket.SOCK_DGRAM, udp, self.mavlink_host):
                 out.append(f"UDP {udp} (vehicle {i}, sysid {self.first_sysid + i})")
+        if self.autopilot == "arducopter":
+            out += acf.ports_taken(self.base_instance, self.vehicles, self.first_sysid, self.mavlink_host)
         if self.ground and not port_free(socket.SOCK_STREAM, self.ground_port, self.host):
             out.append(f"TCP {self.ground_port} (the ground service)")
         return out
@@ -233,6 +224,8 @@ class Up:
     #: the system ids each companion process runs, by its name
     _hosted: dict[str, tuple[int, ...]] = field(default_factory=dict)
     _stopped: threading.Event = field(default_factory=threading.Event)
+    #: ArduCopter SITL's binary and defaults file (``--autopilot arducopter``)
+    _arducopter: tuple[str, Path] | None = None
 
     @property
     def ground_url(self) -> str | None:
@@ -243,7 +236,12 @@ class Up:
 
     @property
     def fleet(self) -> Child:
+        """The models' process (the first ArduCopter SITL with ``--autopilot arducopter``)."""
         return self.children[0]
+
+    def autopilots(self) -> list[Child]:
+        """The autopilots' processes: the models' one, or an ArduCopter SITL per vehicle."""
+        return [c for c in self.children if c.name == "fleet" or c.name.startswith("arducopter")]
 
     def companions(self) -> list[Child]:
         """The companions' processes (``companion<sysid>`` each, or ``companions<first>-<last>`` hosts)."""
@@ -261,6 +259,11 @@ class Up:
         """Start everything and wait until ready (UpError, everything stopped, if it cannot)."""
         o = self.opts
         o.check()
+        if o.autopilot == "arducopter":
+            try:
+                self._arducopter = (acf.binary(), acf.defaults_file(ROOT))
+            except acf.ArduCopterError as exc:
+                raise UpError(str(exc), 2) from None
         if o.ground and not ground_available():
             raise UpError("the ground service (taskflight ground) is not installed here; --no-ground starts "
                           "everything else", 2)
@@ -327,7 +330,9 @@ class Up:
 
     def _deadline(self) -> float:
         t = self.opts.ready_timeout_s
-        return time.monotonic() + (t if t is not None else 60.0 + 3.0 * self.opts.vehicles)
+        if t is None:  # ArduCopter is ready to arm at ~42 s of simulated time
+            t = 60.0 + 3.0 * self.opts.vehicles + (90.0 / self.opts.speedup if self._arducopter else 0.0)
+        return time.monotonic() + t
 
     def _check_alive(self) -> None:
         dead = first_dead(self.children)
@@ -336,9 +341,21 @@ class Up:
             raise UpError(f"{dead.name} (pid {dead.pid}) exited with status {dead.returncode} during "
                           f"start-up; the end of {dead.log_path}:\n{tail}")
 
+    def _vehicle_infos(self) -> None:
+        o = self.opts
+        ctl = free_ports(o.vehicles)
+        for i in range(o.vehicles):
+            tcp, udp = model_ports(o.base_instance + i)
+            self.vehicles.append(VehicleInfo(i, o.first_sysid + i, o.base_instance + i, tcp, udp,
+                                             f"http://127.0.0.1:{ctl[i]}"))
+
     def _start_fleet(self, stop: threading.Event | None) -> None:
         o = self.opts
         logs = o.state_dir / "logs"
+        if self._arducopter is not None:
+            self._vehicle_infos()
+            self.children += acf.start_sitls(*self._arducopter, o.state_dir, self.vehicles, o.speedup)
+            return
         argv = [sys.executable, "-m", "autopilot_model.fleet", "--vehicles", str(o.vehicles),
                 "--base-instance", str(o.base_instance), "--first-sysid", str(o.first_sysid),
                 "--speedup", f"{o.speedup:g}",
@@ -358,11 +375,7 @@ class Up:
                 raise UpError(f"the fleet printed no READY line in time; the end of {fleet_log}:\n"
                               f"{self.fleet.tail()}")
             sleep_or_stop(stop, 0.05)
-        ctl = free_ports(o.vehicles)
-        for i in range(o.vehicles):
-            tcp, udp = model_ports(o.base_instance + i)
-            self.vehicles.append(VehicleInfo(i, o.first_sysid + i, o.base_instance + i, tcp, udp,
-                                             f"http://127.0.0.1:{ctl[i]}"))
+        self._vehicle_infos()
 
     def _pythonpath(self) -> dict[str, str]:
         pp = os.environ.get("PYTHONPATH", "")
@@ -371,7 +384,10 @@ class Up:
     def _companion_args(self, v: VehicleInfo) -> tuple[list[str], list[str]]:
         """Vehicle ``v``'s ``taskflight companion`` options: its own, and those every vehicle shares."""
         o = self.opts
-        own = ["--autopilot", f"udpout:127.0.0.1:{v.udp}", "--control-port", v.control_url.rsplit(":", 1)[1],
+        # the model listens on its UDP port; ArduCopter's SERIAL0 sends to the companion's
+        endpoint = "udpin" if o.autopilot == "arducopter" else "udpout"
+        own = ["--autopilot", f"{endpoint}:127.0.0.1:{v.udp}",
+               "--control-port", v.control_url.rsplit(":", 1)[1],
                "--flight-log", str(o.state_dir / "logs" / f"flight{v.sysid}.jsonl")]
         common = ["--team", self.member_url, "--control-host", o.control_host, "--platform", str(o.platform),
                   *(["--scenario", str(o.scenario)] if o.scenario is not None else [])]
@@ -413,21 +429,41 @@ class Up:
         pending = {v.sysid for v in self.vehicles}
         want = set(pending)
         ground_ok = not self.opts.ground
-        while pending or not ground_ok:
-            self._check_alive()
-            for v in [v for v in self.vehicles if v.sysid in pending]:
-                if self._vehicle_ready(v, want):
-                    pending.discard(v.sysid)
-            if not pending and not ground_ok:
-                ground_ok = self._ground_ready()
-            if time.monotonic() > end:
-                what = (f"vehicle(s) {sorted(pending)} not heard" if pending
-                        else "the ground service did not answer with every vehicle")
-                late = {self.companion_of(s) for s in pending}
-                hint = "\n".join(f"--- {c.name}:\n{c.tail(5)}" for c in self.children
-                                 if c.name == "ground" or c in late)
-                raise UpError(f"not ready in time: {what}\n{hint}")
-            sleep_or_stop(stop, 0.2)
+        # ArduCopter: also ready to arm, its EKF using GPS (arducopter_fleet.ReadyWatch)
+        watch = (acf.ReadyWatch({v.sysid: acf.watch_port(v.instance) for v in self.vehicles})
+                 if self._arducopter is not None else None)
+        unarmable = set(want) if watch is not None else set()
+        note = time.monotonic() + 5.0
+        try:
+            while pending or unarmable or not ground_ok:
+                self._check_alive()
+                for v in [v for v in self.vehicles if v.sysid in pending]:
+                    if self._vehicle_ready(v, want):
+                        pending.discard(v.sysid)
+                if watch is not None:
+                    unarmable -= watch.poll()
+                    if unarmable and time.monotonic() > note:
+                        note += 5.0
+                        log.info("waiting for ArduCopter: %d of %d vehicles ready to arm; %s",
+                                 len(want) - len(unarmable), len(want), watch.progress(unarmable))
+                if not pending and not ground_ok:
+                    ground_ok = self._ground_ready()
+                if time.monotonic() > end:
+                    raise self._late(pending, unarmable, watch)
+                sleep_or_stop(stop, 0.2)
+        finally:
+            if watch is not None:
+                watch.close()
+
+    def _late(self, pending: set[int], unarmable: set[int], watch: acf.ReadyWatch | None) -> UpError:
+        what = (f"vehicle(s) {sorted(pending)} not heard" if pending
+                else f"not ready to arm: {watch.progress(unarmable)}" if unarmable and watch
+                else "the ground service did not answer with every vehicle")
+        late = {self.companion_of(s) for s in pending} | {c for c in self.autopilots()
+                                                          if c.name in {f"arducopter{s}" for s in unarmable}}
+        hint = "\n".join(f"--- {c.name}:\n{c.tail(5)}" for c in self.children
+                         if c.name == "ground" or c in late)
+        return UpError(f"not ready in time: {what}\n{hint}")
 
     def _get(self, url: str, token: str) -> Any:
         from taskflight.team_tasking import http_json
@@ -455,20 +491,21 @@ class Up:
 
     # --- stop --------------------------------------------------------------------------------------
     def stop(self, timeout_s: float = 10.0) -> None:
-        """The ground service, then the companions, then the models; idempotent."""
+        """The ground service, then the companions, then the autopilots; idempotent."""
         if self._stopped.is_set():
             return
         self._stopped.set()
         ground = [c for c in self.children if c.name == "ground"]
         stop_all(ground, timeout_s)
         stop_all(self.companions(), timeout_s)
-        stop_all([c for c in self.children if c.name == "fleet"], timeout_s)
+        stop_all(self.autopilots(), timeout_s)
 
     # --- telling the user --------------------------------------------------------------------------
     def summary(self) -> str:
         o = self.opts
         lines = [f"READY {o.vehicles} vehicles, speedup {o.speedup:g}" + (" (lockstep)" if o.speedup == 0
                                                                           else "")
+                 + (", ArduCopter SITL (every EKF using GPS)" if self._arducopter else "")
                  + f", started in {self.startup_s:.1f} s"]
         if o.ground:
             lines.append(f"ground service: {self.ground_url}  (API {self.ground_url}/api, "
@@ -480,12 +517,15 @@ class Up:
         lines.append(f"team link: {self.member_url}")
         if self.team_key_path is not None:
             lines.append(f"team key: {self.team_key_path}")
-        lines.append(f"pids: fleet {self.fleet.pid}; companions "  # each vehicle's companion process
+        pilots = (f"fleet {self.fleet.pid}" if self._arducopter is None  # one ArduCopter SITL per vehicle
+                  else "arducopter " + " ".join(str(c.pid) for c in self.autopilots()))
+        lines.append(f"pids: {pilots}; companions "  # each vehicle's companion process
                      + " ".join(str(c.pid) if (c := self.companion_of(v.sysid)) else "0"
                                 for v in self.vehicles)
                      + (f"; ground {g.pid}" if (g := self.ground()) is not None else ""))
+        mav_host = "0.0.0.0" if self._arducopter else o.mavlink_host  # SITL listens on every interface
         for v in self.vehicles:
-            lines.append(f"vehicle {v.index}: sysid {v.sysid}  MAVLink tcp:{o.mavlink_host}:{v.tcp}  "
+            lines.append(f"vehicle {v.index}: sysid {v.sysid}  MAVLink tcp:{mav_host}:{v.tcp}  "
                          f"(mavproxy.py --master=tcp:127.0.0.1:{v.tcp})  companion {v.control_url}")
         if o.per_process > 1:
             lines.append(f"companion hosts: {len(self.companions())} processes of up to {o.per_process} "
@@ -502,101 +542,7 @@ def sleep_or_stop(stop: threading.Event | None, s: float) -> None:
         raise KeyboardInterrupt
 
 
-def write_fence(platform: Path, path: Path) -> Path | None:
-    """The platform's envelope (north/east metres around its home) as a ``fence: [[lat, lon], ...]`` file
-    for the ground service, which refuses tasks outside it and draws it; None without a horizontal one."""
-    from companion.tst.platform import load_platform
-
-    p = load_platform(platform)
-    if p.envelope.vertices is None:
-        return None
-    origin = (p.home[0], p.home[1], 0.0)
-    points = [list(ned_to_geodetic(origin, n, e, 0.0)[:2]) for n, e in p.envelope.vertices]
-    path.write_text(f"fence: {points}\n")
-    return path
-
-
-def demo_tiles(platform: Path, path: Path) -> Path:
-    """The offline map tiles around the platform's home (:mod:`taskflight.demo_tiles`; drawn once, kept in the
-    state folder)."""
-    from companion.tst.platform import load_platform
-    from taskflight.demo_tiles import ensure_mbtiles
-
-    return ensure_mbtiles(path, load_platform(platform).home)
-
-
-def ground_arguments(team_url: str, db: Path, host: str, port: int, tokens: Path,
-                     vehicles: list[VehicleInfo], resume_tasks: bool = False) -> list[str]:
-    """``taskflight ground ...``'s arguments for this fleet (each vehicle's companion by system id). The
-    companion token is not among them (``ps`` shows every argument to every user): the ground service
-    takes it from its environment (:data:`~taskflight_common.tokens.TOKEN_ENV`)."""
-    argv = ["ground", "--team", team_url, "--db", str(db), "--host", host, "--port", str(port),
-            "--tokens", str(tokens)]
-    for v in vehicles:
-        argv += ["--companion", f"{v.sysid}={v.control_url}"]
-    return [*argv, "--resume-tasks"] if resume_tasks else argv
-
-
-# --- command line ------------------------------------------------------------------------------------
-def add_up_arguments(p: argparse.ArgumentParser) -> None:
-    """Options of ``taskflight up``."""
-    p.add_argument("--vehicles", "-n", type=int, required=True, help="number of vehicles N")
-    p.add_argument("--speedup", type=float, default=1.0,
-                   help="simulated seconds per wall second (default 1: real time; 0: as fast as possible)")
-    p.add_argument("--base-instance", "-I", type=int, default=0,
-                   help="instance of vehicle 0 (default 0): vehicle i serves MAVLink on TCP 5760+10(I+i) "
-                        "and UDP 14550+10(I+i); its system id stays K+i (--first-sysid)")
-    p.add_argument("--ground-port", type=int, default=DEFAULT_GROUND_PORT,
-                   help=f"the ground service's HTTP port (default {DEFAULT_GROUND_PORT})")
-    p.add_argument("--host", default="127.0.0.1", help="the ground service's bind address (default loopback)")
-    p.add_argument("--mavlink-host", default="127.0.0.1",
-                   help="bind address of the models' MAVLink ports (default loopback; 0.0.0.0 for a LAN)")
-    p.add_argument("--control-host", default="127.0.0.1", metavar="HOST",
-                   help="bind address of the companions' control surfaces (default loopback; 0.0.0.0 for a "
-                        "ground service on another host: on a zenoh: team it finds them through the bus; "
-                        "the control token is $TASKFLIGHT_CONTROL_TOKEN when set, else a new one)")
-    p.add_argument("--tokens", default=None, metavar="FILE",
-                   help="YAML {operator: [..], observer: [..]} (default: generate one of each, written to "
-                        "<state-dir>/tokens.yaml, mode 0600)")
-    p.add_argument("--team", default=None, metavar="URL",
-                   help=f"the team link (default udp://{TEAM_GROUP}:<a free port>; zenoh: on a LAN, "
-                        "zenoh:tcp/ROUTER:7447 through taskflight router)")
-    p.add_argument("--team-key", default=None, metavar="FILE",
-                   help="sign the team link with this key file (default $TASKFLIGHT_TEAM_KEY, else one "
-                        "generated in <state-dir>/team.key, mode 0600)")
-    p.add_argument("--first-sysid", type=int, default=1, metavar="K",
-                   help="MAVLink system id (and team member id) of vehicle 0 (default 1): vehicles K, K+1, "
-                        "...; give each host its own block when several start vehicles for one team")
-    p.add_argument("--team-loss", type=float, default=0.0, metavar="F",
-                   help="drop this fraction of team-link packets at every member (a test of loss)")
-    p.add_argument("--state-dir", default=None, metavar="DIR",
-                   help="logs, tokens, model parameters, the ground database (default "
-                        "$TASKFLIGHT_STATE/up or ~/.taskflight/up)")
-    p.add_argument("--platform", default=str(PLATFORM), metavar="YAML",
-                   help="the companions' platform for delegation (default: the outdoor one)")
-    p.add_argument("--scenario", default=None, metavar="YAML",
-                   help="objects for every vehicle's simulated downward camera (north, east of its own home; "
-                        "companion.sensing.scenario): detections reach the ground service as events")
-    p.add_argument("--tiles", default=None, metavar="FILE|URL",
-                   help="the map's tiles for the ground service (an MBTiles file or a URL template; "
-                        "default: an offline tile set of the platform's home area, drawn into "
-                        "<state-dir>/tiles.mbtiles)")
-    p.add_argument("--no-ground", action="store_true", help="everything but the ground service")
-    p.add_argument("--no-persist", action="store_true", help="the models neither load nor save parameters")
-    p.add_argument("--companion-nice", type=int, default=0, metavar="K",
-                   help="run the companions at niceness K (0..19), so that the models' one process keeps "
-                        "its clock when many companions load the machine (default 0)")
-    p.add_argument("--companions-per-process", type=int, default=None, metavar="K",
-                   help="run K vehicles' companions in one process (taskflight companion-host; 1: one "
-                        "'taskflight companion' process each, as on a real vehicle; default: the vehicles "
-                        f"spread over as many processes as the machine has cores, {os.cpu_count()} here)")
-    p.add_argument("--resume-tasks", action="store_true",
-                   help="the open tasks an earlier run left in <state-dir>/ground.db are given to the new "
-                        "vehicles at start (default: shown held until the operator releases them)")
-    p.add_argument("--ready-timeout", type=float, default=None, metavar="S",
-                   help="give up starting after S seconds (default 60 + 3 N)")
-
-
+# --- command line ---------------------------------------------------------------------------------
 def options_from_args(args: argparse.Namespace) -> UpOptions:
     state = Path(args.state_dir) if args.state_dir else Path(
         os.environ.get("TASKFLIGHT_STATE") or Path.home() / ".taskflight") / "up"
@@ -611,7 +557,7 @@ def options_from_args(args: argparse.Namespace) -> UpOptions:
                      companion_nice=args.companion_nice,
                      scenario=Path(args.scenario) if args.scenario else None,
                      resume_tasks=args.resume_tasks, tiles=args.tiles,
-                     companions_per_process=args.companions_per_process)
+                     companions_per_process=args.companions_per_process, autopilot=args.autopilot)
 
 
 def run_up(args: argparse.Namespace) -> int:

@@ -31,7 +31,9 @@ def test_the_team_demo_flies_its_scenario_and_reports(tmp_path: Path) -> None:
     out = run.stdout
     assert run.returncode == 0, out + run.stderr
     assert "vehicle 1: mission scan-and-search-outdoor: succeeded" in out
-    tasks = dict(re.findall(r"^\s+\d+ (visit|patrol_line)\s+\S+\s+(\w+)\s+held by vehicle [23]$", out, re.M))
+    tasks = dict(re.findall(r"^\s+\d+ (visit|patrol_line)\s+\S+\s+(\w+)\s+"
+                            r"held by vehicle [23](?:, vehicle [23])*$",  # the team may hand a task on
+                            out, re.M))
     assert tasks == {"visit": "done", "patrol_line": "cancelled"}, out
     flown = re.findall(r"flight time ([\d.]+) s, (\d+) m flown; tracking h rms ([\d.]+) m", out)
     assert len(flown) == 3 and all(float(t) > 5 and float(h) < 1.0 for t, _d, h in flown), out

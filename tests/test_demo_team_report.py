@@ -50,3 +50,21 @@ def test_a_descent_flown_as_asked_needs_no_explanation(tmp_path: Path) -> None:
     fig = flight_figures(write_log(tmp_path / "flight2.jsonl", 1.5, 1.5))
     assert fig is not None and fig.tracking_v_rms < 0.05
     assert "WPNAV_SPEED_DN" not in fig.tracking_text()
+
+
+def test_a_task_handed_on_is_reported_as_flown_by_its_last_holder_only(tmp_path: Path) -> None:
+    """Found on ArduCopter: the team gave the visit to vehicle 2, then to vehicle 3, which flew it; the
+    report said "vehicle 2: visit (task 101, done)" as if vehicle 2 had flown it."""
+    from taskflight.demo_team import Progress, report
+    from taskflight.team_tasking import TaskRow
+    from taskflight.up import Up, UpOptions, VehicleInfo
+
+    up = Up(UpOptions(vehicles=3, state_dir=tmp_path))
+    up.vehicles = [VehicleInfo(i, i + 1, i, 5760 + 10 * i, 14550 + 10 * i, "") for i in range(3)]
+    progress = Progress()
+    progress.update([TaskRow(101, "visit", "visit", "assigned", 2)])
+    progress.update([TaskRow(101, "visit", "visit", "done", 3)])
+    text = report(up, progress)
+    assert "vehicle 2: visit (task 101, handed to vehicle 3)" in text, text
+    assert "vehicle 3: visit (task 101, done)" in text, text
+    assert "101 visit        visit    done       held by vehicle 2, vehicle 3" in text, text
