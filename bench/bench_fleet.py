@@ -9,9 +9,9 @@ station on every vehicle's UDP port (plain sockets, GCS heartbeats at 1 Hz, the 
 set streaming back, only the MAVLink headers read) and counts the vehicles heard: a HEARTBEAT from system
 id i+1 on vehicle i's port.
 
-For comparison, the single-vehicle model (``python -m autopilot_model.sitl``, paced by sleeping and then
-spinning through the last millisecond of each period) is measured the same way from outside
-(``/proc/PID/stat``), with one ground station.
+For comparison, the single-vehicle model (``python -m autopilot_model.sitl``) is measured the same way from
+outside (``/proc/PID/stat``), with one ground station: paced by sleeping (its default) and with
+``--spin-us 1000`` (sleeping, then spinning through the last millisecond of each period).
 
     python -m bench.bench_fleet [--window 10] [--warmup 3] [--no-baseline]
 """
@@ -264,13 +264,13 @@ def _proc_rss_mb(pid: int) -> float:
     return float("nan")
 
 
-def measure_single(warmup: float, window: float) -> dict[str, Any]:
+def measure_single(warmup: float, window: float, spin_us: float = 0.0) -> dict[str, Any]:
     """The single-vehicle model process at real time, measured from outside."""
     base = free_base(1)
     with tempfile.TemporaryDirectory() as tmp:
         proc = _spawn(["-m", "autopilot_model.sitl", "--instance", str(base), "--speedup", "1",
                        "--state-dir", tmp, "--no-persist", "--mavlink", f"tcpin:127.0.0.1:{5760 + 10 * base}",
-                       "--mavlink", f"udpin:127.0.0.1:{14550 + 10 * base}"])
+                       "--mavlink", f"udpin:127.0.0.1:{14550 + 10 * base}", "--spin-us", f"{spin_us:g}"])
         try:
             _wait_line(proc, "READY", 120)
             assert proc.stdout is not None
@@ -319,8 +319,10 @@ def main() -> None:
         for f in (c.split(":") for c in args.cases.split(","))]
     rows = []
     if not args.no_baseline:
-        r = measure_single(args.warmup, args.window)
-        rows.append(("1 (single-vehicle process, spin pacing)", "real time", r))
+        for spin in (0.0, 1000.0):
+            r = measure_single(args.warmup, args.window, spin)
+            pacing = "real time" + (f", spin {spin:g} us" if spin else "")
+            rows.append(("1 (single-vehicle process)", pacing, r))
     for n, speedup, spin_us in cases:
         pacing = "real time" if speedup == 1 else f"x{speedup:g}" if speedup else "lockstep"
         if spin_us:
