@@ -64,6 +64,7 @@ from harness.model import SitlProcess, model_in_process, sitl_and_gcs
 from harness.observer import Gcs
 from harness.team import TeamRig
 from harness.timing import SPEEDUP, wall
+from harness.ui import Shots
 from harness.up import UpRig
 from taskflight_common.ports import free_ports
 
@@ -146,6 +147,26 @@ def ground_rig(request: pytest.FixtureRequest,
     r = GroundRig(tmp_path_factory.mktemp(_name(request)), n=3, speedup=3.0)
     yield r
     r.close()
+
+
+@pytest.fixture(scope="module")
+def shots(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory) -> Shots:
+    """The browser tests' screenshots, a folder per module (and $TASKFLIGHT_ARTEFACTS/ui when set)."""
+    return Shots(tmp_path_factory.mktemp(f"{_name(request)}_screenshots"))
+
+
+@pytest.fixture(scope="module")
+def page(request: pytest.FixtureRequest, up_rig: UpRig) -> Iterator[Any]:
+    """An operator's page (headless Chromium) on the module's ``up_rig``, once its fleet list shows every
+    vehicle; the URLs it requested go into the module's ``URLS`` list when it has one; at the end, not one
+    of them went to another host than the service."""
+    from harness.ground import OPERATOR
+    from harness.ui import foreign, operator_page
+
+    urls: list[str] = getattr(request.module, "URLS", [])
+    with operator_page(up_rig.ground.url, OPERATOR, up_rig.n, urls) as d:
+        yield d
+    assert not foreign(urls, up_rig.ground.url), "the page asked another host"
 
 
 @pytest.fixture(scope="module")

@@ -14,13 +14,12 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Iterator
 from typing import Any
 
 import pytest
 import yaml
 
-from harness.ui import Shots, browser, foreign, login, missing, operator_page, requested_urls
+from harness.ui import Shots, browser, foreign, login, missing, requested_urls
 
 if missing():
     pytest.skip(missing() or "", allow_module_level=True)
@@ -45,17 +44,6 @@ URLS: list[str] = []  # every request of every page in this module
 def local(p: Any) -> tuple[float, float]:
     """(north, east) metres of a (lat, lon, ...) point from the fleet's home."""
     return ((p[0] - HOME[0]) * 111_320.0, (p[1] - HOME[1]) * 111_320.0 * math.cos(math.radians(HOME[0])))
-
-
-@pytest.fixture(scope="module")
-def shots(tmp_path_factory: pytest.TempPathFactory) -> Shots:
-    return Shots(tmp_path_factory.mktemp("ui_screenshots"))
-
-
-@pytest.fixture(scope="module")
-def page(up_rig: GroundRig) -> Iterator[Any]:
-    with operator_page(up_rig.ground.url, OPERATOR, 3, URLS) as d:
-        yield d
 
 
 def markers(d: Any) -> dict[int, tuple[float, float]]:

@@ -19,14 +19,13 @@ import math
 import os
 import sqlite3
 import time
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import httpx
 import pytest
 
-from harness.ui import Shots, foreign, missing, operator_page
+from harness.ui import missing
 
 if missing():
     pytest.skip(missing() or "", allow_module_level=True)
@@ -36,7 +35,7 @@ from selenium.webdriver.common.by import By
 from selenium.webdriver.support.ui import WebDriverWait
 
 from harness.fence import VERTEX_INCLUSION, param, read_fence
-from harness.ground import OPERATOR, GroundRig
+from harness.ground import GroundRig
 from harness.team import HOME
 from harness.timing import wait_for
 from taskflight.demo_tiles import make_mbtiles, tile_of
@@ -57,24 +56,11 @@ def ne(lat: float, lon: float) -> tuple[float, float]:
     return (lat - HOME[0]) * 111_320.0, (lon - HOME[1]) * 111_320.0 * math.cos(math.radians(HOME[0]))
 
 
-@pytest.fixture(scope="module")
-def shots(tmp_path_factory: pytest.TempPathFactory) -> Shots:
-    return Shots(tmp_path_factory.mktemp("ui_verbs_screenshots"))
-
-
 def keep(d: Any, name: str) -> None:
     """A screenshot for the docs (``TASKFLIGHT_SCREENSHOTS=docs/img``)."""
     if SCREENSHOTS:
         Path(SCREENSHOTS).mkdir(parents=True, exist_ok=True)
         d.save_screenshot(str(Path(SCREENSHOTS) / name))
-
-
-@pytest.fixture(scope="module")
-def page(up_rig: GroundRig) -> Iterator[Any]:
-    urls: list[str] = []
-    with operator_page(up_rig.ground.url, OPERATOR, 3, urls) as d:
-        yield d
-    assert not foreign(urls, up_rig.ground.url), "the page asked another host"
 
 
 def click_map(d: Any, n: float, e: float) -> None:

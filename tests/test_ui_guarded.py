@@ -47,11 +47,6 @@ GAIN = "ATC_RAT_RLL_P"
 WIDTH, HEIGHT = 1024, 768
 
 
-@pytest.fixture(scope="module")
-def shots(tmp_path_factory: pytest.TempPathFactory) -> Shots:
-    return Shots(tmp_path_factory.mktemp("ui_guarded_screenshots"))
-
-
 def doc_shot(d: Any, shots: Shots, name: str) -> None:
     """A screenshot of the step; also ``$TASKFLIGHT_SCREENSHOTS/<name>.png`` when that is set (docs/img)."""
     shots(d, name)
@@ -80,7 +75,7 @@ def flying(up_rig: GroundRig) -> int:
 
 
 @pytest.fixture(scope="module")
-def page(up_rig: GroundRig) -> Iterator[Any]:
+def tablet(up_rig: GroundRig) -> Iterator[Any]:
     d = browser(WIDTH, HEIGHT)
     try:  # the page's viewport is the tablet's screen (the window's size would include the browser's frame)
         d.execute_cdp_cmd("Emulation.setDeviceMetricsOverride",
@@ -145,9 +140,9 @@ def test_the_service_refuses_unknown_names_bad_values_and_big_changes_in_flight(
         assert c.put(f"{url}/WPNAV_RADIUS", json={"value": radius, "force": True}).status_code == 403
 
 
-def test_an_empty_set_sends_nothing_and_a_confirmed_write_is_flown(up_rig: GroundRig, flying: int, page: Any,
-                                                                    shots: Shots) -> None:
-    d, i, vid = page, flying - 1, flying
+def test_an_empty_set_sends_nothing_and_a_confirmed_write_is_flown(up_rig: GroundRig, flying: int,
+                                                                    tablet: Any, shots: Shots) -> None:
+    d, i, vid = tablet, flying - 1, flying
     before = observed(up_rig, i, GAIN)
     writes = len(param_audit(up_rig))
     pick(d, vid)
@@ -189,9 +184,9 @@ def test_an_empty_set_sends_nothing_and_a_confirmed_write_is_flown(up_rig: Groun
         assert c.put(f"/api/vehicles/{vid}/params/{GAIN}", json={"value": before}).status_code == 200
 
 
-def test_a_vehicle_named_with_html_is_shown_as_text_everywhere(up_rig: GroundRig, page: Any,
+def test_a_vehicle_named_with_html_is_shown_as_text_everywhere(up_rig: GroundRig, tablet: Any,
                                                                shots: Shots) -> None:
-    d, vid = page, 2
+    d, vid = tablet, 2
     with up_rig.ground.http() as c:
         url = up_rig.vehicles()[vid]["control_url"]
         r = c.put(f"/api/vehicles/{vid}", json={"name": XSS, "control_url": url})
@@ -223,16 +218,17 @@ def test_a_vehicle_named_with_html_is_shown_as_text_everywhere(up_rig: GroundRig
     assert d.execute_script("return window.__xss") is None, "the name ran as code"
 
 
-def test_every_answer_carries_a_policy_and_the_page_runs_under_it(up_rig: GroundRig, page: Any) -> None:
+def test_every_answer_carries_a_policy_and_the_page_runs_under_it(up_rig: GroundRig, tablet: Any) -> None:
     with up_rig.ground.http() as c:
         for path in ("/", "/static/js/main.js", "/static/app.css", "/api/whoami"):
             csp = c.get(path).headers.get("content-security-policy", "")
             assert "script-src 'self'" in csp and "style-src 'self'" in csp, (path, csp)
             assert "unsafe-inline" not in csp and "unsafe-eval" not in csp and "default-src 'self'" in csp
-    page.refresh()  # the whole page loaded and run under the policy: not one violation reported
-    WebDriverWait(page, 30).until(lambda d: d.find_element(By.ID, "link").text == "live")
-    WebDriverWait(page, 30).until(lambda d: len(d.find_elements(By.CSS_SELECTOR, ".vmarker[data-n]")) == 3)
-    violations = [e["message"] for e in page.get_log("browser") if "Content Security Policy" in e["message"]]
+    tablet.refresh()  # the whole page loaded and run under the policy: not one violation reported
+    WebDriverWait(tablet, 30).until(lambda d: d.find_element(By.ID, "link").text == "live")
+    WebDriverWait(tablet, 30).until(lambda d: len(d.find_elements(By.CSS_SELECTOR, ".vmarker[data-n]")) == 3)
+    violations = [e["message"] for e in tablet.get_log("browser")
+                  if "Content Security Policy" in e["message"]]
     assert violations == []
 
 
@@ -247,9 +243,9 @@ def _layout(d: Any) -> dict[str, float]:
                 asideShown: getComputedStyle(document.querySelector('aside')).display !== 'none'};""")
 
 
-def test_a_tablet_shows_the_map_and_the_panel_and_lists_the_shortcuts(up_rig: GroundRig, page: Any,
+def test_a_tablet_shows_the_map_and_the_panel_and_lists_the_shortcuts(up_rig: GroundRig, tablet: Any,
                                                                       shots: Shots) -> None:
-    d = page
+    d = tablet
     pick(d, 1)
     lay = _layout(d)
     assert (lay["w"], lay["h"]) == (WIDTH, HEIGHT), lay

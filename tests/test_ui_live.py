@@ -45,12 +45,7 @@ SLACK_S = 3.0
 
 
 @pytest.fixture(scope="module")
-def shots(tmp_path_factory: pytest.TempPathFactory) -> Shots:
-    return Shots(tmp_path_factory.mktemp("ui_live_screenshots"))
-
-
-@pytest.fixture(scope="module")
-def page(ground_rig: GroundRig) -> Iterator[Any]:
+def live_page(ground_rig: GroundRig) -> Iterator[Any]:
     d = browser()
     try:
         login(d, ground_rig.ground.url, OPERATOR)
@@ -74,8 +69,9 @@ def shown_lost(d: Any, vid: int) -> bool:
             and "lost" in m.get_attribute("class").split() and "lost" in m.text)
 
 
-def test_a_killed_vehicle_greys_out_and_says_lost(ground_rig: GroundRig, page: Any, shots: Shots) -> None:
-    d = page
+def test_a_killed_vehicle_greys_out_and_says_lost(ground_rig: GroundRig, live_page: Any,
+                                                  shots: Shots) -> None:
+    d = live_page
     wait_for(lambda: all(row(d, v).get_attribute("data-link") == "live" for v in (1, 2, 3)), 30,
              "every vehicle live on the page")
     proc = ground_rig.companions[2]
@@ -97,8 +93,8 @@ def test_a_killed_vehicle_greys_out_and_says_lost(ground_rig: GroundRig, page: A
 
 
 def test_alert_history_after_a_reload_and_an_acknowledgement_every_operator_sees(
-        ground_rig: GroundRig, page: Any) -> None:
-    d = page
+        ground_rig: GroundRig, live_page: Any) -> None:
+    d = live_page
     lost = '#alerts li[data-kind="link_lost"]'
     wait_for(lambda: any("vehicle 3" in li.text or "(3)" in li.text
                          for li in d.find_elements(By.CSS_SELECTOR, lost)), 30,
@@ -126,8 +122,9 @@ def test_alert_history_after_a_reload_and_an_acknowledgement_every_operator_sees
         other.quit()
 
 
-def test_the_header_says_stale_when_the_service_stops(ground_rig: GroundRig, page: Any, shots: Shots) -> None:
-    d = page
+def test_the_header_says_stale_when_the_service_stops(ground_rig: GroundRig, live_page: Any,
+                                                      shots: Shots) -> None:
+    d = live_page
     state = lambda: d.find_element(By.ID, "link").get_attribute("data-state")  # noqa: E731
     wait_for(lambda: state() == "live", 30, "the header live")
     ground = ground_rig.ground
