@@ -67,13 +67,14 @@ def test_a_patrol_is_flown_at_its_own_speed(team_rig: TeamRig) -> None:
         def measured() -> bool:
             m = team_rig.gcs[holder - 1].last.get("GLOBAL_POSITION_INT")
             p = team_rig.position(holder - 1)
-            # on the line (its middle 40 m, away from the turns where it brakes)
-            if m is not None and p is not None and distance_m(p, geo(-40, 10)) < 20 and abs(
+            # on the line's middle 20 m, 30 m from either turn (it brakes for a turn over up to ~18 m: a wider
+            # window, or samples spread by a loaded machine, caught the braking); several passes if need be
+            if m is not None and p is not None and distance_m(p, geo(-40, 10)) < 10 and abs(
                     distance_m(p, a) + distance_m(p, b) - distance_m(a, b)) < 3:
                 speeds.append(((m.vx / 100) ** 2 + (m.vy / 100) ** 2) ** 0.5)
             return len(speeds) >= 15
 
-        wait_for(measured, team_rig.wall(120), "the patrol's speed measured", poll_s=0.1)
+        wait_for(measured, team_rig.wall(240), "the patrol's speed measured", poll_s=0.1)
         team_rig.station.cancel(task)
         wait_for(lambda: team_rig.state(task) == "cancelled", 10, "cancelled")
     assert statistics.median(speeds) == pytest.approx(speed, abs=0.6), speeds
