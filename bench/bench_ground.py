@@ -26,8 +26,9 @@ accepts connections and never answers: each poll of them runs into its time-out)
 service a client of it, as on a field network): a publisher process sends the N members' rows on the bus
 and runs N real :class:`~companion.team.presence.Presence` publishers (the companion's own code: status
 and mission at 2 Hz, the control URL with them); a fraction F (``--companions``, default 0.75) point at
-companion-like endpoints that answer, the rest go silent on the bus after 3 s (a companion that died:
-the service marks them unreachable after its lost time and polls nobody). The command latency is then the
+companion-like endpoints that answer, the rest stop publishing their presence after 3 s (a companion whose
+control surface died; their team rows go on: the service marks them unreachable after its lost time and
+polls nobody). The command latency is then the
 service -> companion round trip of a control URL learnt from the bus.
 
 Run: ``python -m bench.bench_ground [--vehicles 100] [--seconds 20] [--companions 0.75] [--bus zenoh]``.

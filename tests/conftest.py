@@ -83,23 +83,6 @@ def _on_gc(phase: str, info: dict[str, Any]) -> None:
             _pauses.append((took, int(info.get("generation", -1)), _current[0]))
 
 
-#: the integration modules that take longest (the UI rigs, the several-hosts and the team tests), first:
-#: on pytest-xdist workers (``--dist loadfile``: a module stays on one worker) the long ones then overlap
-#: each other instead of one of them running alone at the end; measured with ``--durations=0``
-HEAVY_FIRST = ("test_ui.py", "test_ui_fleet_verbs.py", "test_team_hosts.py", "test_ground_flight.py",
-               "test_ui_live.py", "test_team_flight.py", "test_ground_api.py", "test_up_hosts.py",
-               "test_ui_guarded.py", "test_stick_flight.py", "test_up.py", "test_team_zenoh.py",
-               "test_demo_team.py", "test_wheel.py", "test_team_sim.py", "test_ground_restart.py",
-               "test_differential_modes.py", "test_team_flight_cbba.py", "test_differential_pilot.py")
-
-
-def pytest_collection_modifyitems(session: pytest.Session, config: pytest.Config,
-                                  items: list[pytest.Item]) -> None:
-    """The :data:`HEAVY_FIRST` modules first, in that order; the others keep theirs (a stable sort)."""
-    rank = {name: i for i, name in enumerate(HEAVY_FIRST)}
-    items.sort(key=lambda item: rank.get(item.path.name, len(rank)))
-
-
 def pytest_collection_finish(session: pytest.Session) -> None:
     gc.collect()
     gc.freeze()

@@ -51,8 +51,8 @@ def run_milp(cost: np.ndarray, integer: Sequence[bool], rows: Sequence[Row]) -> 
     """Minimise ``cost @ x`` subject to ``rows``; integer columns are binaries, the others free.
 
     Columns past ``len(integer)`` (auxiliary ones) are continuous and >= 0. Status 0: optimal, 2:
-    infeasible, 3: unbounded (scipy's codes). SciPy is imported at the first check, not at start-up (a
-    quarter of a companion's start-up imports).
+    infeasible, 3: unbounded (scipy's codes). SciPy is imported at the first check, not at start-up (half
+    of a companion's start-up imports).
     """
     from scipy.optimize import Bounds, LinearConstraint, milp
     from scipy.sparse import csr_matrix
