@@ -16,7 +16,11 @@ block of instance numbers, and measures
   autopilot time, ``GET /status`` link.autopilot_time_s) advanced over the interval, per wall second.
 
 The vehicles sit on the ground idle (the models, companions and team link doing their periodic work: the
-steady cost of a fleet). ``--configs N:SPEEDUP[:NICE[:K]],...`` (default ``12:1,25:1,50:1,50:0``; speedup 0
+steady cost of a fleet). Then, with the ground service, the team exercise of :mod:`bench.up_exercise` (a
+visit and a patrol line per vehicle through REST): how many were flown, in how long, tasks done per
+minute and the simulated seconds per wall second while the fleet flies.
+
+``--configs N:SPEEDUP[:NICE[:K]],...`` (default ``12:1,25:1,50:1,50:0``; speedup 0
 is lockstep, as fast as the machine goes, the companions following autopilot time; K the companions per
 process, default ``taskflight up``'s: as many hosts as cores). The table is printed at the end.
 """
@@ -24,6 +28,7 @@ process, default ``taskflight up``'s: as many hosts as cores). The table is prin
 from __future__ import annotations
 
 import argparse
+import logging
 import math
 import os
 import socket
@@ -34,6 +39,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from bench.common import machine, table
+from bench.up_exercise import Exercise, run
 from taskflight.team_tasking import http_json
 from taskflight.up import Up, UpError, UpOptions, ground_available
 from taskflight_common.ports import free_base, free_ports
@@ -77,6 +83,7 @@ class Row:
     per_process: int = 0
     processes: int = 0
     stop_s: float = float("nan")
+    exercise: Exercise | None = None
 
     @property
     def mb_per_vehicle(self) -> float:
@@ -91,7 +98,7 @@ def autopilot_time(up: Up) -> float:
 
 
 def measure(n: int, speedup: float, settle_s: float, measure_s: float, ground: bool, nice: int = 0,
-            per_process: int | None = None) -> Row:
+            per_process: int | None = None, exercise_s: float = 0.0) -> Row:
     with tempfile.TemporaryDirectory(prefix="bench-up-") as tmp:
         opts = UpOptions(vehicles=n, state_dir=Path(tmp), speedup=speedup, base_instance=free_base(n),
                          ground=ground, ground_port=free_ports(1, socket.SOCK_STREAM)[0], persist=False,
@@ -117,6 +124,14 @@ def measure(n: int, speedup: float, settle_s: float, measure_s: float, ground: b
                       mem["companions"], cpu["ground"] if ground else float("nan"),
                       mem["ground"] if ground else float("nan"), (sim1 - sim0) / wall,
                       f"died: {dead}" if dead else "", nice, opts.per_process, len(up.companions()))
+            if exercise_s > 0 and up.ground_url is not None:
+                print(f"N = {n}: the team exercise (a visit and a patrol per vehicle) ...", file=sys.stderr,
+                      flush=True)
+                try:
+                    row.exercise = run(up.ground_url, up.tokens["operator"][0], n, exercise_s,
+                                       lambda: autopilot_time(up))
+                except Exception as exc:  # a row says what failed; the next one runs
+                    row.exercise = Exercise(n, 0, 0, 0.0, 0.0, f"failed: {exc!r}"[:200])
         except UpError as exc:
             first = str(exc).splitlines()[0]
             nan = float("nan")
@@ -141,7 +156,10 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--settle", type=float, default=10.0, help="wall seconds after READY before measuring")
     p.add_argument("--measure", type=float, default=20.0, help="wall seconds measured")
     p.add_argument("--no-ground", action="store_true", help="leave the ground service out")
+    p.add_argument("--exercise", type=float, default=300.0, help="wall seconds each phase of the team "
+                   "exercise may take (visits, then patrols; 0: no exercise; it needs the ground service)")
     args = p.parse_args(argv)
+    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s: %(message)s")
     ground = ground_available() and not args.no_ground
     rows = []
     for item in args.configs.split(","):
@@ -150,7 +168,7 @@ def main(argv: list[str] | None = None) -> int:
         per = int(rest[1]) if len(rest) > 1 else None
         print(f"N = {n}, speedup {k}, companions' niceness {nice}, per process {per or 'default'} ...",
               file=sys.stderr, flush=True)
-        rows.append(measure(int(n), float(k), args.settle, args.measure, ground, nice, per))
+        rows.append(measure(int(n), float(k), args.settle, args.measure, ground, nice, per, args.exercise))
         print(rows[-1], file=sys.stderr, flush=True)
     print(f"taskflight up: {machine()}; idle fleet on the ground, measured {args.measure:g} s after "
           f"{args.settle:g} s; CPU in % of one core; ground service {'on' if ground else 'off'}")
@@ -164,6 +182,17 @@ def main(argv: list[str] | None = None) -> int:
                   f"{r.ground_cpu:.1f}", f"{r.ground_mb:.0f}",
                   f"{r.mb_per_vehicle:.1f}",
                   f"{r.sim_rate:.2f}", r.note] for r in rows]))
+    done = [r for r in rows if r.exercise is not None]
+    if done:
+        print("\nthe team exercise: a visit, then a patrol line, per vehicle, through the ground service's "
+              "REST API (bench/up_exercise.py)")
+        print(table(["N", "speedup", "visits done", "patrols flown", "wall s", "sim s / wall s",
+                     "tasks per min", "note"],
+                    [[r.n, "lockstep" if r.speedup == 0 else f"{r.speedup:g}",
+                      f"{e.visits_done}/{e.vehicles}", f"{e.patrols_flown}/{e.vehicles}", f"{e.wall_s:.0f}",
+                      f"{e.sim_s / e.wall_s:.2f}" if e.wall_s else "-", f"{e.tasks_per_min:.1f}",
+                      e.note[:120]]
+                     for r in done if (e := r.exercise) is not None]))
     return 0
 
 

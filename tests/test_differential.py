@@ -21,7 +21,7 @@ from harness.observer import GUIDED, LAND, STABILIZE, M
 
 pytestmark = pytest.mark.integration
 
-SPEEDUP = 5.0
+SPEEDUP = 8.0
 OBSERVE = observe  # the seen fixture: the scenario flown on each autopilot
 
 

@@ -21,7 +21,7 @@ from harness.observer import GUIDED, RTL, STABILIZE, M
 
 pytestmark = pytest.mark.integration
 
-SPEEDUP = 5.0
+SPEEDUP = 8.0
 OBSERVE = observe_fence  # the seen fixture: the scenario flown on each autopilot
 
 

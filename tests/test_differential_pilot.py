@@ -19,7 +19,7 @@ from harness.observer import M
 
 pytestmark = pytest.mark.integration
 
-SPEEDUP = 2.0
+SPEEDUP = 5.0
 OBSERVE = observe_pilot  # the seen fixture: the scenario flown on each autopilot
 
 

@@ -1,7 +1,7 @@
 """A pilot's flight (sticks over MAVLink), run against any autopilot, recording what a ground station sees.
 
 :class:`Sticks` is a transmitter: a thread that sends RC_CHANNELS_OVERRIDE (or
-MANUAL_CONTROL) at 25 Hz of wall time until told to stop. :func:`observe_pilot` flies the same
+MANUAL_CONTROL) at 12.5 Hz of autopilot time until told to stop. :func:`observe_pilot` flies the same
 scenario on the model and on ArduPilot's copter SITL (:mod:`autopilot_support`); the latter is given
 ``SIM_RC_FAIL=1`` (no receiver: its only RC is the override, as the model's) so that silence on the
 override is an RC failsafe on both. ``tests/test_differential_pilot.py`` compares the observations;
@@ -27,11 +27,12 @@ IGNORE = 65535
 
 
 class Sticks:
-    """Roll, pitch, throttle, yaw as RC_CHANNELS_OVERRIDE (PWM) or MANUAL_CONTROL (x, y, z, r), 25 Hz."""
+    """Roll, pitch, throttle, yaw as RC_CHANNELS_OVERRIDE (PWM) or MANUAL_CONTROL (x, y, z, r), ``hz``
+    times a second of autopilot time (a transmitter's 12.5 Hz by default; ``hz`` * speedup of wall time)."""
 
-    def __init__(self, ap: Autopilot, hz: float = 25.0) -> None:
+    def __init__(self, ap: Autopilot, hz: float = 12.5) -> None:
         self.conn = ap.gcs.conn
-        self.period = 1.0 / hz
+        self.period = 1.0 / (hz * ap.speedup)
         self.rc: tuple[int, int, int, int] | None = (1500, 1500, 1000, 1500)
         self.manual: tuple[int, int, int, int] | None = None
         self.sent = 0
