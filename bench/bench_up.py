@@ -132,8 +132,8 @@ def measure(n: int, speedup: float, settle_s: float, measure_s: float, ground: b
                                        lambda: autopilot_time(up))
                 except Exception as exc:  # a row says what failed; the next one runs
                     row.exercise = Exercise(n, 0, 0, 0.0, 0.0, f"failed: {exc!r}"[:200])
-        except UpError as exc:
-            first = str(exc).splitlines()[0]
+        except Exception as exc:  # an UpError (not ready in time, a child died) or a bug: the row says which
+            first = str(exc).splitlines()[0] if isinstance(exc, UpError) else repr(exc)
             nan = float("nan")
             row = Row(n, speedup, nan, nan, nan, nan, nan, nan, nan, nan, note=f"failed: {first[:100]}",
                       nice=nice, per_process=opts.per_process)

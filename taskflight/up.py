@@ -459,10 +459,10 @@ class Up:
         what = (f"vehicle(s) {sorted(pending)} not heard" if pending
                 else f"not ready to arm: {watch.progress(unarmable)}" if unarmable and watch
                 else "the ground service did not answer with every vehicle")
-        late = {self.companion_of(s) for s in pending} | {c for c in self.autopilots()
-                                                          if c.name in {f"arducopter{s}" for s in unarmable}}
+        late = {c.name for s in pending if (c := self.companion_of(s)) is not None} | {
+            f"arducopter{s}" for s in unarmable}  # by name: a Child (a mutable dataclass) is not hashable
         hint = "\n".join(f"--- {c.name}:\n{c.tail(5)}" for c in self.children
-                         if c.name == "ground" or c in late)
+                         if c.name == "ground" or c.name in late)
         return UpError(f"not ready in time: {what}\n{hint}")
 
     def _get(self, url: str, token: str) -> Any:
