@@ -75,6 +75,12 @@ KEEP: Any = object()
 
 #: companions polled at once at most (each unreachable one holds a worker for its time-outs)
 POLL_WORKERS = 32
+#: the polls a second the service makes at most: above ``POLL_RATE_MAX * poll_period_s`` companions the
+#: period grows with the fleet (25 vehicles: every 1.25 s; 50: 2.5 s), so that a large fleet on a ``udp://``
+#: team is not kept busy answering its ground station (each poll costs the companion a request). Positions
+#: do not wait for it (they come with the team rows); a queue's or a mission's state does. A fleet on the
+#: Zenoh bus is not polled at all.
+POLL_RATE_MAX = 20.0
 
 
 @dataclass
@@ -172,7 +178,13 @@ class Fleet:
                     self._pool.submit(self._poll_guarded, vid, url)
                 except RuntimeError:  # shut down
                     return
-            self._stop.wait(max(0.05, self.poll_period_s - (time.monotonic() - start)))
+            self._stop.wait(max(0.05, self.period_s() - (time.monotonic() - start)))
+
+    def period_s(self) -> float:
+        """The poll period: ``poll_period_s``, longer above :data:`POLL_RATE_MAX` polls a second."""
+        with self._lock:
+            n = sum(1 for r in self.registry.values() if r.control_url)
+        return max(self.poll_period_s, n / POLL_RATE_MAX)
 
     def _poll_guarded(self, vid: int, url: str) -> None:
         try:

@@ -22,7 +22,7 @@ import pytest
 from companion.flight.codec import command_from_dict
 from companion.flight.qapi import QueuedCommand
 from companion.flight.setpoint import Setpoint, SetpointKind
-from companion.flightlog import FlightLogError, FlightRecorder, read_flight_log
+from companion.flightlog import FLUSH_EVERY_S, FlightLogError, FlightRecorder, read_flight_log
 from companion.mission_report import Point, fig16b_table, points, segments, table_markdown, tracking
 from companion.mission_report.figure import label_groups
 from taskflight.cli import main
@@ -414,3 +414,24 @@ def test_log_violations_allow_the_logs_rounding_and_catch_a_real_jump() -> None:
     over = (vs[0][0] + 1.01 * step * math.cos(ang), vs[0][1] + 1.01 * step * math.sin(ang), 0.0)
     found = log_violations([exact[0], rec(20.0 + dt, over)], lim)
     assert [v.quantity for v in found] == ["dv_h"]
+
+
+def test_setpoints_are_written_in_batches_events_at_once_and_all_on_close(tmp_path: Path) -> None:
+    node = _fake_node({})
+    path = tmp_path / "f.jsonl"
+    rec = FlightRecorder(node, path)
+    on_sp = node.setpoint_listeners[0]
+    lines = lambda: path.read_text().splitlines()  # noqa: E731
+    assert [json.loads(x)["type"] for x in lines()] == ["header"]  # at once
+    on_sp(_sp(10.0, None), None, 10.0)
+    on_sp(_sp(10.05, None), None, 10.05)
+    assert len(lines()) == 1  # held (at most FLUSH_EVERY_S)
+    rec.mark("break_in_start", node="n1")  # an event: written at once, with what came before it
+    assert [json.loads(x)["type"] for x in lines()] == ["header", "setpoint", "setpoint", "event"]
+    on_sp(_sp(10.1, None), None, 10.1)
+    rec._flushed -= FLUSH_EVERY_S  # half a second later
+    on_sp(_sp(10.15, None), None, 10.15)
+    assert len(lines()) == 6
+    on_sp(_sp(10.2, None), None, 10.2)
+    rec.close()
+    assert len(read_flight_log(path)) == 7 == rec.records_written

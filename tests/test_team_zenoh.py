@@ -391,3 +391,21 @@ def test_presence_reaches_the_fleet_as_status_mission_and_detections() -> None:
         presence.close()
         fleet.close()
         station.close()
+
+
+def test_a_large_fleet_is_polled_at_most_poll_rate_max_times_a_second() -> None:
+    """The poll period stays ``poll_period_s`` for a small fleet and grows with a large one: at most
+    POLL_RATE_MAX polls a second in all (a vehicle without a control URL is not polled, not counted)."""
+    from companion.team.station import TeamControlStation
+    from groundstation.fleet import POLL_RATE_MAX, Fleet
+
+    station = TeamControlStation(open_transport(f"mem://{_team_name()}", member=0))
+    fleet = Fleet(station, _SlowClient(), lambda *a, **k: None, poll_period_s=0.5)  # type: ignore[arg-type]
+    for v in range(1, 4):
+        fleet.register(v, f"uav{v}", f"http://192.0.2.{v}:8765")
+    assert fleet.period_s() == 0.5
+    for v in range(4, 51):
+        fleet.register(v, f"uav{v}", f"http://192.0.2.{v}:8765")
+    fleet.register(51, "uav51", None)
+    assert fleet.period_s() == pytest.approx(50 / POLL_RATE_MAX) == 2.5
+    station.close()
