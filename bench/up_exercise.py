@@ -12,10 +12,11 @@ from __future__ import annotations
 
 import logging
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from taskflight.team_tasking import http_json
+from taskflight.team_tasking import GroundTasking, http_json
 from taskflight_common.geo import geodetic_to_ned, ned_to_geodetic
 
 log = logging.getLogger(__name__)
@@ -36,10 +37,6 @@ class Exercise:
     note: str = ""
 
     @property
-    def all_flown(self) -> bool:
-        return self.visits_done == self.vehicles and self.patrols_flown == self.vehicles
-
-    @property
     def tasks_per_min(self) -> float:
         return 60.0 * (self.visits_done + self.patrols_flown) / self.wall_s if self.wall_s > 0 else 0.0
 
@@ -48,22 +45,11 @@ def _vehicles(base: str, token: str) -> list[dict[str, Any]]:
     return list(http_json("GET", base + "/api/vehicles", token)["vehicles"])
 
 
-def _tasks(base: str, token: str) -> dict[int, dict[str, Any]]:
-    rows = http_json("GET", base + "/api/tasks", token)
-    rows = rows if isinstance(rows, list) else rows.get("tasks", [])
-    return {int(t["id"]): t for t in rows}
-
-
-def _add(base: str, token: str, body: dict[str, Any]) -> int:
-    answer = http_json("POST", base + "/api/tasks", token, body)
-    (task_id,) = answer["ids"]
-    return int(task_id)
-
-
-def run(base: str, token: str, n: int, timeout_s: float, clock: Any) -> Exercise:
+def run(base: str, token: str, n: int, timeout_s: float, clock: Callable[[], float]) -> Exercise:
     """The exercise on the ground service at ``base`` (operator ``token``) with ``n`` vehicles; each phase
     given ``timeout_s`` wall seconds. ``clock()`` is the autopilot time of one vehicle (simulated seconds)."""
     t0, sim0 = time.monotonic(), clock()
+    tasking = GroundTasking(base, token)  # the REST calls the team demo makes
     homes: dict[int, tuple[float, float, float]] = {}
     for v in _vehicles(base, token):
         p = v.get("position")
@@ -71,15 +57,13 @@ def run(base: str, token: str, n: int, timeout_s: float, clock: Any) -> Exercise
             homes[int(v["id"])] = (p["lat"], p["lon"], 0.0)
     if len(homes) != n:
         return Exercise(n, 0, 0, 0.0, 0.0, f"{len(homes)} of {n} vehicles have a position")
-    visits = [_add(base, token, {"type": "visit", "name": f"visit {i}",
-                                 "point": list(ned_to_geodetic(h, VISIT_N, 0.0, 0.0)[:2])})
+    visits = [tasking.add("visit", [ned_to_geodetic(h, VISIT_N, 0.0, 0.0)[:2]], f"visit {i}")[0]
               for i, h in homes.items()]
     deadline = time.monotonic() + timeout_s
     done: set[int] = set()
     last = time.monotonic()
     while len(done) < n and time.monotonic() < deadline:
-        rows = _tasks(base, token)
-        done = {i for i in visits if rows.get(i, {}).get("state") == "done"}
+        done = {t.id for t in tasking.tasks() if t.id in visits and t.state == "done"}
         if time.monotonic() - last > 5.0:
             log.info("visits done: %d of %d", len(done), n)
             last = time.monotonic()
@@ -87,8 +71,7 @@ def run(base: str, token: str, n: int, timeout_s: float, clock: Any) -> Exercise
     ends: dict[int, list[tuple[float, float, float]]] = {}
     for i, h in homes.items():
         pts = [ned_to_geodetic(h, north, 0.0, 0.0) for north in PATROL_N]
-        ends[_add(base, token, {"type": "patrol_line", "name": f"patrol {i}",
-                                "points": [list(p[:2]) for p in pts]})] = pts
+        ends[tasking.add("patrol_line", [p[:2] for p in pts], f"patrol {i}")[0]] = pts
     seen: dict[int, list[float]] = {t: [float("inf"), float("inf")] for t in ends}
     deadline = time.monotonic() + timeout_s
     flown: set[int] = set()
@@ -102,13 +85,13 @@ def run(base: str, token: str, n: int, timeout_s: float, clock: Any) -> Exercise
                 seen[int(t)][k] = min(seen[int(t)][k], (north * north + east * east) ** 0.5)
             if max(seen[int(t)]) <= END_M and int(t) not in flown:
                 flown.add(int(t))
-                http_json("DELETE", f"{base}/api/tasks/{int(t)}", token)
+                tasking.cancel(int(t))
         if time.monotonic() - last > 5.0:
             log.info("patrols flown: %d of %d", len(flown), n)
             last = time.monotonic()
         time.sleep(0.2)
     for t in set(ends) - flown:
-        http_json("DELETE", f"{base}/api/tasks/{t}", token)
+        tasking.cancel(t)
     wall = time.monotonic() - t0
     note = "" if len(done) == n and len(flown) == n else \
         f"not flown: visits {sorted(set(visits) - done)}, patrols {sorted(set(ends) - flown)}"

@@ -13,6 +13,7 @@ from __future__ import annotations
 import json
 import urllib.error
 import urllib.request
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, Protocol
 
@@ -105,7 +106,8 @@ class GroundTasking:
         self.base = base_url.rstrip("/") + "/api"
         self.token = token
 
-    def add(self, kind: str, points: list[GeoPoint], name: str) -> list[int]:
+    def add(self, kind: str, points: Sequence[Sequence[float]], name: str) -> list[int]:
+        """Each point [lat, lon, alt] or [lat, lon] (the task's default altitude), as ``POST /api/tasks``."""
         body: dict[str, Any] = {"type": kind, "name": name}
         if kind == "visit":
             body["point"] = list(points[0])

@@ -31,6 +31,8 @@ class Sticks:
     times a second of autopilot time (a transmitter's 12.5 Hz by default; ``hz`` * speedup of wall time)."""
 
     def __init__(self, ap: Autopilot, hz: float = 12.5) -> None:
+        if not ap.speedup > 0:
+            raise ValueError("Sticks: the autopilot must run at a speedup > 0 (the rate is on its clock)")
         self.conn = ap.gcs.conn
         self.period = 1.0 / (hz * ap.speedup)
         self.rc: tuple[int, int, int, int] | None = (1500, 1500, 1000, 1500)
