@@ -17,9 +17,10 @@ work only (13-28 us of CPU per 2 ms period with a ground station streaming at 10
 When behind (a loaded machine), periods run back to back until the fleet has caught up; more than
 ``max_lag_s`` behind, the fleet gives up the lost time (its clock's pacing moves, counted in
 ``slips``: :meth:`taskflight_common.clock.SimClock.pace`) instead of racing through it. ``speedup=0`` is
-lockstep: never waits. Two things a single vehicle's sleep hides are spread out: the vehicles'
-statistics flushes (staggered) and the collector's full passes over the vehicles' long-lived objects
-(``gc.freeze`` once they are built).
+lockstep: never waits. The vehicles' main loops run untimed (:meth:`~autopilot_model.scheduler.mainloop.
+MainLoop.set_timed`: their shared period's lateness is the fleet's measure, and the stamps were about a
+quarter of a vehicle's iteration); the collector's full passes over the vehicles' long-lived objects, which a
+single vehicle's sleep hides, are avoided (``gc.freeze`` once they are built).
 
 Vehicle ``i`` (from 0) is instance ``base_instance + i``: system id ``first_sysid + i`` (MAV_SYSID; 1..N
 by default, whatever the instance numbers: a ground station sees a fleet as 1..N), the endpoints of
@@ -142,7 +143,8 @@ class Fleet:
             raise ValueError(f"the vehicles' main loop periods differ ({sorted(periods)} us): one clock "
                              "needs one period")
         self.period_us = periods.pop()
-        self._stagger_flushes()
+        for s in self.vehicles:  # one shared period: the fleet measures its lateness (lateness_s)
+            s.vehicle.start().set_timed(False)
         self.rounds = 0
         """Main-loop periods run (every vehicle one iteration each)."""
         self.lateness_s: deque[float] = deque(maxlen=LATENESS_KEPT)
@@ -150,18 +152,6 @@ class Fleet:
         # the vehicles' ~3000 objects each live as long as the fleet: out of the collector's sight, a full
         # collection takes microseconds instead of ~40-80 ms (50 vehicles), which would be a late period
         gc.freeze()
-
-    def _stagger_flushes(self) -> None:
-        """Spread the vehicles' scheduler-statistics flushes over the flush interval.
-
-        Each main loop folds its timing stamps into its statistics every 1000 iterations (~0.5 ms, which
-        a single vehicle's sleep absorbs); vehicles started together would all flush in the same period,
-        25 ms for 50 vehicles, a late period every 2 s. Vehicle i's first flush moves by i/N of the
-        interval (the loop's own counter, :mod:`autopilot_model.scheduler.mainloop`)."""
-        n = len(self.vehicles)
-        for i, sitl in enumerate(self.vehicles):
-            loop = sitl.vehicle.start()
-            loop.stagger_flush(i, n)
 
     # --- reading -------------------------------------------------------------------------------------
     def __len__(self) -> int:

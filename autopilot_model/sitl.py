@@ -152,7 +152,10 @@ def add_autopilot_arguments(parser: argparse.ArgumentParser) -> None:
                         help="MAVLink 2 signing: 64 hex digits, or a passphrase (sha256, as MAVProxy)")
     parser.add_argument("--no-persist", action="store_true", help="do not load or save parameters")
     parser.add_argument("--duration", type=float, default=None, help="stop after this many simulated seconds")
-    parser.add_argument("--stats", action="store_true", help="print scheduler and MAVLink statistics at exit")
+    parser.add_argument("--stats", action="store_true",
+                        help="time the main loop's task groups and print the scheduler and MAVLink "
+                             "statistics at exit (without it the loop runs untimed: ~5 us less per 2 ms "
+                             "iteration)")
     parser.add_argument("--spin-us", type=float, default=0.0,
                         help="microseconds of each main-loop period spun before its deadline instead of "
                              "slept (default 0: sleep only, ~0.1 ms of wake-up jitter; 1000 holds a 500 Hz "
@@ -173,6 +176,7 @@ def run_autopilot(args: argparse.Namespace) -> int:
     except (ConfigError, ValueError, OSError) as exc:
         log.error("%s", exc)
         return 2
+    sitl.vehicle.start().set_timed(bool(args.stats))  # nobody reads the timing unless asked
     stop = stop_on_signals()
     urls = ", ".join(str(t.url) for t in sitl.endpoint.transports)
     log.info("autopilot instance %d (sysid %d) on %s, speedup %s", args.instance, sitl.endpoint.sysid,

@@ -36,7 +36,10 @@ companion follows; positions local NED metres, angles radians)::
   ``node`` the active TST node (the execution system's callable); ``extra`` whatever the ``extra``
   callable returned (left out when empty).
 * ``position``: the autopilot's own report, stamped by its ``time_boot_ms``, also while nothing is
-  streamed (the autopilot's take-off, LAND), so the actual path is complete.
+  streamed (the autopilot's take-off, LAND), so the actual path is complete; while the vehicle is disarmed
+  (its last HEARTBEAT) and not known to be in the air (EXTENDED_SYS_STATE), one a second at most
+  (``DISARMED_POSITION_EVERY_S``: it sits on the ground, and an idle fleet's companions wrote 20 records a
+  second each for nothing).
 * ``event``: written by :meth:`FlightRecorder.mark` for the execution system. Names used by the
   report: ``plan`` (``area_ne`` [[n, e], ...], ``waypoints_neu`` [[n, e, up], ...], ``nodes``
   [{"id", "type"}, ...]); ``node_started`` / ``node_finished`` / ``node_paused`` /
@@ -85,6 +88,8 @@ class FlightLogError(ValueError):
 DECIMALS = 4
 #: the longest setpoint and position records wait in memory before they are written (wall seconds)
 FLUSH_EVERY_S = 0.5
+#: while the vehicle is disarmed, a position record at most this often (autopilot seconds)
+DISARMED_POSITION_EVERY_S = 1.0
 #: the record types written in batches (the others are written at once, with those before them)
 _BATCHED = frozenset({"setpoint", "position"})
 #: the most that rounding to :data:`DECIMALS` can add to the horizontal norm of a difference of two logged
@@ -144,6 +149,7 @@ class FlightRecorder:
         self._flushed = time.monotonic()
         self._described: set[str] = set()
         self._callback_failed = False
+        self._disarmed_position_t: float | None = None
         self._write({"type": "header", "t": _r(node.clock.now()), "format": FORMAT, "version": VERSION,
                      "rate_hz": node.rate_hz})
         node.setpoint_listeners.append(self._on_setpoint)
@@ -253,9 +259,19 @@ class FlightRecorder:
         self._write(record)
 
     def _on_message(self, msg: Any) -> None:
-        if msg.get_type() == "LOCAL_POSITION_NED":
-            self._write({"type": "position", "t": _r(msg.time_boot_ms * 1e-3),
-                         "p": _vec((msg.x, msg.y, msg.z)), "v": _vec((msg.vx, msg.vy, msg.vz))})
+        if msg.get_type() != "LOCAL_POSITION_NED":
+            return
+        t = msg.time_boot_ms * 1e-3
+        s = self.node.link.mirror.snapshot()
+        if s.armed or s.landed is False:  # armed, or in the air before a HEARTBEAT says armed (5 Hz)
+            self._disarmed_position_t = None
+        else:
+            last = self._disarmed_position_t
+            if last is not None and 0.0 <= t - last < DISARMED_POSITION_EVERY_S:
+                return
+            self._disarmed_position_t = t
+        self._write({"type": "position", "t": _r(t),
+                     "p": _vec((msg.x, msg.y, msg.z)), "v": _vec((msg.vx, msg.vy, msg.vz))})
 
 
 def read_flight_log(path: str | Path) -> list[dict[str, Any]]:

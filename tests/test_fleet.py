@@ -130,8 +130,9 @@ def test_lockstep_fleet_in_process_advances_every_vehicle_together(tmp_path: Pat
         assert [s.endpoint.sysid for s in f.vehicles] == [1, 2]
         a, b = (s.link.telemetry for s in f.vehicles)
         assert a.unix0_us == b.unix0_us  # one SYSTEM_TIME base
-        # the two main loops fold their statistics in different periods (500 iterations apart)
-        assert [s.vehicle.loop._next_flush for s in f.vehicles] == [1000, 1500]
+        # the vehicles' main loops run untimed: the fleet measures its shared period's lateness
+        assert [s.vehicle.loop.stats.as_dict()["timed"] for s in f.vehicles] == [False, False]
+        assert all(not g.buf for s in f.vehicles for g in s.vehicle.loop.stats.groups.values())
         assert f.lateness_s == type(f.lateness_s)()  # lockstep: never paced
         assert f.run(0.001) == 0 and f.run(0.003) == 2
         with pytest.raises(ValueError, match="duration"):

@@ -224,6 +224,35 @@ def test_recorder_writes_commands_once_setpoints_positions_and_events(tmp_path: 
     assert records[7]["event"] == "break_in_start" and records[7]["t"] == 10.0
 
 
+def test_positions_while_disarmed_once_a_second_all_while_armed(tmp_path: Path) -> None:
+    node = _fake_node({})
+    armed = {"now": False, "landed": None}
+    node.link.mirror = SimpleNamespace(snapshot=lambda: SimpleNamespace(armed=armed["now"],
+                                                                         landed=armed["landed"]))
+    rec = FlightRecorder(node, tmp_path / "f.jsonl")
+    (on_msg,) = node.link.listeners
+
+    def lpn(ms: int) -> SimpleNamespace:
+        return SimpleNamespace(get_type=lambda: "LOCAL_POSITION_NED", time_boot_ms=ms, x=0.0, y=0.0, z=0.0,
+                               vx=0.0, vy=0.0, vz=0.0)
+
+    for ms in range(0, 3000, 50):        # 3 s on the ground at 20 Hz
+        on_msg(lpn(ms))
+    armed["now"] = True
+    for ms in range(3000, 4000, 50):     # 1 s armed: every one
+        on_msg(lpn(ms))
+    armed["now"] = False
+    for ms in range(4000, 4200, 50):     # disarmed again: the first at once
+        on_msg(lpn(ms))
+    armed["landed"] = False
+    for ms in range(4200, 4400, 50):     # in the air before a HEARTBEAT says armed: every one
+        on_msg(lpn(ms))
+    rec.close()
+    times = [r["t"] for r in read_flight_log(tmp_path / "f.jsonl") if r["type"] == "position"]
+    assert times == [0.0, 1.0, 2.0, *(t / 1000 for t in range(3000, 4000, 50)), 4.0,
+                     *(t / 1000 for t in range(4200, 4400, 50))]
+
+
 def test_recorder_is_thread_safe(tmp_path: Path) -> None:
     node = _fake_node({})
     rec = FlightRecorder(node, tmp_path / "f.jsonl", active_node=lambda: 1 / 0)  # a failing callable: logged

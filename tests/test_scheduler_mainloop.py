@@ -72,7 +72,8 @@ def expected_calls(i: int) -> list[str]:
     return out
 
 
-def test_order_prescalers_offsets_events_world_and_clock() -> None:
+@pytest.mark.parametrize("timed", [True, False])
+def test_order_prescalers_offsets_events_world_and_clock(timed: bool) -> None:
     cfg = parse_modules(LIBRARY)
     log: list[str] = []
     clock = SimClock(speedup=0)
@@ -86,6 +87,7 @@ def test_order_prescalers_offsets_events_world_and_clock() -> None:
     assert sch.modules == ("telem", "imu", "ahrs", "ins", "ctrl", "motors", "nav", "dl", "baro")
     assert sch.groups["estimation"] == ("ahrs", "ins")
     loop = MainLoop(sch, clock, world_step=world)
+    loop.set_timed(timed)  # untimed (a fleet's vehicle): the same calls in the same order
     loop.run_init()
     assert log == ["imu.init", "ahrs.init", "ctrl.init"]        # topological order
     for i in range(40):
@@ -95,6 +97,11 @@ def test_order_prescalers_offsets_events_world_and_clock() -> None:
         assert clock.now_us == (i + 1) * 10_000
     assert world_times == [i * 10_000 for i in range(40)]     # world steps before the clock advances
     assert loop.iteration == 40
+    stats = loop.stats.as_dict()
+    assert stats["timed"] is timed and stats["iterations"] == 40
+    calls = sum(1 for n in (*loop.stats.groups["sensors"].buf, *loop.stats.groups["world"].buf))
+    assert (calls > 0) is timed  # untimed: no stamp taken
+    assert ("not timed" in loop.stats.table()) is not timed
 
 
 def test_optimised_offsets_run_at_their_phase() -> None:
@@ -255,3 +262,15 @@ def test_stop_event_and_exception_note() -> None:
     with pytest.raises(RuntimeError, match="boom") as info:
         loop.run(duration_s=100.0)
     assert any("in main loop iteration 999" in note for note in info.value.__notes__)
+
+
+@pytest.mark.parametrize("stats", [True, False])
+def test_the_autopilot_times_its_loop_only_when_asked(stats: bool, capsys: pytest.CaptureFixture[str],
+                                                      tmp_path: Path) -> None:
+    from autopilot_model.sitl import main
+
+    argv = ["--speedup", "0", "--duration", "0.5", "--no-persist", "--state-dir", str(tmp_path),
+            "--mavlink", "udpin:127.0.0.1:0", *(["--stats"] if stats else [])]
+    assert main(argv) == 0
+    out = capsys.readouterr().out
+    assert ("sensors" in out and "overruns" in out) is stats  # the table of Sec. 5, only with --stats

@@ -89,6 +89,9 @@ class SchedulerStats:
         self.window_calls = window_calls
         self.groups: dict[str, GroupStats] = {g: GroupStats(g, max_windows) for g in STAT_GROUPS}
         self._iterations = iterations or (lambda: 0)
+        self.timed = True
+        """False when the main loop runs untimed (:meth:`~.mainloop.MainLoop.set_timed`): nothing here is
+        measured, and :meth:`as_dict` and :meth:`table` say so."""
         self.reset()
 
     # --- recording (called by the main loop) -------------------------------------------------------
@@ -199,6 +202,7 @@ class SchedulerStats:
             "worst_iteration": {"iteration": self.worst_iteration, "sim_time_s": self.worst_sim_us / 1e6,
                                 "duration_us": self.worst_ns / 1e3},
             "groups": {g: self.group_summary(g) for g in STAT_GROUPS},
+            "timed": self.timed,
         }
         if include_windows:
             for g in STAT_GROUPS:
@@ -208,6 +212,9 @@ class SchedulerStats:
     def table(self) -> str:
         """Printable text table (Table 2 plus duty time), one row per group, then the loop summary."""
         d = self.as_dict()
+        if not self.timed:
+            return (f"iterations {d['iterations']} ({d['sim_time_s']:.3f} s simulated); not timed (a fleet's "
+                    "vehicle: the fleet measures its shared period's lateness)")
         head = (f"{'group':<11} {'calls':>9} {'sim Hz':>9} {'wall Hz':>11} {'std Hz':>9} "
                 f"{'avg us':>8} {'min us':>8} {'max us':>9} {'windows':>7}")
         lines = [head, "-" * len(head)]

@@ -122,7 +122,8 @@ class ExecutiveLayer:
     def for_node(cls, node: QuadNode, **kw: Any) -> ExecutiveLayer:
         """The executive layer over a running companion node (its queue, clock and vehicle status)."""
         common = CommonBeliefUpdater(node.vehicle_status, node.clock.now, period_s=0.2)
-        return cls(node.queue, node.clock.now, lambda: node.vehicle_status().state,
+        # the camera looks at 20 Hz: the vehicle state alone, not the whole status built around it
+        return cls(node.queue, node.clock.now, node.vehicle_state,
                    updaters=[common], wall_until=node.clock.wall_until, ready=lambda: node.clock.synced, **kw)
 
     # --- lifecycle -------------------------------------------------------------------------------------

@@ -184,10 +184,16 @@ class ReferenceGenerator:
     # --- public ------------------------------------------------------------------------------------
     def initial(self, t_s: float, p: Vec3, v: Vec3, yaw: float) -> Reference:
         """A reference at a measured state (start, or after an override): velocity within limits."""
+        # plain floats, not numpy: an idle companion's queue calls this at every tick (the reference
+        # follows the vehicle), and numpy on 2-vectors costs ~10x the arithmetic
         L = self.limits
-        vh, _ = clamp_norm(np.array(v[:2], dtype=float), L.horizontal_speed)
-        vd = float(np.clip(v[2], -L.vertical_speed, L.vertical_speed))
-        return Reference(t_s, (float(p[0]), float(p[1]), float(p[2])), (float(vh[0]), float(vh[1]), vd),
+        vn, ve = float(v[0]), float(v[1])
+        speed = math.hypot(vn, ve)
+        if speed > L.horizontal_speed:
+            scale = L.horizontal_speed / speed
+            vn, ve = vn * scale, ve * scale
+        vd = min(max(float(v[2]), -L.vertical_speed), L.vertical_speed)
+        return Reference(t_s, (float(p[0]), float(p[1]), float(p[2])), (vn, ve, vd),
                          (0.0, 0.0, 0.0), float(yaw), 0.0, 0.0)
 
     def step(self, ref: Reference, targets: ChannelTargets, dt: float) -> StepResult:

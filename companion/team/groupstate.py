@@ -70,6 +70,8 @@ class MergeResult:
     joined: tuple[int, ...] = ()    #: members new to this state, back from gone, or rebooted
     ignored_own: int = 0            #: rows for this member sent by others (never taken)
     other_epoch: tuple[int, ...] = ()  #: members whose row of another epoch was refused (held one alive)
+    #: (the row held before or None, the row taken) for each replacement, in the packet's order
+    taken: tuple[tuple[MemberEntry | None, MemberEntry], ...] = ()
 
 
 class GroupState:
@@ -121,12 +123,13 @@ class GroupState:
         replaced = raised = ignored = 0
         joined: list[int] = []
         other: list[int] = []
+        taken: list[tuple[MemberEntry | None, MemberEntry]] = []
         with self._lock:
             for r in entries:
                 if r.member == self._own:
                     ignored += 1
                     continue
-                cur = self._rows.get(r.member)
+                held = cur = self._rows.get(r.member)
                 from_owner = sender is not None and r.member == sender
                 if cur is not None and r.epoch != cur.epoch:
                     if not self._stale(cur):
@@ -137,7 +140,8 @@ class GroupState:
                     voc = self.voc_max if from_owner else min(r.voc, self.voc_max)
                     if voc <= 0:
                         continue  # a relay's gone row tells nothing about the member being there
-                    self._rows[r.member] = dataclasses.replace(r, voc=voc)
+                    row = self._rows[r.member] = dataclasses.replace(r, voc=voc)
+                    taken.append((held, row))
                     replaced += 1
                     if cur is None or cur.voc == 0:
                         joined.append(r.member)
@@ -151,7 +155,7 @@ class GroupState:
                         self._rows[r.member] = dataclasses.replace(cur, voc=voc)
                         raised += 1
         return MergeResult(replaced=replaced, raised=raised, joined=tuple(joined), ignored_own=ignored,
-                           other_epoch=tuple(other))
+                           other_epoch=tuple(other), taken=tuple(taken))
 
     def _stale(self, row: MemberEntry) -> bool:
         """The row's owner has not been heard for ``stale_ticks`` sample intervals (or it is gone)."""

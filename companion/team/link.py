@@ -51,6 +51,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from companion.team.auth import FUTURE_WINDOW_S, ReplayGuard
+from companion.team.decode_once import decode_shared
 from companion.team.gossip import Gossip
 from companion.team.groupstate import GroupState
 from companion.team.transport import Transport
@@ -64,7 +65,6 @@ from companion.team.wire import (
     UnsignedError,
     UnverifiableError,
     WireError,
-    decode_packet,
     encode_packets,
 )
 
@@ -216,12 +216,9 @@ class TeamLink:
                 else:
                     rows.append(r)
             self.gossip.heard_rows(rows, pkt.sender)
-            before = {r.member: self.state.get(r.member) for r in rows}
             res = self.state.merge(rows, sender=pkt.sender)
-            for m, old in before.items():
-                row = self.state.get(m)
-                if row is not None and (old is None or (row.epoch, row.seq) != (old.epoch, old.seq)):
-                    self.gossip.taken(old, row, now, pkt.sender)
+            for old, row in res.taken:
+                self.gossip.taken(old, row, now, pkt.sender)
             self.stats.rows_replaced += res.replaced
             self.stats.vocs_raised += res.raised
             self.stats.other_epoch += len(res.other_epoch)
@@ -244,7 +241,7 @@ class TeamLink:
 
     def _decode(self, data: bytes) -> Packet | None:
         try:
-            return decode_packet(data, key=self.key)
+            return decode_shared(data, self.key)
         except ForeignVersionError:
             self.stats.foreign_version += 1
         except UnsignedError:
