@@ -26,7 +26,8 @@ Vehicle ``i`` (from 0) is instance ``base_instance + i``: system id ``first_sysi
 by default, whatever the instance numbers: a ground station sees a fleet as 1..N), the endpoints of
 a single Sitl of that instance (TCP 5760+10N for MAVProxy/QGroundControl, UDP 14550+10N listening), its
 parameters and missions in ``<state-dir>/instance<N>/``, and its home ``spacing_m`` metres east of
-the previous vehicle's (so vehicles do not sit on each other).
+the previous vehicle's, in rows of ten, each row ``spacing_m`` south of the previous (so vehicles do not
+sit on each other, and 50 stay within 45 m by 20 m: :func:`fleet_homes`).
 
     python -m autopilot_model.fleet --vehicles 12 [--speedup 1] [--base-instance 0] [--spacing 5]
 """
@@ -49,7 +50,7 @@ from autopilot_model.demo import add_model_arguments
 from autopilot_model.sitl import Sitl, default_urls, parse_home
 from taskflight_common.cliargs import join_signed_values
 from taskflight_common.clock import SimClock
-from taskflight_common.geo import ned_to_geodetic
+from taskflight_common.geo import home_offset, ned_to_geodetic
 from taskflight_common.ports import model_ports
 from taskflight_common.runtime import die_with_parent, setup_logging, stop_on_signals
 from taskflight_common.yamlio import ConfigError
@@ -62,8 +63,9 @@ LATENESS_KEPT = 60_000
 
 def fleet_homes(n: int, home: Sequence[float] | None = None, spacing_m: float = 5.0
                 ) -> list[tuple[float, ...]]:
-    """Homes of ``n`` vehicles: ``home`` (LAT, LON, ALT[, HDG]; default CMAC) and then every
-    ``spacing_m`` metres east of it (ArduPilot's flat-earth conversion, :mod:`taskflight_common.geo`)."""
+    """Homes of ``n`` vehicles: ``home`` (LAT, LON, ALT[, HDG]; default CMAC) and then every ``spacing_m``
+    metres east of it, in rows of ten, each row ``spacing_m`` south of the previous
+    (:func:`taskflight_common.geo.home_offset`; ArduPilot's flat-earth conversion)."""
     from autopilot_model.vehicle import DEFAULT_HOME  # start-up cost: the model imports numba
 
     base = tuple(float(x) for x in (home if home is not None else DEFAULT_HOME))
@@ -73,7 +75,8 @@ def fleet_homes(n: int, home: Sequence[float] | None = None, spacing_m: float = 
         raise ValueError(f"spacing must be >= 0 m, got {spacing_m}")
     out = []
     for i in range(n):
-        lat, lon, alt = ned_to_geodetic((base[0], base[1], base[2]), 0.0, spacing_m * i, 0.0)
+        north, east = home_offset(i, spacing_m)
+        lat, lon, alt = ned_to_geodetic((base[0], base[1], base[2]), north, east, 0.0)
         out.append((lat, lon, alt, *base[3:]))
     return out
 
@@ -266,7 +269,7 @@ def add_fleet_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--home", type=parse_home, default=None,
                         help="LAT,LON,ALT[,HEADING] of vehicle 0 (default: CMAC)")
     parser.add_argument("--spacing", type=float, default=5.0,
-                        help="metres east between two homes (default 5)")
+                        help="metres between two homes, east in rows of ten, rows south (default 5)")
     parser.add_argument("--mavlink-template", action="append", default=None, metavar="URL",
                         help="endpoint URL with {instance}, {sysid}, {tcp}, {udp} (repeatable; default "
                              "tcpin:0.0.0.0:{tcp} and udpin:0.0.0.0:{udp})")

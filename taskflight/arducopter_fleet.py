@@ -2,9 +2,9 @@
 lowest tier, the autopilot, as a user who flies ArduPilot has it).
 
 One ArduCopter SITL process per vehicle, as ArduPilot's own SITL swarms run: vehicle i (from 0) is
-``-I`` instance I+i and ``--sysid`` K+i, its home 5 i m east of the model's default home (CMAC), as
-:func:`autopilot_model.fleet.fleet_homes` spaces the model's fleet; ``--defaults`` is ArduPilot's
-``copter.parm`` (``../shared/ardupilot/copter.parm`` beside the project, or
+``-I`` instance I+i and ``--sysid`` K+i, its home east of the model's default home (CMAC) in rows of ten
+5 m apart, as :func:`autopilot_model.fleet.fleet_homes` spaces the model's fleet; ``--defaults`` is
+ArduPilot's ``copter.parm`` (``../shared/ardupilot/copter.parm`` beside the project, or
 ``$TASKFLIGHT_ARDUCOPTER_DEFAULTS``), ``-w`` wipes saved parameters, and each runs in a folder of its own,
 ``<state-dir>/arducopter/instance<N>/`` (it writes ``eeprom.bin`` and ``logs/`` there). Its ports
 (``../shared/ardupilot/README.md``): SERIAL0 sends UDP to its companion (``udpclient:``, the companion
@@ -30,14 +30,14 @@ from pathlib import Path
 from typing import Any
 
 from taskflight.children import Child
-from taskflight_common.geo import ned_to_geodetic
+from taskflight_common.geo import home_offset, ned_to_geodetic
 from taskflight_common.ports import port_free
 
 log = logging.getLogger(__name__)
 
 BINARY_ENV = "TASKFLIGHT_ARDUCOPTER"
 DEFAULTS_ENV = "TASKFLIGHT_ARDUCOPTER_DEFAULTS"
-#: the model's default home (CMAC) with its heading; vehicle i stands SPACING_M i metres east of it
+#: the model's default home (CMAC) with its heading; the vehicles stand in rows east of it (home())
 HOME = (-35.363261, 149.165230, 584.0, 353.0)
 SPACING_M = 5.0
 #: EKF_STATUS_REPORT flags (MAVLink EKF_STATUS_FLAGS)
@@ -72,8 +72,9 @@ def defaults_file(root: Path) -> Path:
 
 
 def home(i: int) -> str:
-    """Vehicle ``i``'s ``--home LAT,LON,ALT,HDG``: SPACING_M i metres east of HOME (as the model's fleet)."""
-    lat, lon, alt = ned_to_geodetic(HOME[:3], 0.0, SPACING_M * i, 0.0)
+    """Vehicle ``i``'s ``--home LAT,LON,ALT,HDG``: as the model's fleet, SPACING_M apart east of HOME in rows
+    of ten, rows SPACING_M south (:func:`taskflight_common.geo.home_offset`)."""
+    lat, lon, alt = ned_to_geodetic(HOME[:3], *home_offset(i, SPACING_M), 0.0)
     return f"{lat:.7f},{lon:.7f},{alt:g},{HOME[3]:g}"
 
 

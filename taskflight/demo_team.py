@@ -45,7 +45,7 @@ from taskflight.up import AUTOPILOTS, Up, UpError, UpOptions, ground_available, 
 from taskflight_common.geo import ned_to_geodetic
 
 MISSION = bundled("scan_and_search_outdoor.yaml")
-#: the fleet's home (the bundled model's default, CMAC); vehicle i stands 5 i m east of it
+#: the fleet's home (the bundled model's default, CMAC); vehicle i < 10 stands 5 i m east of it
 HOME = (-35.363261, 149.165230, 584.0)
 YAML = "application/yaml"
 

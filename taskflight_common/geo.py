@@ -25,6 +25,20 @@ def longitude_scale(lat_deg: float) -> float:
     return max(math.cos(math.radians(lat_deg)), 0.01)
 
 
+#: vehicles in one row of a simulated fleet's homes (the next row is one spacing south of it)
+HOMES_PER_ROW = 10
+
+
+def home_offset(i: int, spacing_m: float) -> tuple[float, float]:
+    """(north, east) metres of vehicle ``i``'s home (from 0) from vehicle 0's in a simulated fleet: every
+    ``spacing_m`` east, in rows of :data:`HOMES_PER_ROW`, each row ``spacing_m`` south of the previous
+    (the bundled model's fleet and ``taskflight up --autopilot arducopter`` alike). Rows keep a large fleet
+    inside a platform's operating area: 50 vehicles in one line at 5 m would reach 245 m east, outside the
+    bundled platforms' 200 m envelope, where none of their missions would be accepted."""
+    row, col = divmod(i, HOMES_PER_ROW)
+    return -spacing_m * row, spacing_m * col
+
+
 def ned_to_geodetic(origin: tuple[float, float, float], n: float, e: float, d: float
                     ) -> tuple[float, float, float]:
     """(lat deg, lon deg, alt m AMSL) of the NED offset (n, e, d) metres from ``origin`` (lat, lon, alt)."""

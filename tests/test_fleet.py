@@ -219,3 +219,15 @@ def test_command_line_refuses_bad_input_and_is_a_taskflight_command(
     args = build_parser().parse_args(["fleet", "--vehicles", "4", "--speedup", "2", "--spacing", "8"])
     assert (args.command, args.vehicles, args.speedup, args.spacing) == ("fleet", 4, 2.0, 8.0)
     assert args._handlers["fleet"].__name__ == "_cmd_fleet"
+
+
+def test_homes_in_rows_of_ten_inside_the_platform_envelope() -> None:
+    from autopilot_model.fleet import fleet_homes
+    from taskflight_common.geo import geodetic_to_ned
+
+    homes = fleet_homes(50, (-35.363261, 149.165230, 584.0), spacing_m=5.0)
+    ned = [geodetic_to_ned((-35.363261, 149.165230, 584.0), *h[:3]) for h in homes]
+    assert [(round(n, 3), round(e, 3)) for n, e, _ in ned[:12]] == [
+        *((0.0, 5.0 * c) for c in range(10)), (-5.0, 0.0), (-5.0, 5.0)]
+    assert len({(round(n, 1), round(e, 1)) for n, e, _ in ned}) == 50  # no two vehicles on one spot
+    assert all(-20.01 <= n <= 0.0 and 0.0 <= e <= 45.01 for n, e, _ in ned)  # inside +-200 m, with room

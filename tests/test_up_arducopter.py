@@ -32,6 +32,7 @@ from harness.timing import wait_for
 from harness.up import UpProcess, alive, child_env, processes_mentioning
 from taskflight import arducopter_fleet
 from taskflight.up import ground_available
+from taskflight_common.geo import home_offset
 from taskflight_common.ports import free_base, free_ports, port_free
 
 pytestmark = pytest.mark.integration
@@ -57,8 +58,9 @@ def free_arducopter_base(n: int) -> int:
 
 
 def local(point: tuple[float, float], index: int) -> tuple[float, float]:
-    """``point`` (north, east of the fleet's home) in vehicle ``index``'s own frame (its home 5 i m east)."""
-    return point[0], point[1] - arducopter_fleet.SPACING_M * index
+    """``point`` (north, east of the fleet's home) in vehicle ``index``'s own frame."""
+    north, east = home_offset(index, arducopter_fleet.SPACING_M)
+    return point[0] - north, point[1] - east
 
 
 def closest(track: list[tuple[float, float, float]], point: tuple[float, float]) -> float:

@@ -425,11 +425,16 @@ class TeamLink:
     # ------------------------------------------------------------------------------------- threading
 
     def start(self) -> None:
-        """Run the link in a daemon thread (receive with period/10 timeouts, broadcast every period)."""
+        """Run the link in a daemon thread: it broadcasts every period. A transport that pushes its datagrams
+        (:meth:`Transport.subscribe`: UDP, whose one receive thread per process serves all the process's
+        members) hands each to :meth:`handle` as it arrives and the thread only wakes to broadcast; from
+        any other the thread receives too, with period/10 timeouts."""
         if self._thread is not None:
             raise RuntimeError("TeamLink already started")
         self._stop.clear()
-        self._thread = threading.Thread(target=self._run, name=f"team-link-{self.own_id}", daemon=True)
+        pushed = self.transport.subscribe(self.handle)
+        self._thread = threading.Thread(target=self._run_pushed if pushed else self._run,
+                                        name=f"team-link-{self.own_id}", daemon=True)
         self._thread.start()
 
     def _run(self) -> None:
@@ -443,6 +448,19 @@ class TeamLink:
             except Exception:  # the link must outlive any single bad step
                 log.exception("member %d: team-link step failed", self.own_id)
                 self._stop.wait(timeout)
+
+    def _run_pushed(self) -> None:
+        while not self._stop.is_set():
+            try:
+                now = self.clock()
+                self.step(now)
+                with self._step_lock:
+                    last = self._last_send
+                wait = self.period_s if last is None else self.period_s - (self.clock() - last)
+            except Exception:  # the link must outlive any single bad step
+                log.exception("member %d: team-link step failed", self.own_id)
+                wait = self.period_s / 10.0
+            self._stop.wait(min(max(wait, 0.001), self.period_s))
 
     def close(self) -> None:
         """Stop the thread (if started) and close the transport."""

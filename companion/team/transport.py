@@ -2,7 +2,8 @@
 
 * :class:`UdpTransport`: UDP multicast (default group 239.255.70.1, TTL 1, loopback on so several
   members on one host hear each other, SO_REUSEADDR + SO_REUSEPORT so they share the port) or UDP
-  broadcast. A member hears its own packets once (the link drops them by sender id).
+  broadcast. A member hears its own packets once (the link drops them by sender id). The members of one
+  process share one socket and one receive thread per group (:mod:`companion.team.udp_shared`).
 * :class:`MemoryBus` / :class:`MemoryTransport`: many members in one process (the team simulator);
   delivery is immediate and in order, so a run stepped in simulated time is deterministic.
 * :class:`LossyTransport`: wraps another transport and drops a seeded fraction of the packets it
@@ -28,7 +29,6 @@ import ipaddress
 import logging
 import math
 import random
-import select
 import socket
 import struct
 import threading
@@ -37,12 +37,15 @@ from typing import ClassVar
 from urllib.parse import parse_qsl, urlsplit
 
 from companion.team.types import GeoPoint
+from companion.team.udp_shared import Key, SharedGroupSocket
 from companion.team.wire import peek_sender
 
 log = logging.getLogger(__name__)
 
 DEFAULT_GROUP = "239.255.70.1"
 DEFAULT_PORT = 14650
+#: datagrams a UdpTransport read with :meth:`~UdpTransport.recv` keeps before dropping the oldest
+PULL_QUEUE = 4096
 _EARTH_R = 6371008.8
 
 
@@ -65,6 +68,11 @@ class Transport(abc.ABC):
     @abc.abstractmethod
     def url(self) -> str:
         """The URL that opens this transport."""
+
+    def subscribe(self, callback: Callable[[bytes], None]) -> bool:
+        """Hand every datagram received from now on to ``callback`` (from a thread of the transport's)
+        instead of queueing it for :meth:`recv`; False (nothing changed) when this transport cannot."""
+        return False
 
 
 #: a public address toward which the default route is looked up (no packet is sent to it)
@@ -110,15 +118,22 @@ class UdpTransport(Transport):
             raise ValueError(f"UdpTransport: {group} is not a multicast group (use broadcast=True)")
         self.group, self.port, self.iface, self.broadcast, self.ttl = group, port, iface, broadcast, ttl
         self._closed = False
+        self._queue: collections.deque[bytes] = collections.deque(maxlen=PULL_QUEUE)
+        self._cond = threading.Condition()
+        self._pushed = False
         try:
-            self._sock = self._open()
+            self._shared = SharedGroupSocket.acquire(self._key(), self._open)
         except OSError as exc:
             if not defaulted or broadcast or iface == "127.0.0.1":
                 raise
             log.warning("team link %s:%d: the default route's interface %s refuses multicast (%s): loopback "
                         "instead, this host only (give ?iface=ADDR)", group, port, iface, exc)
             self.iface = "127.0.0.1"
-            self._sock = self._open()
+            self._shared = SharedGroupSocket.acquire(self._key(), self._open)
+        self._shared.subscribe(id(self), self._enqueue)
+
+    def _key(self) -> Key:
+        return (self.group, self.port, self.iface, self.broadcast, self.ttl)
 
     def _open(self) -> socket.socket:
         group, port, iface, broadcast, ttl = self.group, self.port, self.iface, self.broadcast, self.ttl
@@ -151,33 +166,35 @@ class UdpTransport(Transport):
     def send(self, data: bytes) -> None:
         if self._closed:
             raise OSError("UdpTransport closed")
-        self._sock.sendto(data, (self.group, self.port))
+        self._shared.send(data)
+
+    def _enqueue(self, data: bytes) -> None:
+        with self._cond:
+            self._queue.append(data)  # full: the oldest goes, as a full socket buffer drops
+            self._cond.notify()
+
+    def subscribe(self, callback: Callable[[bytes], None]) -> bool:
+        """Push mode: the process's receive thread for this group calls ``callback`` with each datagram
+        (:mod:`companion.team.udp_shared`); :meth:`recv` then only waits."""
+        if self._closed:
+            return False
+        self._pushed = True
+        self._shared.subscribe(id(self), callback)
+        return True
 
     def recv(self, timeout_s: float) -> bytes | None:
-        if self._closed:
-            return None
-        try:
-            return self._sock.recv(65536)
-        except BlockingIOError:
-            pass
-        except OSError as exc:
-            log.debug("team udp recv: %s", exc)
-            return None
-        if timeout_s <= 0:
-            return None
-        try:
-            ready, _, _ = select.select([self._sock], [], [], timeout_s)
-            return self._sock.recv(65536) if ready else None
-        except (BlockingIOError, ValueError):
-            return None
-        except OSError as exc:
-            log.debug("team udp recv: %s", exc)
-            return None
+        with self._cond:
+            if not self._queue and timeout_s > 0 and not self._closed:
+                self._cond.wait(timeout_s)  # pushed: nothing is queued, this only waits
+            return self._queue.popleft() if self._queue else None
 
     def close(self) -> None:
         if not self._closed:
             self._closed = True
-            self._sock.close()
+            self._shared.unsubscribe(id(self))
+            self._shared.release()
+            with self._cond:
+                self._cond.notify_all()
 
 
 class MemoryBus:
@@ -310,6 +327,17 @@ class LossyTransport(Transport):
         a, b = self.position_of(sender), self.position_of(self.member)
         return a is not None and b is not None and distance_m(a, b) > self.range_m
 
+    def _keep(self, data: bytes) -> bool:
+        """Does this receiver hear ``data`` (counted either way)?"""
+        if self._out_of_range(data):
+            self.dropped_range += 1
+            return False
+        if self.loss > 0 and self._rng.random() < self.loss:
+            self.dropped_loss += 1
+            return False
+        self.passed += 1
+        return True
+
     def recv(self, timeout_s: float) -> bytes | None:
         wait = timeout_s
         while True:
@@ -317,14 +345,11 @@ class LossyTransport(Transport):
             if data is None:
                 return None
             wait = 0.0  # a dropped packet does not restart the wait
-            if self._out_of_range(data):
-                self.dropped_range += 1
-                continue
-            if self.loss > 0 and self._rng.random() < self.loss:
-                self.dropped_loss += 1
-                continue
-            self.passed += 1
-            return data
+            if self._keep(data):
+                return data
+
+    def subscribe(self, callback: Callable[[bytes], None]) -> bool:
+        return self.inner.subscribe(lambda data: callback(data) if self._keep(data) else None)
 
     def close(self) -> None:
         self.inner.close()
