@@ -214,7 +214,7 @@ class SchedulerStats:
         d = self.as_dict()
         if not self.timed:
             return (f"iterations {d['iterations']} ({d['sim_time_s']:.3f} s simulated); not timed (a fleet's "
-                    "vehicle: the fleet measures its shared period's lateness)")
+                    "vehicle, or a model run without --stats: MainLoop.set_timed)")
         head = (f"{'group':<11} {'calls':>9} {'sim Hz':>9} {'wall Hz':>11} {'std Hz':>9} "
                 f"{'avg us':>8} {'min us':>8} {'max us':>9} {'windows':>7}")
         lines = [head, "-" * len(head)]

@@ -65,13 +65,17 @@ def new_epoch() -> int:
 class MergeResult:
     """What one :meth:`GroupState.merge` changed."""
 
-    replaced: int = 0               #: rows replaced by newer ones (or new rows)
     raised: int = 0                 #: vocs raised without a newer row (owner heard, or a higher report)
     joined: tuple[int, ...] = ()    #: members new to this state, back from gone, or rebooted
     ignored_own: int = 0            #: rows for this member sent by others (never taken)
     other_epoch: tuple[int, ...] = ()  #: members whose row of another epoch was refused (held one alive)
     #: (the row held before or None, the row taken) for each replacement, in the packet's order
     taken: tuple[tuple[MemberEntry | None, MemberEntry], ...] = ()
+
+    @property
+    def replaced(self) -> int:
+        """Rows replaced by newer ones (or new rows)."""
+        return len(self.taken)
 
 
 class GroupState:
@@ -120,7 +124,7 @@ class GroupState:
 
     def merge(self, entries: Iterable[MemberEntry], *, sender: int | None = None) -> MergeResult:
         """Take the rows of a packet from ``sender`` (None: unknown) by the voc rules (module doc)."""
-        replaced = raised = ignored = 0
+        raised = ignored = 0
         joined: list[int] = []
         other: list[int] = []
         taken: list[tuple[MemberEntry | None, MemberEntry]] = []
@@ -142,7 +146,6 @@ class GroupState:
                         continue  # a relay's gone row tells nothing about the member being there
                     row = self._rows[r.member] = dataclasses.replace(r, voc=voc)
                     taken.append((held, row))
-                    replaced += 1
                     if cur is None or cur.voc == 0:
                         joined.append(r.member)
                     if from_owner:
@@ -154,7 +157,7 @@ class GroupState:
                     if voc > cur.voc:
                         self._rows[r.member] = dataclasses.replace(cur, voc=voc)
                         raised += 1
-        return MergeResult(replaced=replaced, raised=raised, joined=tuple(joined), ignored_own=ignored,
+        return MergeResult(raised=raised, joined=tuple(joined), ignored_own=ignored,
                            other_epoch=tuple(other), taken=tuple(taken))
 
     def _stale(self, row: MemberEntry) -> bool:

@@ -120,7 +120,6 @@ class UdpTransport(Transport):
         self._closed = False
         self._queue: collections.deque[bytes] = collections.deque(maxlen=PULL_QUEUE)
         self._cond = threading.Condition()
-        self._pushed = False
         try:
             self._shared = SharedGroupSocket.acquire(self._key(), self._open)
         except OSError as exc:
@@ -178,7 +177,6 @@ class UdpTransport(Transport):
         (:mod:`companion.team.udp_shared`); :meth:`recv` then only waits."""
         if self._closed:
             return False
-        self._pushed = True
         self._shared.subscribe(id(self), callback)
         return True
 
