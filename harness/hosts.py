@@ -143,7 +143,7 @@ class HostsRig:
                     self.sample_errors.append(repr(exc))
                     continue
                 self.samples.append((time.monotonic(), {
-                    v["id"]: {"team_state": v["team_state"],
+                    v["id"]: {"team_state": v["team_state"], "age_s": v["age_s"],
                               "claims": [c["task"] for c in v["claims"] if c["state"] != "done"],
                               "raw": [(c["task"], c["version"], c["state"]) for c in v["claims"]]}
                     for v in vs}))
@@ -161,11 +161,20 @@ class HostsRig:
         self.lan.close()
 
 
+#: a vehicle the ground last heard longer ago than this is shown "stale" on the operator's page
+#: (``linkOf`` in groundstation/static/js/lists.js): its claims are what it said then, not what it holds now
+LIVE_S = 2.0
+
+
 def held_twice(sample: dict[int, dict[str, Any]]) -> dict[int, list[int]]:
-    """Tasks claimed (not done) by two or more vehicles the ground service hears (not gone)."""
+    """Tasks claimed (not done) by two or more vehicles the ground service hears: not gone, and heard within
+    :data:`LIVE_S` (a vehicle cut off keeps its last row at the ground until its voc runs out, 5 s of the
+    ground's clock, while the other side, following a faster autopilot clock, may already have taken its
+    task over)."""
     holders: dict[int, list[int]] = {}
     for vid, v in sample.items():
-        if v["team_state"] in ("available", "taken"):
+        age = v.get("age_s")
+        if v["team_state"] in ("available", "taken") and age is not None and age <= LIVE_S:
             for t in v["claims"]:
                 holders.setdefault(t, []).append(vid)
     return {t: h for t, h in holders.items() if len(h) > 1}

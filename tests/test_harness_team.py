@@ -8,6 +8,7 @@ from typing import Any
 
 import pytest
 
+from harness.hosts import held_twice
 from harness.team import ClaimSampler
 
 
@@ -44,3 +45,13 @@ def test_a_double_claim_seen_once_passes() -> None:
 def test_no_sample_fails() -> None:
     with pytest.raises(AssertionError, match="no claims sampled"):
         ClaimSampler(Script([[[]]])).assert_no_task_held_twice()  # type: ignore[arg-type]
+
+
+def test_the_ground_view_counts_only_vehicles_it_hears() -> None:
+    def v(state: str, age: float | None, *claims: int) -> dict[str, Any]:
+        return {"team_state": state, "age_s": age, "claims": list(claims)}
+    assert held_twice({1: v("available", 0.3, 7), 2: v("taken", 1.9, 7, 8), 3: v("available", 0.1, 8)}) \
+        == {7: [1, 2], 8: [2, 3]}
+    # gone, never heard, or not heard for longer than the operator's page calls live: its claims are history
+    assert held_twice({1: v("available", 0.3, 7), 2: v("gone", 0.2, 7), 3: v("available", None, 7),
+                       4: v("taken", 2.5, 7)}) == {}
