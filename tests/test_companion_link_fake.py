@@ -7,6 +7,7 @@ loopback UDP; the link only sends from ``periodic()``, which these tests call ev
 
 from __future__ import annotations
 
+import socket
 from collections.abc import Callable, Iterator
 from itertools import pairwise
 from typing import Any
@@ -148,3 +149,38 @@ def test_unacknowledged_command_is_retried_then_times_out(connect: Any) -> None:
         t_end = link.clock.now() + 1.5 * timeout_s  # and no fourth attempt
         pump(link, lambda: link.clock.now() > t_end, 10.0, "another timeout of autopilot time")
         assert len(fake.commands(M.MAV_CMD_DO_SET_MODE)) == 3
+
+
+def test_a_malformed_datagram_is_counted_and_two_messages_in_one_datagram_both_arrive(connect: Any) -> None:
+    """The UDP receive parses each datagram whole: garbage is counted as bad data and changes nothing,
+    every message of a datagram that carries several reaches the mirror, and the link keeps listening."""
+    ap = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    ap.bind(("127.0.0.1", 0))
+    ap.settimeout(0.05)
+    link = MavlinkLink(f"udpout:127.0.0.1:{ap.getsockname()[1]}", rate_hz=RATE_HZ)
+    link.start()
+    try:
+        def heard() -> Any:  # the link's first heartbeat: where it listens
+            try:
+                return ap.recvfrom(2048)[1]
+            except TimeoutError:
+                return None
+        to = pump(link, heard, 10.0, "the companion's heartbeat")
+        mav = M.MAVLink(None, srcSystem=1, srcComponent=1)
+        hb = mav.heartbeat_encode(M.MAV_TYPE_QUADROTOR, M.MAV_AUTOPILOT_ARDUPILOTMEGA,
+                                  M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, GUIDED, M.MAV_STATE_STANDBY,
+                                  3).pack(mav)
+        pos = mav.local_position_ned_encode(1000, 1.5, -2.5, -3.0, 0.0, 0.0, 0.0).pack(mav)
+        # a MAVLink 2 start, a length and junk past the frame's end (no partial frame left waiting)
+        ap.sendto(b"\xfd\x09" + b"garbage, not MAVLink at all" * 2, to)
+        pump(link, lambda: link.stats["rx_bad"] >= 1, 10.0, "the garbage counted as bad data")
+        assert link.target_system is None and link.mirror.snapshot().position is None  # nothing changed
+        ap.sendto(hb + pos, to)
+        pump(link, lambda: link.mirror.snapshot().position is not None, 10.0,
+             lambda: f"both messages of one datagram: {link.stats}, {link.mirror.snapshot()}")
+        assert link.target_system == 1 and link.connected
+        assert tuple(link.mirror.snapshot().position)[:3] == pytest.approx((1.5, -2.5, -3.0))
+        assert link.stats["rx"] == 2 and link.stats["rx_handler_error"] == 0
+    finally:
+        link.close()
+        ap.close()

@@ -301,3 +301,45 @@ def test_only_the_configured_gcs_system_counts_for_the_gcs_failsafe(setup: Any) 
     gcs.raw(beat.pack(other))
     v.step(20)
     assert ep.last_gcs_heartbeat_s is not None
+
+
+def test_a_telemetry_ticks_packets_go_gathered_in_order_and_no_datagram_passes_1400_bytes(setup: Any) -> None:
+    """What one telemetry call sends to a link is written at its end, several packets to a datagram (as
+    ArduPilot's serial drivers write their buffer), in sequence, split before 1,400 bytes; a command's ACK
+    sent while a poll dispatches still arrives."""
+    v, proto, gcs = setup
+    ep = proto.endpoint
+    _hello(v, gcs)
+    assert gcs.command(v, mavlink2.MAV_CMD_SET_MESSAGE_INTERVAL, mavlink2.MAVLINK_MSG_ID_SYSTEM_TIME,
+                       20000).result == ACCEPTED
+    texts = [f"burst {i:02d}: " + "x" * 40 for i in range(30)]  # ~2 kB of STATUSTEXT in one call
+    burst = [True]
+
+    def once() -> None:
+        if burst.pop() if burst else False:
+            for t in texts:
+                ep.statustext(6, t)
+    ep.periodic.append(once)
+    while True:  # what came before
+        try:
+            gcs.sock.recv(4096)
+        except BlockingIOError:
+            break
+    datagrams: list[list[Any]] = []
+    for _ in range(100):
+        v.step(10)  # one telemetry call each
+        while True:
+            try:
+                data = gcs.sock.recv(65535)
+            except BlockingIOError:
+                break
+            assert len(data) <= 1400, len(data)
+            datagrams.append([m for m in gcs.rx.parse_buffer(data) or [] if m.get_type() != "BAD_DATA"])
+    msgs = [m for d in datagrams for m in d]
+    got = [m.text for m in msgs if m.get_type() == "STATUSTEXT"]
+    assert got == texts  # every one, in order
+    seqs = [m.get_seq() for m in msgs]
+    assert all((b - a) % 256 == 1 for a, b in zip(seqs, seqs[1:], strict=False)), seqs  # none lost between
+    assert any(len(d) > 1 for d in datagrams)
+    assert sum(1 for m in msgs if m.get_type() == "SYSTEM_TIME") >= 90
+    assert ep.stats["tx_dropped"] == 0

@@ -45,6 +45,9 @@ Handler = Callable[[Any, Peer], None]
 
 #: Wall-time budget for reading sockets in one poll (a flood must not stall the 500 Hz loop).
 POLL_BUDGET_S = 0.0006
+#: The largest datagram (or TCP write) the endpoint gathers packets into: under an Ethernet MTU's UDP
+#: payload (1472 bytes), so a gathered datagram is never fragmented.
+GATHER_MAX_BYTES = 1400
 STATUSTEXT_LEN = 50
 
 MAV_TYPE_GCS = mavlink2.MAV_TYPE_GCS
@@ -92,6 +95,7 @@ class MavlinkEndpoint:
         """Called, in order, by :meth:`telemetry` (the telemetry task group)."""
         self.last_gcs_heartbeat_s: float | None = None
         self._statustext_id = 0
+        self._outbox: dict[Peer, list[bytes]] | None = None  # packets gathered per link (see send)
         self.poller = Poller()
         self._epoll = self.poller.epoll_poll
         self.transports: list[Transport] = []
@@ -139,8 +143,14 @@ class MavlinkEndpoint:
 
     # --- sending -------------------------------------------------------------------------------
     def send(self, msg: Any, link: Peer | None = None) -> None:
-        """Send one message on ``link`` (None: on every link). Encoded with each link's sequence."""
+        """Send one message on ``link`` (None: on every link). Encoded with each link's sequence.
+
+        Inside :meth:`poll` and :meth:`telemetry` the packets are gathered per link and written when the
+        function ends, several to a datagram (at most :data:`GATHER_MAX_BYTES`), as ArduPilot's serial
+        drivers write their buffer: a telemetry tick's streams and a burst of replies cost the link one
+        write and the receiver one wake-up, not one per message. Elsewhere a packet goes at once."""
         targets = [link] if link is not None else self.peers()
+        out = self._outbox
         for peer in targets:
             if peer is None or peer.closed:
                 continue
@@ -152,8 +162,38 @@ class MavlinkEndpoint:
                 log.warning("cannot encode %s: %s", msg.get_type(), exc)
                 return
             st.mav.seq = (st.mav.seq + 1) & 0xFF
-            if peer.send_bytes(data):
+            if out is not None:
+                out.setdefault(peer, []).append(data)
+            elif peer.send_bytes(data):
                 self.stats["tx"] += 1
+
+    def _gather(self) -> bool:
+        """Start gathering outgoing packets; False when already gathering (the outer call writes)."""
+        if self._outbox is not None:
+            return False
+        self._outbox = {}
+        return True
+
+    def _write_gathered(self) -> None:
+        """Write what was gathered: each link's packets in order, joined up to :data:`GATHER_MAX_BYTES`."""
+        out, self._outbox = self._outbox, None
+        for peer, packets in (out or {}).items():
+            chunk: list[bytes] = []
+            size = 0
+            for data in packets:
+                if chunk and size + len(data) > GATHER_MAX_BYTES:
+                    self._write(peer, chunk)
+                    chunk, size = [], 0
+                chunk.append(data)
+                size += len(data)
+            self._write(peer, chunk)
+
+    def _write(self, peer: Peer, packets: list[bytes]) -> None:
+        """One write of ``packets`` on ``peer``; ``tx`` / ``tx_dropped`` count messages, not writes."""
+        if peer.send_bytes(packets[0] if len(packets) == 1 else b"".join(packets)):
+            self.stats["tx"] += len(packets)
+        else:
+            self.stats["tx_dropped"] += len(packets) - 1  # the transport counted the write once
 
     def statustext(self, severity: int, text: str, link: Peer | None = None) -> None:
         """Send a STATUSTEXT (long texts are split in 50-character chunks sharing one id)."""
@@ -172,7 +212,12 @@ class MavlinkEndpoint:
         """Event function: read and handle whatever arrived. One ``epoll`` call when nothing did."""
         events = self._epoll(0)
         if events:
-            self.poller.dispatch(events, self._on_data, POLL_BUDGET_S)
+            outer = self._gather()
+            try:
+                self.poller.dispatch(events, self._on_data, POLL_BUDGET_S)
+            finally:
+                if outer:
+                    self._write_gathered()
 
     def _on_data(self, peer: Peer, data: bytes) -> None:
         parser = peer.parser
@@ -223,9 +268,15 @@ class MavlinkEndpoint:
 
     # --- telemetry (periodic) ------------------------------------------------------------------
     def telemetry(self) -> None:
-        """Periodic function (telemetry group): every function of :attr:`periodic`, in order."""
-        for fn in self.periodic:
-            fn()
+        """Periodic function (telemetry group): every function of :attr:`periodic`, in order; what they
+        send is written at the end, gathered per link (see :meth:`send`)."""
+        outer = self._gather()
+        try:
+            for fn in self.periodic:
+                fn()
+        finally:
+            if outer:
+                self._write_gathered()
 
     def close(self) -> None:
         for t in self.transports:
