@@ -11,7 +11,9 @@ not apply right now, e.g. no active position target). The builders for the vehic
 :mod:`.telemetry`; other pieces add theirs with :meth:`StreamScheduler.add_builder`.
 
 The scheduler runs in the telemetry task group (seed 002); per call it only compares the current
-time with the earliest due time of each link unless something is due, so the idle cost is tiny.
+time with the earliest due time of each link unless something is due, so the idle cost is tiny. A stream
+goes out at once when its rate is set, then on the multiples of its interval in simulated time, so streams
+of commensurate rates leave together.
 """
 
 from __future__ import annotations
@@ -165,9 +167,10 @@ class StreamScheduler:
             for name, due in list(st.next_due_us.items()):
                 if now >= due:
                     interval = st.intervals_us[name]
-                    due += interval
-                    if due <= now:  # fell behind (e.g. a slow call): do not send a burst
-                        due = now + interval
+                    # the next multiple of the interval in simulated time (never a burst after a slow call):
+                    # streams of commensurate rates (20, 10, 5, 2, 1 Hz) fall due in the same telemetry call
+                    # and leave in one datagram (the endpoint gathers a call's packets per link)
+                    due = now - now % interval + interval
                     st.next_due_us[name] = due
                     msg = built.get(name)
                     if msg is None:
