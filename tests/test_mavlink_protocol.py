@@ -344,3 +344,19 @@ def test_a_telemetry_ticks_packets_go_gathered_in_order_and_no_datagram_passes_1
     assert any(len(d) > 1 for d in datagrams)
     assert sum(1 for m in msgs if m.get_type() == "SYSTEM_TIME") >= 90
     assert ep.stats["tx_dropped"] == 0
+
+
+def test_a_write_that_fails_counts_each_message_it_carried_as_dropped(setup: Any) -> None:
+    v, proto, gcs = setup
+    ep = proto.endpoint
+    _hello(v, gcs)
+    (peer,) = ep.peers()
+    peer._sender = lambda data: False  # the socket refuses every write (full, or the peer gone)
+    tx, dropped = ep.stats["tx"], ep.stats["tx_dropped"]
+    ep.periodic.append(lambda: [ep.statustext(6, f"lost {i}") for i in range(3)])
+    ep.telemetry()  # one gathered write of at least the three texts
+    assert ep.stats["tx"] == tx and ep.stats["tx_dropped"] - dropped >= 3
+    ep.periodic.pop()
+    before = ep.stats["tx_dropped"]
+    ep.statustext(6, "outside a telemetry call: one write")
+    assert ep.stats["tx_dropped"] == before + 1

@@ -164,8 +164,8 @@ class MavlinkEndpoint:
             st.mav.seq = (st.mav.seq + 1) & 0xFF
             if out is not None:
                 out.setdefault(peer, []).append(data)
-            elif peer.send_bytes(data):
-                self.stats["tx"] += 1
+            else:
+                self._write(peer, [data])
 
     def _gather(self) -> bool:
         """Start gathering outgoing packets; False when already gathering (the outer call writes)."""
@@ -193,7 +193,7 @@ class MavlinkEndpoint:
         if peer.send_bytes(packets[0] if len(packets) == 1 else b"".join(packets)):
             self.stats["tx"] += len(packets)
         else:
-            self.stats["tx_dropped"] += len(packets) - 1  # the transport counted the write once
+            self.stats["tx_dropped"] += len(packets)
 
     def statustext(self, severity: int, text: str, link: Peer | None = None) -> None:
         """Send a STATUSTEXT (long texts are split in 50-character chunks sharing one id)."""

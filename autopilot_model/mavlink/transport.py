@@ -79,7 +79,8 @@ class Peer:
         self.closed = False
 
     def send_bytes(self, data: bytes) -> bool:
-        """Send one packet; False when it had to be dropped (socket full or gone)."""
+        """Send one write (one or more packets); False when it had to be dropped (socket full or gone: the
+        endpoint counts the messages in ``tx_dropped``; a full socket or TCP buffer is also ``tx_full``)."""
         if self.closed:
             return False
         return self._sender(data)
@@ -140,13 +141,12 @@ class _UdpBase(Transport):
                 sock.sendto(data, addr)
                 return True
             except (BlockingIOError, InterruptedError):
-                stats["tx_dropped"] += 1
+                stats["tx_full"] += 1
                 return False
             except OSError as exc:  # e.g. ECONNREFUSED reported for an earlier datagram
                 if exc.errno not in (errno.ECONNREFUSED, errno.ENOBUFS, errno.EHOSTUNREACH,
                                      errno.ENETUNREACH):
                     log.debug("udp send to %s failed: %s", addr, exc)
-                stats["tx_dropped"] += 1
                 return False
         return send
 
@@ -232,7 +232,7 @@ class _TcpClient:
             self.flush()
         if self.pending:
             if len(self.pending) + len(data) > TCP_SEND_BUFFER_LIMIT:
-                self.stats["tx_dropped"] += 1
+                self.stats["tx_full"] += 1
                 return False
             self.pending += data
             return True
