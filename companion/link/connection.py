@@ -157,13 +157,10 @@ class MavlinkLink:
 
     # --- receiving (the receive thread owns the mirror) --------------------------------------------------
     def _receive_loop(self) -> None:
-        if isinstance(self._conn, mavutil.mavudp):
-            self._receive_datagrams()
-            return
-        conn = self._conn
+        read = self._read_datagram if isinstance(self._conn, mavutil.mavudp) else self._read_message
         while not self._stop.is_set():
             try:
-                msg = conn.recv_match(blocking=True, timeout=0.1)
+                msgs = read()
             except (OSError, ValueError) as exc:
                 if self._stop.is_set():
                     return
@@ -171,41 +168,28 @@ class MavlinkLink:
                 log.debug("receive error: %s", exc)
                 self._stop.wait(0.05)
                 continue
-            if msg is None:
-                continue
-            try:
-                self._handle(msg)
-            except Exception:  # one bad message never stops the link
-                self.stats["rx_handler_error"] += 1
-                log.exception("handling %s failed", msg.get_type())
-
-    def _receive_datagrams(self) -> None:
-        """The UDP forms: one datagram read by pymavlink's own ``recv`` (which records the sender a
-        ``udpin:`` link answers), parsed whole by ``parse_buffer``. ``recv_match`` would do the same with
-        two reads, a select and its per-message bookkeeping (sequence loss, per-system tables) for each
-        message: about 40 % of the receive thread's time at the 78 messages a second asked for."""
-        conn = self._conn
-        sock, mav = conn.port, conn.mav
-        while not self._stop.is_set():
-            try:
-                ready, _, _ = select.select([sock], [], [], 0.1)
-                if not ready:
-                    continue
-                data = conn.recv()
-                msgs = mav.parse_buffer(data) if data else None
-            except (OSError, ValueError) as exc:
-                if self._stop.is_set():
-                    return
-                self.stats["rx_error"] += 1
-                log.debug("receive error: %s", exc)
-                self._stop.wait(0.05)
-                continue
-            for msg in msgs or ():
+            for msg in msgs:
                 try:
                     self._handle(msg)
                 except Exception:  # one bad message never stops the link
                     self.stats["rx_handler_error"] += 1
                     log.exception("handling %s failed", msg.get_type())
+
+    def _read_message(self) -> list[Any]:
+        """TCP and serial: the next message (a byte stream), or none within 0.1 s."""
+        msg = self._conn.recv_match(blocking=True, timeout=0.1)
+        return [] if msg is None else [msg]
+
+    def _read_datagram(self) -> list[Any]:
+        """The UDP forms: one datagram read by pymavlink's own ``recv`` (which records the sender a
+        ``udpin:`` link answers) and parsed whole by ``parse_buffer``, or none within 0.1 s. ``recv_match``
+        would do the same with two reads, a select and its per-message bookkeeping (sequence loss,
+        per-system tables) for each message, and an autopilot sends several messages to a datagram."""
+        conn = self._conn
+        if not select.select([conn.port], [], [], 0.1)[0]:
+            return []
+        data = conn.recv()
+        return (conn.mav.parse_buffer(data) or []) if data else []
 
     def _handle(self, msg: Any) -> None:
         t = msg.get_type()
