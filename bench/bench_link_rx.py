@@ -2,7 +2,7 @@
 
 Two measurements, a table each:
 
-1. **Stream**: the model (``python -m autopilot_model.sitl``, real time) and one companion
+1. **Stream**: the model (:class:`harness.model.SitlProcess`, real time) and one companion
    :class:`~companion.link.connection.MavlinkLink` on ``udpout:``, which asks for its stream plan; over
    ``--window`` wall seconds, messages and datagrams a second (the model gathers what one telemetry call
    sends to a link into one datagram, as ArduPilot's serial drivers write their buffer).
@@ -14,19 +14,18 @@ Two measurements, a table each:
 from __future__ import annotations
 
 import argparse
-import os
 import socket
 import statistics
-import subprocess
 import sys
 import tempfile
 import threading
 import time
+from pathlib import Path
 from typing import Any
 
 from bench.common import machine, table
 from companion.link.connection import M, MavlinkLink
-from harness import ROOT
+from harness.model import SitlProcess
 from harness.timing import wait_for
 from taskflight_common.ports import free_ports
 
@@ -40,17 +39,11 @@ def _rx_cpu_s() -> float:
 def stream(window_s: float) -> tuple[float, float, str]:
     """(messages/s, datagrams/s, stream mode) the model sends one companion link."""
     port = free_ports(1, socket.SOCK_DGRAM)[0]
-    env = dict(os.environ, PYTHONPATH=str(ROOT))
-    proc = subprocess.Popen([sys.executable, "-m", "autopilot_model.sitl",
-                             "--mavlink", f"udpin:127.0.0.1:{port}",
-                             "--state-dir", tempfile.mkdtemp(prefix="tf_rx_"), "--no-persist"],
-                            cwd=ROOT, env=env, stdout=subprocess.PIPE, text=True)
+    model = SitlProcess([f"udpin:127.0.0.1:{port}"], Path(tempfile.mkdtemp(prefix="tf_rx_")), speedup=1.0,
+                        extra=["--no-persist"])  # started: READY
     link = MavlinkLink(f"udpout:127.0.0.1:{port}")
     datagrams = [0]
     try:
-        assert proc.stdout is not None
-        while not proc.stdout.readline().startswith("READY"):
-            pass
         link.start()
         recv = link._conn.recv
 
@@ -74,8 +67,7 @@ def stream(window_s: float) -> tuple[float, float, str]:
         return (link.stats["rx"] - m0) / dt, (datagrams[0] - d0) / dt, link.streams_mode
     finally:
         link.close()
-        proc.terminate()
-        proc.wait(10)
+        model.stop()
 
 
 def receive_cost(per_datagram: int, count: int) -> float:
